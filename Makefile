@@ -1,0 +1,28 @@
+# Everything a fresh machine needs: `make demo` and `make test` create .venv when missing.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+
+.PHONY: demo test lint bench clean
+
+$(BIN)/ehm: pyproject.toml
+	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(BIN)/ehm
+
+demo: $(BIN)/ehm
+	$(BIN)/ehm demo
+
+test: $(BIN)/ehm
+	$(BIN)/python -m pytest -q
+
+lint: $(BIN)/ehm
+	$(BIN)/ruff check ehm tests benchmarks
+	$(BIN)/ruff format --check ehm tests benchmarks
+
+bench: $(BIN)/ehm
+	$(BIN)/python benchmarks/octomap_scan.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,167 @@
+"""The map's clusters and how a new scan's clusters join them (Alg. 2 lines 4-21)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ehm.kernels import covariance_square_roots, kernel_transforms
+
+
+@dataclass
+class ClusterSet:
+    """Inducing points of the map, one row per cluster.
+
+    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2.
+    counts: (M,) float64, samples the statistics summarise. weights: (M,) float64, classifier
+    weights. grad_sq: (M,) float64, AdaGrad accumulators. transforms: (M, d, d) float64, 1/m,
+    kernel transforms derived from the covariances (see ehm.kernels).
+    """
+
+    means: np.ndarray
+    covariances: np.ndarray
+    counts: np.ndarray
+    weights: np.ndarray
+    grad_sq: np.ndarray
+    transforms: np.ndarray
+
+    @classmethod
+    def empty(cls, dim: int) -> ClusterSet:
+        return cls(
+            np.zeros((0, dim)),
+            np.zeros((0, dim, dim)),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros((0, dim, dim)),
+        )
+
+    def __len__(self) -> int:
+        return len(self.means)
+
+    @property
+    def dim(self) -> int:
+        return self.means.shape[1]
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in self.arrays().values())
+
+    def append(self, means: np.ndarray, covariances: np.ndarray, counts: np.ndarray) -> None:
+        """Add clusters with weight 0 (no prior knowledge of their occupancy)."""
+        n = len(means)
+        self.means = np.concatenate([self.means, means])
+        self.covariances = np.concatenate([self.covariances, covariances])
+        self.counts = np.concatenate([self.counts, counts.astype(np.float64)])
+        self.weights = np.concatenate([self.weights, np.zeros(n)])
+        self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n)])
+        self.transforms = np.concatenate([self.transforms, np.zeros((n,) + means.shape[1:] * 2)])
+
+    def refresh_transforms(self, rows: np.ndarray, length_scale: float, min_std: float) -> None:
+        """Recompute the kernel transforms of some clusters after their statistics changed."""
+        if len(rows):
+            self.transforms[rows] = kernel_transforms(self.covariances[rows], length_scale, min_std)
+
+
+def anisotropic_distances(
+    means_a: np.ndarray, roots_a: np.ndarray, means_b: np.ndarray, roots_b: np.ndarray
+) -> np.ndarray:
+    """Eq. 14 between rows of a and rows of b: sqrt(mu^T Sigma^-1 mu), Sigma = (sqrt(Sigma_a) +
+    sqrt(Sigma_b))^2, mu = mu_a - mu_b. Inputs (n, d) and (n, d, d); returns (n,)."""
+    offsets = means_a - means_b
+    solved = np.linalg.solve(roots_a + roots_b, offsets[..., None])[..., 0]
+    return np.linalg.norm(solved, axis=-1)
+
+
+def match_new_clusters(
+    clusters: ClusterSet,
+    tree: cKDTree,
+    new_means: np.ndarray,
+    new_covariances: np.ndarray,
+    threshold: float,
+    min_std: float,
+    candidates: int = 4,
+) -> np.ndarray:
+    """For each new cluster, the map cluster it merges into (anisotropic distance of Eq. 14
+    below `threshold`, nearest of `candidates` centres), or -1 to add it. Returns (n,) int64."""
+    n, m = len(new_means), len(clusters)
+    if n == 0 or m == 0:
+        return np.full(n, -1, dtype=np.int64)
+    k = min(candidates, m)
+    _, nearest = tree.query(new_means, k=k)
+    nearest = nearest.reshape(n, k)
+    new_roots = covariance_square_roots(new_covariances, min_std)
+    map_roots = covariance_square_roots(clusters.covariances[nearest.ravel()], min_std)
+    distances = anisotropic_distances(
+        np.repeat(new_means, k, axis=0),
+        np.repeat(new_roots, k, axis=0),
+        clusters.means[nearest.ravel()],
+        map_roots,
+    ).reshape(n, k)
+    best = np.argmin(distances, axis=1)
+    closest = distances[np.arange(n), best]
+    return np.where(closest < threshold, nearest[np.arange(n), best], -1).astype(np.int64)
+
+
+def merge_pooled(
+    clusters: ClusterSet,
+    targets: np.ndarray,
+    means: np.ndarray,
+    covariances: np.ndarray,
+    counts: np.ndarray,
+) -> None:
+    """Merge new clusters into `targets` with the exact pooled mean and covariance of the
+    union of their samples (each side's statistics weighted by its sample count)."""
+    d = clusters.dim
+    rows = np.unique(targets)
+    n_old = clusters.counts[rows]
+    old_mean = clusters.means[rows]
+    # Sufficient statistics about the old mean, so the pooled update is order-free and exact.
+    count = n_old.copy()
+    first = np.zeros((len(rows), d))
+    second = clusters.covariances[rows] * np.maximum(n_old - 1.0, 0.0)[:, None, None]
+    slot = np.searchsorted(rows, targets)
+    n_new = counts.astype(np.float64)
+    offset = means - old_mean[slot]
+    scatter = covariances * np.maximum(n_new - 1.0, 0.0)[:, None, None] + n_new[
+        :, None, None
+    ] * np.einsum("ni,nj->nij", offset, offset)
+    np.add.at(count, slot, n_new)
+    np.add.at(first, slot, n_new[:, None] * offset)
+    np.add.at(second, slot, scatter)
+    shift = first / count[:, None]
+    clusters.means[rows] = old_mean + shift
+    clusters.covariances[rows] = (
+        second - count[:, None, None] * np.einsum("ni,nj->nij", shift, shift)
+    ) / np.maximum(count - 1.0, 1.0)[:, None, None]
+    clusters.counts[rows] = count
+
+
+def merge_average(
+    clusters: ClusterSet,
+    targets: np.ndarray,
+    means: np.ndarray,
+    covariances: np.ndarray,
+    counts: np.ndarray,
+) -> None:
+    """The paper's rule (Alg. 2 lines 19-20): mu_j <- (mu_i + mu_j) / 2 and Sigma_j <-
+    (Sigma_i + Sigma_j) / 2, applied to each new cluster in turn. A target merged m times keeps
+    2^-m of its old value and new cluster number q (1-based, in order) gets 2^-(m - q + 1)."""
+    rows, times = np.unique(targets, return_counts=True)
+    order = np.argsort(targets, kind="stable")
+    slot = np.searchsorted(rows, targets[order])
+    rank = np.arange(1, len(order) + 1) - np.repeat(np.cumsum(times) - times, times)
+    share = 0.5 ** (times[slot] - rank + 1).astype(np.float64)
+    keep = 0.5 ** times.astype(np.float64)
+    new_mean = clusters.means[rows] * keep[:, None]
+    new_cov = clusters.covariances[rows] * keep[:, None, None]
+    np.add.at(new_mean, slot, means[order] * share[:, None])
+    np.add.at(new_cov, slot, covariances[order] * share[:, None, None])
+    clusters.means[rows] = new_mean
+    clusters.covariances[rows] = new_cov
+    np.add.at(clusters.counts, targets, counts.astype(np.float64))

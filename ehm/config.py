@@ -1,0 +1,121 @@
+"""One validated configuration object: every tunable of a map, with its default and unit."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Literal
+
+MergeRule = Literal["pooled", "average"]
+QueryMode = Literal["batch", "exact"]
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """Settings of an Efficient Hilbert Map.
+
+    Distances are in metres. Defaults suit indoor and outdoor LiDAR at about 5 cm detail.
+    """
+
+    # Training samples drawn from each ray (Scan.training_samples).
+    free_spacing: float = 0.6
+    """Mean distance between free samples along a ray, metres (density of free samples)."""
+    surface_margin: float = 0.05
+    """Band around each hit, metres: free samples stop this far before it, one occupied sample
+    is drawn up to this far behind it and one free sample within the band in front of it."""
+
+    # Quick-means (Alg. 1).
+    cluster_radius: float = 0.12
+    """Inner radius r_i of quick-means for occupied samples, metres."""
+    outer_radius_factor: float = 1.5
+    """Outer radius r_o as a multiple of the inner radius."""
+    free_cluster_radius: float = 0.6
+    """Inner radius r_i of quick-means for free samples, metres (when clustered apart)."""
+    min_cluster_size: int = 4
+    """Quick-means drops seeds with fewer samples than this within the outer radius."""
+    kmeans_iterations: int = 0
+    """Lloyd iterations refining quick-means centres (0 = use quick-means as it is)."""
+    cluster_free_apart: bool = True
+    """Cluster occupied and free samples separately (True) or together (False)."""
+
+    # Localized length-scale features (Eq. 8, 10-12).
+    length_scale: float = 3.0
+    """Kernel support in standard deviations of the cluster (r = 1 at this many sigmas)."""
+    min_std: float = 0.02
+    """Floor on each cluster's standard deviation along any axis, metres."""
+    neighbours: int = 8
+    """Clusters that enter each point's feature vector (k nearest cluster centres)."""
+
+    # Alg. 2: merging and stochastic gradient descent.
+    merge_rule: MergeRule = "pooled"
+    """'pooled': exact pooled mean and covariance weighted by sample counts; 'average': the
+    paper's mean of means and mean of covariances (Alg. 2 lines 19-20)."""
+    merge_threshold: float = 1.0
+    """Anisotropic distance (Eq. 14) below which a new cluster merges into the map's."""
+    learning_rate: float = 0.3
+    """AdaGrad step size of the stochastic gradient steps."""
+    l2: float = 1e-3
+    """L2 regularisation of the weights (the R(w) of Eq. 2)."""
+    epochs: int = 2
+    """Passes of stochastic gradient descent over each scan's samples."""
+
+    # Queries (Alg. 3).
+    query_mode: QueryMode = "batch"
+    """'batch': neighbour search once per group of query points; 'exact': once per point."""
+
+    seed: int = 0
+    """Seed of every random choice (sampling, quick-means order, SGD order)."""
+
+    def __post_init__(self) -> None:
+        positive = (
+            "free_spacing",
+            "surface_margin",
+            "cluster_radius",
+            "free_cluster_radius",
+            "length_scale",
+            "min_std",
+            "learning_rate",
+            "merge_threshold",
+        )
+        for name in positive:
+            value = getattr(self, name)
+            if not isinstance(value, int | float) or not value > 0:
+                raise ValueError(f"MapConfig.{name} must be a positive number, got {value!r}")
+        if not self.outer_radius_factor >= 1.0:
+            raise ValueError(
+                f"MapConfig.outer_radius_factor must be >= 1, got {self.outer_radius_factor!r}"
+            )
+        for name, low in (("min_cluster_size", 1), ("neighbours", 1), ("epochs", 1)):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < low:
+                raise ValueError(f"MapConfig.{name} must be an integer >= {low}, got {value!r}")
+        if not isinstance(self.kmeans_iterations, int) or self.kmeans_iterations < 0:
+            raise ValueError(
+                f"MapConfig.kmeans_iterations must be an integer >= 0, got {self.kmeans_iterations!r}"
+            )
+        if self.l2 < 0:
+            raise ValueError(f"MapConfig.l2 must be >= 0, got {self.l2!r}")
+        if self.merge_rule not in ("pooled", "average"):
+            raise ValueError(
+                f"MapConfig.merge_rule must be 'pooled' or 'average', got {self.merge_rule!r}"
+            )
+        if self.query_mode not in ("batch", "exact"):
+            raise ValueError(
+                f"MapConfig.query_mode must be 'batch' or 'exact', got {self.query_mode!r}"
+            )
+
+    def replace(self, **overrides: Any) -> MapConfig:
+        """A copy with some settings changed; unknown names raise ValueError."""
+        known = {f.name for f in dataclasses.fields(self)}
+        unknown = sorted(set(overrides) - known)
+        if unknown:
+            raise ValueError(f"unknown MapConfig setting(s): {', '.join(unknown)}")
+        return dataclasses.replace(self, **overrides)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> MapConfig:
+        """Build from a mapping such as `to_dict()` wrote; unknown names raise ValueError."""
+        return cls().replace(**values)

@@ -1,0 +1,121 @@
+"""The held-out-rays protocol of the design brief, and the classification metrics it reports."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import rankdata
+
+from ehm.scan import Scan
+
+
+@dataclass(frozen=True)
+class Scores:
+    """accuracy and F1 (occupied class) at threshold 0.5, ROC-AUC, share called unknown."""
+
+    accuracy: float
+    f1: float
+    auc: float
+    unknown: float
+
+
+def roc_auc(labels: np.ndarray, scores: np.ndarray) -> float:
+    """Area under the ROC curve; tied scores count one half (Mann-Whitney U)."""
+    labels = np.asarray(labels, dtype=bool)
+    n_pos, n_neg = int(labels.sum()), int((~labels).sum())
+    if n_pos == 0 or n_neg == 0:
+        raise ValueError("ROC-AUC needs both occupied and free test points")
+    ranks = rankdata(scores)
+    return float((ranks[labels].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
+
+
+def f1_score(labels: np.ndarray, predicted: np.ndarray) -> float:
+    """F1 of the positive (occupied) class; 0 when nothing is predicted or present."""
+    labels, predicted = np.asarray(labels, dtype=bool), np.asarray(predicted, dtype=bool)
+    true_pos = int(np.sum(labels & predicted))
+    denominator = int(labels.sum() + predicted.sum())
+    return 0.0 if denominator == 0 else 2.0 * true_pos / denominator
+
+
+def score(
+    labels: np.ndarray, probabilities: np.ndarray, unknown: np.ndarray | None = None
+) -> Scores:
+    """Scores of occupancy probabilities (n,) against boolean labels (n,)."""
+    labels = np.asarray(labels, dtype=bool)
+    probabilities = np.asarray(probabilities, dtype=np.float64)
+    predicted = probabilities > 0.5
+    return Scores(
+        accuracy=float(np.mean(predicted == labels)),
+        f1=f1_score(labels, predicted),
+        auc=roc_auc(labels, probabilities),
+        unknown=0.0 if unknown is None else float(np.mean(unknown)),
+    )
+
+
+@dataclass(frozen=True)
+class HeldOutSplit:
+    """Training scans and labelled test points: points (n, d), metres; occupied (n,) bool."""
+
+    train: list[Scan]
+    points: np.ndarray
+    occupied: np.ndarray
+
+
+def held_out_rays(
+    scans: list[Scan], train_fraction: float, resolution: float, seed: int
+) -> HeldOutSplit:
+    """In each scan a random `train_fraction` of the rays trains the map, the rest are held out.
+
+    Each held-out hit is an occupied test point; each held-out ray gives one free test point at
+    a distance uniform in [0, r - 2 resolution] from the origin (none when that is negative).
+    A ray is never in both sets.
+    """
+    if not 0.0 < train_fraction < 1.0:
+        raise ValueError(f"train fraction must be in (0, 1), got {train_fraction}")
+    rng = np.random.default_rng(seed)
+    train, points, occupied = [], [], []
+    for scan in scans:
+        in_train = rng.random(len(scan)) < train_fraction
+        train.append(scan.subset(in_train))
+        ends, hits = scan.points_world[~in_train], scan.hit_mask[~in_train]
+        offsets = ends - scan.origin
+        lengths = np.linalg.norm(offsets, axis=1)
+        free_extent = lengths - 2.0 * resolution
+        usable = free_extent > 0
+        depth = free_extent[usable] * rng.random(int(usable.sum()))
+        free = scan.origin + offsets[usable] / lengths[usable, None] * depth[:, None]
+        points += [ends[hits], free]
+        occupied += [np.ones(int(hits.sum()), bool), np.zeros(len(free), bool)]
+    return HeldOutSplit(train, np.concatenate(points), np.concatenate(occupied))
+
+
+def observed_mask(scans: list[Scan], points: np.ndarray, tolerance: float) -> np.ndarray:
+    """(n,) bool: points some ray has reached, within `tolerance` metres past its end.
+
+    For each scan, the ray closest in direction to the point (as seen from the scan's origin)
+    decides: the point is observed when it lies no farther than that ray's length + tolerance.
+    """
+    from scipy.spatial import cKDTree
+
+    reached = np.zeros(len(points), dtype=bool)
+    for scan in scans:
+        offsets = scan.points_world - scan.origin
+        lengths = np.linalg.norm(offsets, axis=1)
+        usable = lengths > 0
+        tree = cKDTree(offsets[usable] / lengths[usable, None])
+        query = points - scan.origin
+        distance = np.linalg.norm(query, axis=1)
+        _, ray = tree.query(query / np.maximum(distance, 1e-12)[:, None])
+        reached |= distance <= lengths[usable][ray] + tolerance
+    return reached
+
+
+def near_surface_points(
+    scans: list[Scan], spread: float, per_hit: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Points scattered around the hits, Gaussian with `spread` metres per axis: a test set
+    near surfaces, to be labelled with a scene's exact occupancy. (round(per_hit * hits), d)."""
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in scans])
+    chosen = rng.choice(len(hits), size=int(round(per_hit * len(hits))), replace=True)
+    return hits[chosen] + rng.normal(0.0, spread, (len(chosen), hits.shape[1]))

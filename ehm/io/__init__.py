@@ -1,0 +1,1 @@
+"""Readers of range data and the map file format."""

@@ -1,0 +1,118 @@
+"""The .ehm map file: versioned, checksummed, written atomically.
+
+Layout (little-endian):
+    8 bytes   magic b"EHMMAP\\r\\n"
+    4 bytes   uint32 format version
+    8 bytes   uint64 length of the JSON header
+    header    UTF-8 JSON: config, dim, n_scans, bias state, and for each array its name,
+              dtype, shape and byte offset into the payload
+    payload   the arrays' raw bytes, one after another
+    4 bytes   uint32 CRC-32 of everything before it
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import tempfile
+import zlib
+from os import PathLike
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ehm.clusters import ClusterSet
+from ehm.config import MapConfig
+
+if TYPE_CHECKING:
+    from ehm.model import HilbertMap
+
+MAGIC = b"EHMMAP\r\n"
+FORMAT_VERSION = 1
+_PREAMBLE = struct.Struct("<8sIQ")
+_CRC = struct.Struct("<I")
+
+
+class MapFileError(ValueError):
+    """A file that is not a readable ehm map: foreign, truncated, corrupt or too new."""
+
+
+def save_map(hilbert_map: HilbertMap, path: str | PathLike[str]) -> None:
+    """Write `hilbert_map` to `path`: a temporary file in the same folder, then a rename, so an
+    existing map survives a crash half-way."""
+    if hilbert_map.clusters_ is None:
+        raise ValueError("the map is empty: integrate a scan before saving")
+    arrays = {name: np.ascontiguousarray(a) for name, a in hilbert_map.clusters_.arrays().items()}
+    entries, offset = [], 0
+    for name, array in arrays.items():
+        dtype = array.dtype.newbyteorder("<")
+        entries.append(
+            {"name": name, "dtype": dtype.str, "shape": list(array.shape), "offset": offset}
+        )
+        offset += array.nbytes
+    header = json.dumps(
+        {
+            "config": hilbert_map.config.to_dict(),
+            "dim": hilbert_map.dim,
+            "n_scans": hilbert_map.n_scans_,
+            "bias_state": hilbert_map.bias_state_.tolist(),
+            "arrays": entries,
+        }
+    ).encode()
+    body = b"".join(
+        [_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(header)), header]
+        + [a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes() for a in arrays.values()]
+    )
+    target = Path(path)
+    fd, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent or ".")
+    try:
+        with os.fdopen(fd, "wb") as stream:
+            stream.write(body)
+            stream.write(_CRC.pack(zlib.crc32(body)))
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temporary, target)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def load(path: str | PathLike[str]) -> HilbertMap:
+    """Read a map written by HilbertMap.save; MapFileError names what is wrong otherwise."""
+    from ehm.model import HilbertMap
+
+    data = Path(path).read_bytes()
+    if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
+        raise MapFileError(f"{path}: not an ehm map file (unknown magic bytes)")
+    if len(data) < _PREAMBLE.size + _CRC.size:
+        raise MapFileError(f"{path}: truncated ({len(data)} bytes)")
+    _, version, header_length = _PREAMBLE.unpack_from(data)
+    if version > FORMAT_VERSION:
+        raise MapFileError(
+            f"{path}: format version {version} is newer than this ehm reads ({FORMAT_VERSION})"
+        )
+    body, (stored_crc,) = data[: -_CRC.size], _CRC.unpack_from(data, len(data) - _CRC.size)
+    try:
+        header = json.loads(data[_PREAMBLE.size : _PREAMBLE.size + header_length])
+        payload_start = _PREAMBLE.size + header_length
+        expected = payload_start + sum(
+            int(np.prod(e["shape"])) * np.dtype(e["dtype"]).itemsize for e in header["arrays"]
+        )
+    except (ValueError, KeyError, TypeError) as error:
+        raise MapFileError(f"{path}: corrupt or truncated header ({error})") from error
+    if len(body) < expected:
+        raise MapFileError(f"{path}: truncated ({len(data)} bytes, expected {expected + 4})")
+    if zlib.crc32(body) != stored_crc:
+        raise MapFileError(f"{path}: corrupt (checksum mismatch)")
+    arrays = {}
+    for entry in header["arrays"]:
+        dtype = np.dtype(entry["dtype"])
+        count = int(np.prod(entry["shape"]))
+        start = payload_start + entry["offset"]
+        flat = np.frombuffer(data, dtype=dtype, count=count, offset=start)
+        arrays[entry["name"]] = flat.reshape(entry["shape"]).astype(dtype.newbyteorder("="))
+    hilbert_map = HilbertMap(MapConfig.from_dict(header["config"]))
+    hilbert_map._restore(ClusterSet(**arrays), np.array(header["bias_state"]), header["n_scans"])
+    return hilbert_map

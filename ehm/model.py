@@ -1,0 +1,288 @@
+"""HilbertMap: clusters, weights and optimiser of an Efficient Hilbert Map.
+
+    m = HilbertMap(neighbours=8)
+    m.integrate(points_world, origin)      # one scan, Alg. 2
+    p = m.occupancy(query_points)          # (n,) probability of occupied, Alg. 3
+    m.save("room.ehm"); m2 = ehm.load("room.ehm")
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from os import PathLike
+from typing import Any
+
+import numpy as np
+
+from ehm.clusters import ClusterSet, match_new_clusters, merge_average, merge_pooled
+from ehm.config import MapConfig
+from ehm.features import decision_values, kernel_values
+from ehm.index import ClusterIndex
+from ehm.quickmeans import kmeans_refine, quick_means
+from ehm.scan import Scan, TrainingSamples
+from ehm.sgd import sgd_pass
+from ehm.timing import StageTimer
+
+
+@dataclass(frozen=True)
+class SampleGroups:
+    """Samples grouped for neighbour search, and the new clusters found among them.
+
+    group_of_point: (n,) int64. centres: (G, d) float64, metres. new_means (C, d),
+    new_covariances (C, d, d), new_counts (C,): statistics of the clusters proper.
+    """
+
+    group_of_point: np.ndarray
+    centres: np.ndarray
+    new_means: np.ndarray
+    new_covariances: np.ndarray
+    new_counts: np.ndarray
+
+
+class HilbertMap:
+    """Continuous occupancy map learned from range scans (Guizilini & Ramos, IJRR 2018).
+
+    config: a MapConfig; keyword overrides replace single settings, for example
+    HilbertMap(cluster_radius=0.2). Learned state ends in an underscore: clusters_ (a
+    ClusterSet), bias_, n_scans_, and timings_ (seconds per stage of the last update).
+    """
+
+    def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
+        base = config if config is not None else MapConfig()
+        self.config = base.replace(**overrides) if overrides else base
+        self._reset()
+
+    def _reset(self) -> None:
+        """Forget everything learned."""
+        self.clusters_: ClusterSet | None = None
+        self.bias_state_ = np.zeros(2)
+        self.n_scans_ = 0
+        self.timings_: dict[str, float] = {}
+        self.last_update_: dict[str, int] = {}
+        self._index = ClusterIndex(np.zeros((0, 1)))
+        self._rng = np.random.default_rng(self.config.seed)
+
+    # ------------------------------------------------------------------ state
+    @property
+    def dim(self) -> int | None:
+        return None if self.clusters_ is None else self.clusters_.dim
+
+    @property
+    def bias_(self) -> float:
+        return float(self.bias_state_[0])
+
+    @property
+    def n_clusters(self) -> int:
+        return 0 if self.clusters_ is None else len(self.clusters_)
+
+    def __repr__(self) -> str:
+        changed = {
+            k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v
+        }
+        settings = ", ".join(f"{k}={v!r}" for k, v in changed.items())
+        return (
+            f"HilbertMap(dim={self.dim}, clusters={self.n_clusters}, scans={self.n_scans_}"
+            + (f", {settings})" if settings else ")")
+        )
+
+    def memory_bytes(self) -> int:
+        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state and the
+        kd-tree over cluster centres."""
+        clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
+        return clusters + self.bias_state_.nbytes + self._index.nbytes
+
+    def _restore(self, clusters: ClusterSet, bias_state: np.ndarray, n_scans: int) -> None:
+        """Install learned state (used by ehm.load)."""
+        self.clusters_ = clusters
+        self.bias_state_ = np.asarray(bias_state, dtype=np.float64).copy()
+        self.n_scans_ = n_scans
+        self._index = ClusterIndex(clusters.means)
+
+    # --------------------------------------------------------------- training
+    def integrate(
+        self,
+        points_world: np.ndarray,
+        origin: np.ndarray,
+        hit_mask: np.ndarray | None = None,
+    ) -> HilbertMap:
+        """Learn one scan (Alg. 2); returns self.
+
+        points_world: (N, d) float, metres, world frame; origin: (d,) sensor centre, world
+        frame; hit_mask: (N,) bool, False for rays without return (None: all returned).
+        """
+        return self.integrate_scan(Scan(points_world, origin, hit_mask))
+
+    def integrate_scan(self, scan: Scan) -> HilbertMap:
+        """Learn one Scan (Alg. 2); returns self."""
+        self._check_dim(scan.dim, "scan")
+        timer = StageTimer()
+        with timer("samples"):
+            samples = scan.training_samples(self.config, self._rng)
+        self._learn(samples, timer)
+        self.n_scans_ += 1
+        return self
+
+    def fit(self, scans: Iterable[Scan]) -> HilbertMap:
+        """Single-batch mode (Table 5): forget what was learned and learn all scans at once."""
+        scans = list(scans)
+        if not scans:
+            raise ValueError("fit needs at least one scan, got none")
+        for i, scan in enumerate(scans):
+            if not isinstance(scan, Scan):
+                raise ValueError(f"scan {i}: expected ehm.Scan, got {type(scan).__name__}")
+            if scan.dim != scans[0].dim:
+                raise ValueError(f"scan {i}: points are {scan.dim}D, scan 0 is {scans[0].dim}D")
+        self._reset()
+        timer = StageTimer()
+        with timer("samples"):
+            samples = TrainingSamples.concatenate(
+                [s.training_samples(self.config, self._rng) for s in scans]
+            )
+        self._learn(samples, timer)
+        self.n_scans_ = len(scans)
+        return self
+
+    def _check_dim(self, dim: int, what: str) -> None:
+        if self.dim is not None and dim != self.dim:
+            raise ValueError(f"{what} points are {dim}D, the map is {self.dim}D")
+
+    def _learn(self, samples: TrainingSamples, timer: StageTimer) -> None:
+        cfg = self.config
+        with timer("clustering"):
+            groups = self._group_samples(samples)
+        with timer("length_scales"):
+            self._absorb(groups)
+        clusters = self.clusters_
+        with timer("features"):
+            neighbours = self._index.nearest(groups.centres, cfg.neighbours)
+            values = kernel_values(
+                samples.points, groups.group_of_point, neighbours,
+                clusters.means, clusters.transforms,
+            )
+        with timer("sgd"):
+            labels = samples.occupied.astype(np.float64)
+            for _ in range(cfg.epochs):
+                sgd_pass(
+                    values, groups.group_of_point, neighbours, labels,
+                    self._rng.permutation(len(labels)), clusters.weights, clusters.grad_sq,
+                    self.bias_state_, cfg.learning_rate, cfg.l2,
+                )
+        self.timings_ = dict(timer.seconds)
+
+    def _group_samples(self, samples: TrainingSamples) -> SampleGroups:
+        """Quick-means over the samples (occupied and free apart or together)."""
+        cfg = self.config
+        if cfg.cluster_free_apart:
+            parts = [
+                (np.flatnonzero(samples.occupied), cfg.cluster_radius),
+                (np.flatnonzero(~samples.occupied), cfg.free_cluster_radius),
+            ]
+        else:
+            parts = [(np.arange(len(samples)), cfg.cluster_radius)]
+        group_of_point = np.empty(len(samples), dtype=np.int64)
+        centres, means, covariances, counts = [], [], [], []
+        n_groups = 0
+        for rows, radius in parts:
+            points = samples.points[rows]
+            result = quick_means(
+                points, radius, radius * cfg.outer_radius_factor, cfg.min_cluster_size, self._rng
+            )
+            result = kmeans_refine(points, result, cfg.kmeans_iterations)
+            group_of_point[rows] = result.owner + n_groups
+            n_groups += len(result.means)
+            centres.append(result.means)
+            means.append(result.means[result.kept])
+            covariances.append(result.covariances[result.kept])
+            counts.append(result.counts[result.kept])
+        return SampleGroups(
+            group_of_point,
+            np.concatenate(centres),
+            np.concatenate(means),
+            np.concatenate(covariances),
+            np.concatenate(counts),
+        )
+
+    def _absorb(self, groups: SampleGroups) -> None:
+        """Merge each new cluster into the map's or add it with weight 0 (Alg. 2 lines 4-21)."""
+        cfg = self.config
+        if self.clusters_ is None:
+            self.clusters_ = ClusterSet.empty(groups.centres.shape[1])
+        clusters = self.clusters_
+        targets = match_new_clusters(
+            clusters, self._index.tree, groups.new_means, groups.new_covariances,
+            cfg.merge_threshold, cfg.min_std,
+        )
+        merging = targets >= 0
+        if merging.any():
+            merge = merge_pooled if cfg.merge_rule == "pooled" else merge_average
+            merge(
+                clusters, targets[merging], groups.new_means[merging],
+                groups.new_covariances[merging], groups.new_counts[merging],
+            )
+        start = len(clusters)
+        clusters.append(
+            groups.new_means[~merging], groups.new_covariances[~merging],
+            groups.new_counts[~merging],
+        )
+        changed = np.concatenate([np.unique(targets[merging]), np.arange(start, len(clusters))])
+        clusters.refresh_transforms(changed, cfg.length_scale, cfg.min_std)
+        self._index = ClusterIndex(clusters.means)
+        self.last_update_ = {
+            "new_clusters": int((~merging).sum()),
+            "merged_clusters": int(merging.sum()),
+        }
+
+    # ---------------------------------------------------------------- queries
+    def occupancy(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n,) float64 probability that each point is occupied.
+
+        points: (n, d) float, metres, world frame. mode: 'batch' (Alg. 3: one neighbour search
+        per group of nearby points) or 'exact' (one per point); default config.query_mode.
+        Rows with NaN or infinite coordinates give NaN.
+        """
+        return 1.0 / (1.0 + np.exp(-self.decision_function(points, mode)))
+
+    def predict_proba(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n, 2) float64 [p(free), p(occupied)] per point, scikit-learn style."""
+        occupied = self.occupancy(points, mode)
+        return np.column_stack([1.0 - occupied, occupied])
+
+    def decision_function(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n,) float64 w^T phi(x) + b, the log-odds of occupancy."""
+        if self.clusters_ is None:
+            raise RuntimeError("the map is empty: integrate a scan or fit before querying")
+        mode = mode or self.config.query_mode
+        if mode not in ("batch", "exact"):
+            raise ValueError(f"query mode must be 'batch' or 'exact', got {mode!r}")
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != self.dim:
+            raise ValueError(
+                f"query points must have shape (n, {self.dim}), got {tuple(points.shape)}"
+            )
+        finite = np.all(np.isfinite(points), axis=1)
+        scores = np.full(len(points), np.nan)
+        query = np.ascontiguousarray(points[finite])
+        if mode == "batch":
+            radius = self.config.cluster_radius
+            groups = quick_means(
+                query, radius, radius * self.config.outer_radius_factor, 1,
+                np.random.default_rng(self.config.seed),
+            )
+            group_of_point, centres = groups.owner, groups.means
+        else:
+            group_of_point, centres = np.arange(len(query)), query
+        neighbours = self._index.nearest(centres, self.config.neighbours)
+        clusters = self.clusters_
+        scores[finite] = decision_values(
+            query, group_of_point, neighbours, clusters.means, clusters.transforms,
+            clusters.weights, self.bias_,
+        )
+        return scores
+
+    # ------------------------------------------------------------ persistence
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write the map to `path` atomically (see ehm.io.map_file)."""
+        from ehm.io.map_file import save_map
+
+        save_map(self, path)
