@@ -1,0 +1,225 @@
+"""The `ehm` command: demo, map, query, info. Heavy imports happen inside each command so that
+`ehm --help` is instant."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+app = typer.Typer(
+    help="Efficient Hilbert Maps: continuous occupancy maps from range scans.",
+    no_args_is_help=True,
+    rich_markup_mode="rich",
+)
+console = Console()
+
+
+def _parse_settings(settings: list[str]) -> dict:
+    """`name=value` pairs into MapConfig overrides, values typed like the defaults."""
+    from ehm.config import MapConfig
+
+    defaults = MapConfig().to_dict()
+    overrides = {}
+    for item in settings:
+        name, sep, value = item.partition("=")
+        if not sep or name not in defaults:
+            raise typer.BadParameter(f"{item!r}: expected name=value with a MapConfig name")
+        kind = type(defaults[name])
+        if kind is bool:
+            overrides[name] = value.lower() in ("1", "true", "yes", "on")
+        else:
+            overrides[name] = kind(value)
+    return overrides
+
+
+def _progress():
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    return Progress(
+        "[progress.description]{task.description}",
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+    )
+
+
+def _timings_table(title: str, seconds: dict[str, float]) -> Table:
+    table = Table(title=title)
+    table.add_column("stage")
+    table.add_column("time (ms)", justify="right")
+    for stage, value in seconds.items():
+        table.add_row(stage, f"{1000 * value:.1f}")
+    table.add_row("[bold]total", f"[bold]{1000 * sum(seconds.values()):.1f}")
+    return table
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the map and pictures.")] = Path(
+        "ehm_demo"
+    ),
+    seed: Annotated[int, typer.Option(help="Seed of the simulation and the map.")] = 0,
+) -> None:
+    """Simulate the virtual room, map it, score the map against the exact occupancy."""
+    import numpy as np
+
+    from ehm.datasets import virtual_room
+    from ehm.evaluation import near_surface_points, observed_mask, score
+    from ehm.model import HilbertMap
+    from ehm.plots import occupancy_slices
+    from ehm.timing import StageTimer
+
+    out.mkdir(parents=True, exist_ok=True)
+    timer = StageTimer()
+    with timer("simulate LiDAR"):
+        data = virtual_room(seed=seed)
+    hilbert_map = HilbertMap(seed=seed)
+    with _progress() as progress:
+        task = progress.add_task("mapping", total=len(data.scans))
+        for scan in data.scans:
+            hilbert_map.integrate_scan(scan)
+            progress.advance(task)
+    stages = dict(hilbert_map.timings_)
+
+    rng = np.random.default_rng(seed + 1)
+    near = near_surface_points(data.scans, 0.1, 0.5, rng)
+    near = near[observed_mask(data.scans, near, hilbert_map.config.surface_margin)]
+    low, high = data.scene.box_min.min(axis=0), data.scene.box_max.max(axis=0)
+    uniform = rng.uniform(low, high, (200_000, 3))
+    uniform = uniform[observed_mask(data.scans, uniform, hilbert_map.config.surface_margin)]
+    table = Table(title="Accuracy against the exact occupancy of the virtual room")
+    for column in ("test points", "n", "occupied", "accuracy", "F1", "ROC-AUC"):
+        table.add_column(column, justify="right" if column != "test points" else "left")
+    for name, points in (("near surfaces", near), ("uniform, observed region", uniform)):
+        with timer(f"query {name}"):
+            probability = hilbert_map.occupancy(points)
+        labels = data.scene.occupied(points)
+        s = score(labels, probability)
+        table.add_row(
+            name, f"{len(points)}", f"{labels.mean():.1%}", f"{s.accuracy:.3f}", f"{s.f1:.3f}",
+            f"{s.auc:.3f}",
+        )
+    map_path = out / "virtual_room.ehm"
+    with timer("save map"):
+        hilbert_map.save(map_path)
+    with timer("draw slices"):
+        occupancy_slices(hilbert_map, low, high, out / "virtual_room_slices.png", data.scene)
+
+    console.print(table)
+    console.print(_timings_table("Integrate, per stage (Table 2)", stages))
+    console.print(_timings_table("Demo, per step", timer.seconds))
+    console.print(
+        f"{hilbert_map!r}: {hilbert_map.memory_bytes() / 1e6:.2f} MB from "
+        f"{len(data.scans[0])} rays\nwrote {map_path} and {out / 'virtual_room_slices.png'}"
+    )
+
+
+@app.command("map")
+def map_command(
+    inputs: Annotated[list[Path], typer.Argument(help="Scan files or a TUM folder.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Map file to write.")],
+    format: Annotated[
+        str | None, typer.Option("--format", "-f", help="Reader: xyz ply pcd kitti graph tum carmen.")
+    ] = None,
+    origin: Annotated[
+        str | None, typer.Option(help="Sensor origin 'x,y,z' for single point clouds.")
+    ] = None,
+    poses: Annotated[Path | None, typer.Option(help="Poses file for KITTI .bin scans.")] = None,
+    batch: Annotated[bool, typer.Option(help="Learn all scans at once (single batch).")] = False,
+    setting: Annotated[
+        list[str] | None, typer.Option("--set", help="MapConfig override name=value.")
+    ] = None,
+) -> None:
+    """Build a map from scans of any supported format and save it."""
+    from ehm.io.readers import read_scans
+    from ehm.model import HilbertMap
+    from ehm.timing import StageTimer
+
+    timer = StageTimer()
+    sensor = [float(v) for v in origin.split(",")] if origin else None
+    try:
+        with timer("read"):
+            scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
+        hilbert_map = HilbertMap(**_parse_settings(setting or []))
+    except ValueError as error:
+        raise typer.BadParameter(str(error)) from error
+    stages: dict[str, float] = {}
+    with timer("map"), _progress() as progress:
+        task = progress.add_task("mapping", total=len(scans))
+        if batch:
+            hilbert_map.fit(scans)
+            progress.advance(task, len(scans))
+            stages = dict(hilbert_map.timings_)
+        else:
+            for scan in scans:
+                hilbert_map.integrate_scan(scan)
+                for stage, value in hilbert_map.timings_.items():
+                    stages[stage] = stages.get(stage, 0.0) + value
+                progress.advance(task)
+    with timer("save"):
+        hilbert_map.save(output)
+    console.print(_timings_table("Integrate, per stage", stages))
+    n_rays = sum(len(s) for s in scans)
+    dropped = sum(s.n_dropped for s in scans)
+    console.print(
+        f"{len(scans)} scans, {n_rays} rays ({dropped} non-finite dropped) -> {hilbert_map!r}, "
+        f"{hilbert_map.memory_bytes() / 1e6:.2f} MB; wrote {output} in {timer.total:.1f} s"
+    )
+
+
+@app.command()
+def query(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    points: Annotated[Path, typer.Argument(help="Points: .npy (n, d) or .csv with d columns.")],
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Write .npy or .csv; default stdout.")
+    ] = None,
+    mode: Annotated[str | None, typer.Option(help="batch or exact.")] = None,
+) -> None:
+    """Occupancy probability of each point."""
+    import numpy as np
+
+    from ehm.io.map_file import load
+
+    hilbert_map = load(map_path)
+    if points.suffix == ".npy":
+        query_points = np.load(points)
+    else:
+        query_points = np.loadtxt(points, delimiter=",", ndmin=2, comments="#")
+    try:
+        probability = hilbert_map.occupancy(query_points, mode=mode)
+    except ValueError as error:
+        raise typer.BadParameter(str(error)) from error
+    if output is None:
+        typer.echo("\n".join(f"{p:.6f}" for p in probability))
+    elif output.suffix == ".npy":
+        np.save(output, probability)
+    else:
+        np.savetxt(output, probability, fmt="%.6f")
+
+
+@app.command()
+def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
+    """What a map file holds."""
+    from ehm.io.map_file import load
+
+    hilbert_map = load(map_path)
+    table = Table(title=str(map_path))
+    table.add_column("property")
+    table.add_column("value")
+    table.add_row("dimensions", str(hilbert_map.dim))
+    table.add_row("clusters", str(hilbert_map.n_clusters))
+    table.add_row("scans", str(hilbert_map.n_scans_))
+    table.add_row("memory", f"{hilbert_map.memory_bytes() / 1e6:.3f} MB")
+    table.add_row("file size", f"{map_path.stat().st_size / 1e6:.3f} MB")
+    low = hilbert_map.clusters_.means.min(axis=0)
+    high = hilbert_map.clusters_.means.max(axis=0)
+    table.add_row("cluster extent (m)", f"{low.round(2).tolist()} .. {high.round(2).tolist()}")
+    for name, value in hilbert_map.config.to_dict().items():
+        table.add_row(f"config.{name}", repr(value))
+    console.print(table)
