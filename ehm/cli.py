@@ -36,6 +36,17 @@ def _parse_settings(settings: list[str]) -> dict:
     return overrides
 
 
+def _load_or_fail(path: Path):
+    """The map at `path`, or a one-line error and exit status 1."""
+    from ehm.io.map_file import MapFileError, load
+
+    try:
+        return load(path)
+    except (MapFileError, FileNotFoundError) as error:
+        console.print(f"[red]error:[/red] {error}")
+        raise typer.Exit(1) from error
+
+
 def _progress():
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
@@ -60,9 +71,9 @@ def _timings_table(title: str, seconds: dict[str, float]) -> Table:
 
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the map and pictures.")] = Path(
-        "ehm_demo"
-    ),
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Folder for the map and pictures.")
+    ] = Path("ehm_demo"),
     seed: Annotated[int, typer.Option(help="Seed of the simulation and the map.")] = 0,
 ) -> None:
     """Simulate the virtual room, map it, score the map against the exact occupancy."""
@@ -101,7 +112,11 @@ def demo(
         labels = data.scene.occupied(points)
         s = score(labels, probability)
         table.add_row(
-            name, f"{len(points)}", f"{labels.mean():.1%}", f"{s.accuracy:.3f}", f"{s.f1:.3f}",
+            name,
+            f"{len(points)}",
+            f"{labels.mean():.1%}",
+            f"{s.accuracy:.3f}",
+            f"{s.f1:.3f}",
             f"{s.auc:.3f}",
         )
     map_path = out / "virtual_room.ehm"
@@ -124,7 +139,8 @@ def map_command(
     inputs: Annotated[list[Path], typer.Argument(help="Scan files or a TUM folder.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Map file to write.")],
     format: Annotated[
-        str | None, typer.Option("--format", "-f", help="Reader: xyz ply pcd kitti graph tum carmen.")
+        str | None,
+        typer.Option("--format", "-f", help="Reader: xyz ply pcd kitti graph tum carmen."),
     ] = None,
     origin: Annotated[
         str | None, typer.Option(help="Sensor origin 'x,y,z' for single point clouds.")
@@ -184,9 +200,7 @@ def query(
     """Occupancy probability of each point."""
     import numpy as np
 
-    from ehm.io.map_file import load
-
-    hilbert_map = load(map_path)
+    hilbert_map = _load_or_fail(map_path)
     if points.suffix == ".npy":
         query_points = np.load(points)
     else:
@@ -206,9 +220,7 @@ def query(
 @app.command()
 def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     """What a map file holds."""
-    from ehm.io.map_file import load
-
-    hilbert_map = load(map_path)
+    hilbert_map = _load_or_fail(map_path)
     table = Table(title=str(map_path))
     table.add_column("property")
     table.add_column("value")

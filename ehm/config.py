@@ -85,14 +85,16 @@ class MapConfig:
             raise ValueError(
                 f"MapConfig.outer_radius_factor must be >= 1, got {self.outer_radius_factor!r}"
             )
-        for name, low in (("min_cluster_size", 1), ("neighbours", 1), ("epochs", 1)):
+        integers = (
+            ("min_cluster_size", 1),
+            ("neighbours", 1),
+            ("epochs", 1),
+            ("kmeans_iterations", 0),
+        )
+        for name, low in integers:
             value = getattr(self, name)
             if not isinstance(value, int) or value < low:
                 raise ValueError(f"MapConfig.{name} must be an integer >= {low}, got {value!r}")
-        if not isinstance(self.kmeans_iterations, int) or self.kmeans_iterations < 0:
-            raise ValueError(
-                f"MapConfig.kmeans_iterations must be an integer >= 0, got {self.kmeans_iterations!r}"
-            )
         if self.l2 < 0:
             raise ValueError(f"MapConfig.l2 must be >= 0, got {self.l2!r}")
         if self.merge_rule not in ("pooled", "average"):

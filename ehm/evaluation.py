@@ -117,5 +117,5 @@ def near_surface_points(
     """Points scattered around the hits, Gaussian with `spread` metres per axis: a test set
     near surfaces, to be labelled with a scene's exact occupancy. (round(per_hit * hits), d)."""
     hits = np.concatenate([s.points_world[s.hit_mask] for s in scans])
-    chosen = rng.choice(len(hits), size=int(round(per_hit * len(hits))), replace=True)
+    chosen = rng.choice(len(hits), size=round(per_hit * len(hits)), replace=True)
     return hits[chosen] + rng.normal(0.0, spread, (len(chosen), hits.shape[1]))

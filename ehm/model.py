@@ -1,9 +1,9 @@
 """HilbertMap: clusters, weights and optimiser of an Efficient Hilbert Map.
 
-    m = HilbertMap(neighbours=8)
-    m.integrate(points_world, origin)      # one scan, Alg. 2
-    p = m.occupancy(query_points)          # (n,) probability of occupied, Alg. 3
-    m.save("room.ehm"); m2 = ehm.load("room.ehm")
+m = HilbertMap(neighbours=8)
+m.integrate(points_world, origin)      # one scan, Alg. 2
+p = m.occupancy(query_points)          # (n,) probability of occupied, Alg. 3
+m.save("room.ehm"); m2 = ehm.load("room.ehm")
 """
 
 from __future__ import annotations
@@ -77,13 +77,10 @@ class HilbertMap:
         return 0 if self.clusters_ is None else len(self.clusters_)
 
     def __repr__(self) -> str:
-        changed = {
-            k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v
-        }
+        changed = {k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v}
         settings = ", ".join(f"{k}={v!r}" for k, v in changed.items())
-        return (
-            f"HilbertMap(dim={self.dim}, clusters={self.n_clusters}, scans={self.n_scans_}"
-            + (f", {settings})" if settings else ")")
+        return f"HilbertMap(dim={self.dim}, clusters={self.n_clusters}, scans={self.n_scans_}" + (
+            f", {settings})" if settings else ")"
         )
 
     def memory_bytes(self) -> int:
@@ -157,16 +154,26 @@ class HilbertMap:
         with timer("features"):
             neighbours = self._index.nearest(groups.centres, cfg.neighbours)
             values = kernel_values(
-                samples.points, groups.group_of_point, neighbours,
-                clusters.means, clusters.transforms,
+                samples.points,
+                groups.group_of_point,
+                neighbours,
+                clusters.means,
+                clusters.transforms,
             )
         with timer("sgd"):
             labels = samples.occupied.astype(np.float64)
             for _ in range(cfg.epochs):
                 sgd_pass(
-                    values, groups.group_of_point, neighbours, labels,
-                    self._rng.permutation(len(labels)), clusters.weights, clusters.grad_sq,
-                    self.bias_state_, cfg.learning_rate, cfg.l2,
+                    values,
+                    groups.group_of_point,
+                    neighbours,
+                    labels,
+                    self._rng.permutation(len(labels)),
+                    clusters.weights,
+                    clusters.grad_sq,
+                    self.bias_state_,
+                    cfg.learning_rate,
+                    cfg.l2,
                 )
         self.timings_ = dict(timer.seconds)
 
@@ -210,19 +217,27 @@ class HilbertMap:
             self.clusters_ = ClusterSet.empty(groups.centres.shape[1])
         clusters = self.clusters_
         targets = match_new_clusters(
-            clusters, self._index.tree, groups.new_means, groups.new_covariances,
-            cfg.merge_threshold, cfg.min_std,
+            clusters,
+            self._index.tree,
+            groups.new_means,
+            groups.new_covariances,
+            cfg.merge_threshold,
+            cfg.min_std,
         )
         merging = targets >= 0
         if merging.any():
             merge = merge_pooled if cfg.merge_rule == "pooled" else merge_average
             merge(
-                clusters, targets[merging], groups.new_means[merging],
-                groups.new_covariances[merging], groups.new_counts[merging],
+                clusters,
+                targets[merging],
+                groups.new_means[merging],
+                groups.new_covariances[merging],
+                groups.new_counts[merging],
             )
         start = len(clusters)
         clusters.append(
-            groups.new_means[~merging], groups.new_covariances[~merging],
+            groups.new_means[~merging],
+            groups.new_covariances[~merging],
             groups.new_counts[~merging],
         )
         changed = np.concatenate([np.unique(targets[merging]), np.arange(start, len(clusters))])
@@ -266,7 +281,10 @@ class HilbertMap:
         if mode == "batch":
             radius = self.config.cluster_radius
             groups = quick_means(
-                query, radius, radius * self.config.outer_radius_factor, 1,
+                query,
+                radius,
+                radius * self.config.outer_radius_factor,
+                1,
                 np.random.default_rng(self.config.seed),
             )
             group_of_point, centres = groups.owner, groups.means
@@ -275,8 +293,13 @@ class HilbertMap:
         neighbours = self._index.nearest(centres, self.config.neighbours)
         clusters = self.clusters_
         scores[finite] = decision_values(
-            query, group_of_point, neighbours, clusters.means, clusters.transforms,
-            clusters.weights, self.bias_,
+            query,
+            group_of_point,
+            neighbours,
+            clusters.means,
+            clusters.transforms,
+            clusters.weights,
+            self.bias_,
         )
         return scores
 

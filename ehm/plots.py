@@ -37,8 +37,12 @@ def occupancy_slices(
         points = planar if z is None else np.column_stack([planar, np.full(len(planar), z)])
         probability = hilbert_map.occupancy(points).reshape(grid_x.shape)
         image = axis.imshow(
-            probability, origin="lower", extent=(xs[0], xs[-1], ys[0], ys[-1]),
-            cmap="viridis", vmin=0.0, vmax=1.0,
+            probability,
+            origin="lower",
+            extent=(xs[0], xs[-1], ys[0], ys[-1]),
+            cmap="viridis",
+            vmin=0.0,
+            vmax=1.0,
         )
         if scene is not None:
             truth = scene.occupied(points).reshape(grid_x.shape).astype(float)

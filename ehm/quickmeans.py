@@ -41,15 +41,26 @@ def _statistics(
     """Means and unbiased covariances from sums taken relative to `centres`."""
     n = counts.astype(np.float64)
     local_mean = sums / n[:, None]
-    scatter_about_mean = scatter - n[:, None, None] * np.einsum("si,sj->sij", local_mean, local_mean)
+    scatter_about_mean = scatter - n[:, None, None] * np.einsum(
+        "si,sj->sij", local_mean, local_mean
+    )
     covariances = scatter_about_mean / np.maximum(n - 1.0, 1.0)[:, None, None]
     return centres + local_mean, covariances
 
 
 @numba.njit(cache=True)
 def _quick_means_kernel(
-    points, cells, strides, extents, cell_keys, cell_starts, cell_sizes, sorted_points, order,
-    r_inner, r_outer,
+    points,
+    cells,
+    strides,
+    extents,
+    cell_keys,
+    cell_starts,
+    cell_sizes,
+    sorted_points,
+    order,
+    r_inner,
+    r_outer,
 ):  # pragma: no cover - compiled
     n, d = points.shape
     available = np.ones(n, dtype=np.bool_)

@@ -116,7 +116,9 @@ class Scan:
         hit_points = self.points_world[usable][hits]
         hit_dirs = directions[hits]
         behind = hit_points + hit_dirs * (margin * rng.random(len(hit_points)))[:, None]
-        front_depth = np.minimum(margin * (0.25 + 0.75 * rng.random(len(hit_points))), lengths[hits])
+        front_depth = np.minimum(
+            margin * (0.25 + 0.75 * rng.random(len(hit_points))), lengths[hits]
+        )
         in_front = hit_points - hit_dirs * front_depth[:, None]
 
         free_length = np.where(hits, np.maximum(lengths - margin, 0.0), lengths)

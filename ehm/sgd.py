@@ -15,8 +15,16 @@ EPSILON = 1e-8
 
 @numba.njit(cache=True)
 def sgd_pass(
-    values, group_of_point, group_neighbours, labels, order, weights, grad_sq, bias_state,
-    learning_rate, l2,
+    values,
+    group_of_point,
+    group_neighbours,
+    labels,
+    order,
+    weights,
+    grad_sq,
+    bias_state,
+    learning_rate,
+    l2,
 ):  # pragma: no cover - compiled
     """One pass over the samples in `order`, updating weights, grad_sq and bias_state in place.
 

@@ -1,7 +1,7 @@
 """The real data sets of the shared data folder, as lists of ehm.Scan.
 
 The folder is $EHM_DATA_DIR, or ../shared/data beside the project by default. Each loader
-raises DataMissing (a FileNotFoundError) naming the path when its files are absent.
+raises DataMissingError (a FileNotFoundError) naming the path when its files are absent.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ OCTOMAP_SCAN_ORIGIN = np.array([0.035, 0.0, 0.513])
 PCL_ROOM_MIN_RANGE = 0.3
 
 
-class DataMissing(FileNotFoundError):
+class DataMissingError(FileNotFoundError):
     """A data set's files are not in the data folder."""
 
 
@@ -36,7 +36,7 @@ def data_dir() -> Path:
 def _require(relative: str) -> Path:
     path = data_dir() / relative
     if not path.exists():
-        raise DataMissing(f"{path} not found (set EHM_DATA_DIR to the data folder)")
+        raise DataMissingError(f"{path} not found (set EHM_DATA_DIR to the data folder)")
     return path
 
 

@@ -1,8 +1,8 @@
 """Read any supported input into a list of ehm.Scan, choosing the reader by file extension.
 
-    scans = read_scans("scan.dat.bz2", origin=[0.035, 0, 0.513])
-    scans = read_scans(["velodyne/000000.bin", ...], poses="poses.txt")
-    scans = read_scans("tum_sequence/")                 # folder with poses.txt and depth/
+scans = read_scans("scan.dat.bz2", origin=[0.035, 0, 0.513])
+scans = read_scans(["velodyne/000000.bin", ...], poses="poses.txt")
+scans = read_scans("tum_sequence/")                 # folder with poses.txt and depth/
 """
 
 from __future__ import annotations

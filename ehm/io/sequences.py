@@ -99,7 +99,9 @@ def read_tum(
             continue
         name, *numbers = line.split()
         tx, ty, tz, qx, qy, qz, qw = map(float, numbers)
-        depth = np.asarray(Image.open(folder / name), dtype=np.float64)[::pixel_stride, ::pixel_stride]
+        depth = np.asarray(Image.open(folder / name), dtype=np.float64)[
+            ::pixel_stride, ::pixel_stride
+        ]
         v, u = np.nonzero(depth)
         z = depth[v, u] / depth_scale
         u, v = u * pixel_stride, v * pixel_stride
@@ -127,9 +129,7 @@ def read_carmen(path: Pathish, max_range: float = 81.0, fov: float = np.pi) -> l
             raise ValueError(f"{path}:{number}: malformed FLASER line ({error})") from error
         angles = theta - fov / 2 + np.arange(n) * fov / n
         keep = ranges < max_range
-        points = np.column_stack(
-            [x + ranges * np.cos(angles), y + ranges * np.sin(angles)]
-        )[keep]
+        points = np.column_stack([x + ranges * np.cos(angles), y + ranges * np.sin(angles)])[keep]
         if len(points):
             scans.append(Scan(points, np.array([x, y])))
     return scans

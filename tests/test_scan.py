@@ -1,0 +1,66 @@
+import numpy as np
+import pytest
+
+from ehm.config import MapConfig
+from ehm.scan import Scan
+
+
+def test_nan_and_inf_points_are_dropped_and_counted():
+    points = np.array([[1.0, 0, 0], [np.nan, 0, 0], [0, np.inf, 0], [0, 2.0, 0]])
+    scan = Scan(points, np.zeros(3))
+    assert len(scan) == 2
+    assert scan.n_dropped == 2
+
+
+@pytest.mark.parametrize(
+    ("points", "origin", "hit_mask", "message"),
+    [
+        (np.zeros((5, 4)), np.zeros(4), None, r"shape \(N, 2\) or \(N, 3\), got \(5, 4\)"),
+        (np.zeros(5), np.zeros(3), None, r"got \(5,\)"),
+        (np.zeros((0, 3)), np.zeros(3), None, "scan is empty"),
+        (np.full((3, 3), np.nan), np.zeros(3), None, "3 non-finite dropped"),
+        (np.ones((5, 3)), None, None, "origin is missing"),
+        (np.ones((5, 3)), np.zeros(2), None, r"origin has shape \(2,\), points are 3D"),
+        (np.ones((5, 3)), [0, np.nan, 0], None, "origin is not finite"),
+        (np.ones((5, 3)), np.zeros(3), np.ones(4, bool), r"hit_mask has shape \(4,\)"),
+        (np.ones((5, 3)), np.zeros(3), np.ones(5), "hit_mask must be boolean"),
+    ],
+)
+def test_bad_scans_name_the_problem(points, origin, hit_mask, message):
+    with pytest.raises(ValueError, match=message):
+        Scan(points, origin, hit_mask)
+
+
+def test_training_samples_lie_on_rays_with_the_right_labels(rng):
+    origin = np.array([0.0, 0.0, 1.0])
+    directions = rng.normal(size=(500, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    lengths = rng.uniform(1.0, 5.0, 500)
+    hit = rng.random(500) < 0.8
+    scan = Scan(origin + directions * lengths[:, None], origin, hit)
+    config = MapConfig(free_spacing=0.25, surface_margin=0.05)
+    samples = scan.training_samples(config, rng)
+    offsets = samples.points - origin
+    distance = np.linalg.norm(offsets, axis=1)
+    # Every sample is on one of the rays.
+    cosine = (offsets / distance[:, None]) @ directions.T
+    ray = np.argmax(cosine, axis=1)
+    np.testing.assert_allclose(cosine[np.arange(len(ray)), ray], 1.0, atol=1e-9)
+    depth = distance - lengths[ray]  # > 0 behind the ray's end
+    occupied = samples.occupied
+    assert np.all(hit[ray[occupied]])
+    assert np.all((depth[occupied] >= -1e-9) & (depth[occupied] <= 0.05 + 1e-9))
+    free_on_hits = ~occupied & hit[ray]
+    assert np.all(depth[free_on_hits] <= -0.05 / 4 + 1e-9)
+    assert np.all(depth[~occupied & ~hit[ray]] <= 1e-9)
+    # Free density follows the setting: about length / spacing samples per ray.
+    along = ~occupied & (depth < -0.05 - 1e-9)
+    expected = np.sum(np.maximum(lengths - 0.05 * hit, 0) / 0.25)
+    assert abs(along.sum() - expected) < 0.1 * expected
+
+
+def test_no_return_rays_give_free_samples_only(rng):
+    scan = Scan(np.array([[3.0, 0.0], [0.0, 2.0]]), np.zeros(2), np.array([False, False]))
+    samples = scan.training_samples(MapConfig(free_spacing=0.1), rng)
+    assert not samples.occupied.any()
+    assert len(samples) > 30
