@@ -56,6 +56,8 @@ class MapConfig:
     """AdaGrad step size of the stochastic gradient steps."""
     l2: float = 1e-3
     """L2 regularisation of the weights (the R(w) of Eq. 2)."""
+    balance_classes: bool = False
+    """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2
     """Passes of stochastic gradient descent over each scan's samples."""
 

@@ -162,12 +162,14 @@ class HilbertMap:
             )
         with timer("sgd"):
             labels = samples.occupied.astype(np.float64)
+            class_weights = self._class_weights(samples.occupied)
             for _ in range(cfg.epochs):
                 sgd_pass(
                     values,
                     groups.group_of_point,
                     neighbours,
                     labels,
+                    class_weights,
                     self._rng.permutation(len(labels)),
                     clusters.weights,
                     clusters.grad_sq,
@@ -176,6 +178,15 @@ class HilbertMap:
                     cfg.l2,
                 )
         self.timings_ = dict(timer.seconds)
+
+    def _class_weights(self, occupied: np.ndarray) -> np.ndarray:
+        """Loss weights [free, occupied]: equal total weight per class when balancing, so the
+        density of free samples does not move the 0.5 boundary."""
+        n_occupied = int(occupied.sum())
+        n_free = len(occupied) - n_occupied
+        if not self.config.balance_classes or n_occupied == 0 or n_free == 0:
+            return np.ones(2)
+        return len(occupied) / (2.0 * np.array([n_free, n_occupied], dtype=np.float64))
 
     def _group_samples(self, samples: TrainingSamples) -> SampleGroups:
         """Quick-means over the samples (occupied and free apart or together)."""

@@ -19,6 +19,7 @@ def sgd_pass(
     group_of_point,
     group_neighbours,
     labels,
+    class_weights,
     order,
     weights,
     grad_sq,
@@ -28,7 +29,8 @@ def sgd_pass(
 ):  # pragma: no cover - compiled
     """One pass over the samples in `order`, updating weights, grad_sq and bias_state in place.
 
-    values: (n, k) kernel values; bias_state: [bias, its accumulated squared gradient].
+    values: (n, k) kernel values; labels: (n,) 0 or 1; class_weights: (2,) loss weight of a
+    free and of an occupied sample; bias_state: [bias, its accumulated squared gradient].
     """
     k = group_neighbours.shape[1]
     for i in order:
@@ -38,7 +40,8 @@ def sgd_pass(
             cluster = group_neighbours[g, j]
             if cluster >= 0:
                 score += weights[cluster] * values[i, j]
-        error = 1.0 / (1.0 + np.exp(-score)) - labels[i]
+        label = labels[i]
+        error = (1.0 / (1.0 + np.exp(-score)) - label) * class_weights[np.int64(label)]
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster < 0 or values[i, j] == 0.0:
@@ -55,6 +58,7 @@ def sgd_pass_reference(
     group_of_point: np.ndarray,
     group_neighbours: np.ndarray,
     labels: np.ndarray,
+    class_weights: np.ndarray,
     order: np.ndarray,
     weights: np.ndarray,
     grad_sq: np.ndarray,
@@ -68,7 +72,7 @@ def sgd_pass_reference(
         active = (clusters >= 0) & (values[i] != 0.0)
         touched, phi = clusters[active], values[i][active]
         score = bias_state[0] + np.dot(weights[touched], phi)
-        error = 1.0 / (1.0 + np.exp(-score)) - labels[i]
+        error = (1.0 / (1.0 + np.exp(-score)) - labels[i]) * class_weights[int(labels[i])]
         grad = error * phi + l2 * weights[touched]
         grad_sq[touched] += grad * grad
         weights[touched] -= learning_rate * grad / np.sqrt(grad_sq[touched] + EPSILON)

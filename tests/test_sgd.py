@@ -14,8 +14,11 @@ def test_sgd_pass_matches_reference(rng):
     state = [rng.normal(size=n_clusters), rng.uniform(0, 1, n_clusters), np.array([0.1, 0.5])]
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
-    sgd_pass(values, group_of_point, neighbours, labels, order, *compiled, 0.3, 1e-3)
-    sgd_pass_reference(values, group_of_point, neighbours, labels, order, *reference, 0.3, 1e-3)
+    class_weights = np.array([0.7, 1.9])
+    sgd_pass(values, group_of_point, neighbours, labels, class_weights, order, *compiled, 0.3, 1e-3)
+    sgd_pass_reference(
+        values, group_of_point, neighbours, labels, class_weights, order, *reference, 0.3, 1e-3
+    )
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     assert not np.allclose(compiled[0], state[0])
@@ -33,6 +36,7 @@ def test_sgd_separates_two_classes():
         np.zeros(n, dtype=np.int64),
         neighbours,
         labels,
+        np.ones(2),
         np.arange(n),
         weights,
         grad_sq,
