@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 from scipy.stats import rankdata
 
 from ehm.scan import Scan
@@ -96,8 +97,6 @@ def observed_mask(scans: list[Scan], points: np.ndarray, tolerance: float) -> np
     For each scan, the ray closest in direction to the point (as seen from the scan's origin)
     decides: the point is observed when it lies no farther than that ray's length + tolerance.
     """
-    from scipy.spatial import cKDTree
-
     reached = np.zeros(len(points), dtype=bool)
     for scan in scans:
         offsets = scan.points_world - scan.origin
