@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from ehm.kernels import covariance_square_roots, kernel_transforms
+from ehm.index import ClusterIndex
+from ehm.kernels import covariance_square_roots, kernel_reach, kernel_transforms
 
 
 @dataclass
@@ -17,7 +17,8 @@ class ClusterSet:
     means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2.
     counts: (M,) float64, samples the statistics summarise. weights: (M,) float64, classifier
     weights. grad_sq: (M,) float64, AdaGrad accumulators. transforms: (M, d, d) float64, 1/m,
-    kernel transforms derived from the covariances (see ehm.kernels).
+    kernel transforms derived from the covariances (see ehm.kernels). coarse: (M,) bool, True
+    for clusters of open free space (see ehm.index).
     """
 
     means: np.ndarray
@@ -26,6 +27,7 @@ class ClusterSet:
     weights: np.ndarray
     grad_sq: np.ndarray
     transforms: np.ndarray
+    coarse: np.ndarray
 
     @classmethod
     def empty(cls, dim: int) -> ClusterSet:
@@ -36,6 +38,7 @@ class ClusterSet:
             np.zeros(0),
             np.zeros(0),
             np.zeros((0, dim, dim)),
+            np.zeros(0, dtype=bool),
         )
 
     def __len__(self) -> int:
@@ -52,7 +55,9 @@ class ClusterSet:
     def nbytes(self) -> int:
         return sum(a.nbytes for a in self.arrays().values())
 
-    def append(self, means: np.ndarray, covariances: np.ndarray, counts: np.ndarray) -> None:
+    def append(
+        self, means: np.ndarray, covariances: np.ndarray, counts: np.ndarray, coarse: np.ndarray
+    ) -> None:
         """Add clusters with weight 0 (no prior knowledge of their occupancy)."""
         n = len(means)
         self.means = np.concatenate([self.means, means])
@@ -61,6 +66,11 @@ class ClusterSet:
         self.weights = np.concatenate([self.weights, np.zeros(n)])
         self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n)])
         self.transforms = np.concatenate([self.transforms, np.zeros((n,) + means.shape[1:] * 2)])
+        self.coarse = np.concatenate([self.coarse, np.asarray(coarse, dtype=bool)])
+
+    def index(self) -> ClusterIndex:
+        """A spatial index over the current centres."""
+        return ClusterIndex(self.means, self.coarse, kernel_reach(self.transforms))
 
     def refresh_transforms(self, rows: np.ndarray, length_scale: float, min_std: float) -> None:
         """Recompute the kernel transforms of some clusters after their statistics changed."""
@@ -80,32 +90,40 @@ def anisotropic_distances(
 
 def match_new_clusters(
     clusters: ClusterSet,
-    tree: cKDTree,
+    index: ClusterIndex,
     new_means: np.ndarray,
     new_covariances: np.ndarray,
+    new_coarse: np.ndarray,
     threshold: float,
     min_std: float,
     candidates: int = 4,
 ) -> np.ndarray:
-    """For each new cluster, the map cluster it merges into (anisotropic distance of Eq. 14
-    below `threshold`, nearest of `candidates` centres), or -1 to add it. Returns (n,) int64."""
-    n, m = len(new_means), len(clusters)
-    if n == 0 or m == 0:
-        return np.full(n, -1, dtype=np.int64)
-    k = min(candidates, m)
-    _, nearest = tree.query(new_means, k=k)
-    nearest = nearest.reshape(n, k)
-    new_roots = covariance_square_roots(new_covariances, min_std)
-    map_roots = covariance_square_roots(clusters.covariances[nearest.ravel()], min_std)
-    distances = anisotropic_distances(
-        np.repeat(new_means, k, axis=0),
-        np.repeat(new_roots, k, axis=0),
-        clusters.means[nearest.ravel()],
-        map_roots,
-    ).reshape(n, k)
+    """For each new cluster, the map cluster of the same scale it merges into (anisotropic
+    distance of Eq. 14 below `threshold`, nearest of `candidates` centres), or -1 to add it.
+    Returns (n,) int64."""
+    n = len(new_means)
+    targets = np.full(n, -1, dtype=np.int64)
+    if n == 0 or len(clusters) == 0:
+        return targets
+    nearest = np.empty((n, candidates), dtype=np.int64)
+    for coarse in (False, True):
+        rows = new_coarse == coarse
+        nearest[rows] = index.nearest_of_scale(new_means[rows], coarse, candidates)
+    found = nearest >= 0
+    pair_new = np.nonzero(found)[0]
+    pair_old = nearest[found]
+    distances = np.full((n, candidates), np.inf)
+    distances[found] = anisotropic_distances(
+        new_means[pair_new],
+        covariance_square_roots(new_covariances, min_std)[pair_new],
+        clusters.means[pair_old],
+        covariance_square_roots(clusters.covariances[pair_old], min_std),
+    )
     best = np.argmin(distances, axis=1)
     closest = distances[np.arange(n), best]
-    return np.where(closest < threshold, nearest[np.arange(n), best], -1).astype(np.int64)
+    merging = closest < threshold
+    targets[merging] = nearest[np.arange(n), best][merging]
+    return targets
 
 
 def merge_pooled(

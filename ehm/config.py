@@ -21,8 +21,11 @@ class MapConfig:
     free_spacing: float = 0.6
     """Mean distance between free samples along a ray, metres (density of free samples)."""
     surface_margin: float = 0.05
-    """Band around each hit, metres: free samples stop this far before it, one occupied sample
-    is drawn up to this far behind it and one free sample within the band in front of it."""
+    """Band in front of each hit, metres: free samples along the ray stop this far before it,
+    and one free sample is drawn within the band."""
+    occupied_depth: float = 0.15
+    """One occupied sample is drawn up to this far behind each hit, metres: surfaces are taken
+    to be solid this deep."""
 
     # Quick-means (Alg. 1).
     cluster_radius: float = 0.12
@@ -30,7 +33,8 @@ class MapConfig:
     outer_radius_factor: float = 1.5
     """Outer radius r_o as a multiple of the inner radius."""
     free_cluster_radius: float = 0.6
-    """Inner radius r_i of quick-means for free samples, metres (when clustered apart)."""
+    """Inner radius r_i of quick-means for free samples along rays, metres, when clustered
+    apart; they form the coarse clusters. Samples around hits use `cluster_radius`."""
     min_cluster_size: int = 4
     """Quick-means drops seeds with fewer samples than this within the outer radius."""
     kmeans_iterations: int = 0
@@ -44,7 +48,9 @@ class MapConfig:
     min_std: float = 0.02
     """Floor on each cluster's standard deviation along any axis, metres."""
     neighbours: int = 8
-    """Clusters that enter each point's feature vector (k nearest cluster centres)."""
+    """Fine clusters that enter each point's feature vector (k nearest fine centres)."""
+    coarse_neighbours: int = 2
+    """Coarse free-space clusters that enter each point's feature vector as well."""
 
     # Alg. 2: merging and stochastic gradient descent.
     merge_rule: MergeRule = "pooled"
@@ -62,8 +68,14 @@ class MapConfig:
     """Passes of stochastic gradient descent over each scan's samples."""
 
     # Queries (Alg. 3).
+    query_intercept: bool = False
+    """Add the learned intercept (bias) to the query scores. It absorbs the share of free
+    samples during training, which the sampling settings set, not the scene; left out, a point
+    no cluster reaches reads 0.5 (unknown), as in OctoMap."""
     query_mode: QueryMode = "batch"
     """'batch': neighbour search once per group of query points; 'exact': once per point."""
+    query_cell: float = 0.1
+    """Side of the cubic cells that group query points for one neighbour search, metres."""
 
     seed: int = 0
     """Seed of every random choice (sampling, quick-means order, SGD order)."""
@@ -72,12 +84,14 @@ class MapConfig:
         positive = (
             "free_spacing",
             "surface_margin",
+            "occupied_depth",
             "cluster_radius",
             "free_cluster_radius",
             "length_scale",
             "min_std",
             "learning_rate",
             "merge_threshold",
+            "query_cell",
         )
         for name in positive:
             value = getattr(self, name)
@@ -90,6 +104,7 @@ class MapConfig:
         integers = (
             ("min_cluster_size", 1),
             ("neighbours", 1),
+            ("coarse_neighbours", 0),
             ("epochs", 1),
             ("kmeans_iterations", 0),
         )

@@ -13,6 +13,31 @@ import numpy as np
 from ehm.kernels import sparse_kernel, sparse_kernel_reference
 
 
+def group_by_cell(points: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """Group (n, d) points, metres, by the cubic cell of side `cell` they fall in (Alg. 3
+    line 1). Returns group_of_point (n,) int64 and the mean of each group's points (G, d)."""
+    n, d = points.shape
+    if n == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, d))
+    cells = np.floor((points - points.min(axis=0)) / cell).astype(np.int64)
+    extents = cells.max(axis=0) + 1
+    if np.prod(extents.astype(np.float64)) > 2.0**62:
+        raise ValueError(f"query points span too many cells of {cell} m: cell keys overflow")
+    strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
+    _, group_of_point = np.unique(cells @ strides, return_inverse=True)
+    group_of_point = group_of_point.ravel().astype(np.int64)
+    sizes = np.bincount(group_of_point)
+    sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)
+    return group_of_point, sums / sizes[:, None]
+
+
+def group_spread(points: np.ndarray, group_of_point: np.ndarray, centres: np.ndarray) -> float:
+    """Largest distance, metres, from a point to the centre of its group (0 for no points)."""
+    if len(points) == 0:
+        return 0.0
+    return float(np.sqrt(np.max(np.sum((points - centres[group_of_point]) ** 2, axis=1))))
+
+
 @numba.njit(cache=True, inline="always")
 def _kernel_at(points, i, cluster, means, transforms):  # pragma: no cover - compiled
     d = points.shape[1]

@@ -46,3 +46,14 @@ def covariance_square_roots(covariances: np.ndarray, min_std: float) -> np.ndarr
     """Symmetric square roots (M, d, d), metres, of the floored covariances."""
     eigenvalues, eigenvectors = floored_eigen(covariances, min_std)
     return np.einsum("mij,mj,mkj->mik", eigenvectors, np.sqrt(eigenvalues), eigenvectors)
+
+
+def kernel_reach(transforms: np.ndarray) -> np.ndarray:
+    """(M,) metres: the distance from its mean beyond which each cluster's kernel is zero.
+
+    Row a of T_m is (1 / (l sqrt(lambda'_a))) v_a^T, so the reach is the largest
+    l sqrt(lambda'_a) = 1 / (smallest row norm)."""
+    if len(transforms) == 0:
+        return np.zeros(0)
+    with np.errstate(divide="ignore"):  # an all-zero transform reaches everywhere
+        return 1.0 / np.linalg.norm(transforms, axis=2).min(axis=1)

@@ -17,8 +17,7 @@ import numpy as np
 
 from ehm.clusters import ClusterSet, match_new_clusters, merge_average, merge_pooled
 from ehm.config import MapConfig
-from ehm.features import decision_values, kernel_values
-from ehm.index import ClusterIndex
+from ehm.features import decision_values, group_by_cell, group_spread, kernel_values
 from ehm.quickmeans import kmeans_refine, quick_means
 from ehm.scan import Scan, TrainingSamples
 from ehm.sgd import sgd_pass
@@ -30,7 +29,8 @@ class SampleGroups:
     """Samples grouped for neighbour search, and the new clusters found among them.
 
     group_of_point: (n,) int64. centres: (G, d) float64, metres. new_means (C, d),
-    new_covariances (C, d, d), new_counts (C,): statistics of the clusters proper.
+    new_covariances (C, d, d), new_counts (C,), new_coarse (C,): statistics and scale of the
+    clusters proper.
     """
 
     group_of_point: np.ndarray
@@ -38,6 +38,7 @@ class SampleGroups:
     new_means: np.ndarray
     new_covariances: np.ndarray
     new_counts: np.ndarray
+    new_coarse: np.ndarray
 
 
 class HilbertMap:
@@ -60,7 +61,7 @@ class HilbertMap:
         self.n_scans_ = 0
         self.timings_: dict[str, float] = {}
         self.last_update_: dict[str, int] = {}
-        self._index = ClusterIndex(np.zeros((0, 1)))
+        self._index = ClusterSet.empty(1).index()
         self._rng = np.random.default_rng(self.config.seed)
 
     # ------------------------------------------------------------------ state
@@ -94,7 +95,7 @@ class HilbertMap:
         self.clusters_ = clusters
         self.bias_state_ = np.asarray(bias_state, dtype=np.float64).copy()
         self.n_scans_ = n_scans
-        self._index = ClusterIndex(clusters.means)
+        self._index = clusters.index()
 
     # --------------------------------------------------------------- training
     def integrate(
@@ -152,7 +153,10 @@ class HilbertMap:
             self._absorb(groups)
         clusters = self.clusters_
         with timer("features"):
-            neighbours = self._index.nearest(groups.centres, cfg.neighbours)
+            spread = group_spread(samples.points, groups.group_of_point, groups.centres)
+            neighbours = self._index.nearest(
+                groups.centres, cfg.neighbours, cfg.coarse_neighbours, spread
+            )
             values = kernel_values(
                 samples.points,
                 groups.group_of_point,
@@ -189,19 +193,22 @@ class HilbertMap:
         return len(occupied) / (2.0 * np.array([n_free, n_occupied], dtype=np.float64))
 
     def _group_samples(self, samples: TrainingSamples) -> SampleGroups:
-        """Quick-means over the samples (occupied and free apart or together)."""
+        """Quick-means over the samples. Apart: occupied samples, free samples around hits (both
+        fine) and free samples along rays (coarse) each on their own; together: all at once."""
         cfg = self.config
         if cfg.cluster_free_apart:
+            free = ~samples.occupied
             parts = [
-                (np.flatnonzero(samples.occupied), cfg.cluster_radius),
-                (np.flatnonzero(~samples.occupied), cfg.free_cluster_radius),
+                (np.flatnonzero(samples.occupied), cfg.cluster_radius, False),
+                (np.flatnonzero(free & samples.at_surface), cfg.cluster_radius, False),
+                (np.flatnonzero(free & ~samples.at_surface), cfg.free_cluster_radius, True),
             ]
         else:
-            parts = [(np.arange(len(samples)), cfg.cluster_radius)]
+            parts = [(np.arange(len(samples)), cfg.cluster_radius, False)]
         group_of_point = np.empty(len(samples), dtype=np.int64)
-        centres, means, covariances, counts = [], [], [], []
+        centres, means, covariances, counts, coarse = [], [], [], [], []
         n_groups = 0
-        for rows, radius in parts:
+        for rows, radius, is_coarse in parts:
             points = samples.points[rows]
             result = quick_means(
                 points, radius, radius * cfg.outer_radius_factor, cfg.min_cluster_size, self._rng
@@ -213,12 +220,14 @@ class HilbertMap:
             means.append(result.means[result.kept])
             covariances.append(result.covariances[result.kept])
             counts.append(result.counts[result.kept])
+            coarse.append(np.full(int(result.kept.sum()), is_coarse))
         return SampleGroups(
             group_of_point,
             np.concatenate(centres),
             np.concatenate(means),
             np.concatenate(covariances),
             np.concatenate(counts),
+            np.concatenate(coarse),
         )
 
     def _absorb(self, groups: SampleGroups) -> None:
@@ -229,9 +238,10 @@ class HilbertMap:
         clusters = self.clusters_
         targets = match_new_clusters(
             clusters,
-            self._index.tree,
+            self._index,
             groups.new_means,
             groups.new_covariances,
+            groups.new_coarse,
             cfg.merge_threshold,
             cfg.min_std,
         )
@@ -250,10 +260,11 @@ class HilbertMap:
             groups.new_means[~merging],
             groups.new_covariances[~merging],
             groups.new_counts[~merging],
+            groups.new_coarse[~merging],
         )
         changed = np.concatenate([np.unique(targets[merging]), np.arange(start, len(clusters))])
         clusters.refresh_transforms(changed, cfg.length_scale, cfg.min_std)
-        self._index = ClusterIndex(clusters.means)
+        self._index = clusters.index()
         self.last_update_ = {
             "new_clusters": int((~merging).sum()),
             "merged_clusters": int(merging.sum()),
@@ -275,7 +286,8 @@ class HilbertMap:
         return np.column_stack([1.0 - occupied, occupied])
 
     def decision_function(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """(n,) float64 w^T phi(x) + b, the log-odds of occupancy."""
+        """(n,) float64 log-odds of occupancy: w^T phi(x), plus the intercept b when
+        config.query_intercept is set."""
         if self.clusters_ is None:
             raise RuntimeError("the map is empty: integrate a scan or fit before querying")
         mode = mode or self.config.query_mode
@@ -290,18 +302,15 @@ class HilbertMap:
         scores = np.full(len(points), np.nan)
         query = np.ascontiguousarray(points[finite])
         if mode == "batch":
-            radius = self.config.cluster_radius
-            groups = quick_means(
-                query,
-                radius,
-                radius * self.config.outer_radius_factor,
-                1,
-                np.random.default_rng(self.config.seed),
-            )
-            group_of_point, centres = groups.owner, groups.means
+            group_of_point, centres = group_by_cell(query, self.config.query_cell)
         else:
             group_of_point, centres = np.arange(len(query)), query
-        neighbours = self._index.nearest(centres, self.config.neighbours)
+        neighbours = self._index.nearest(
+            centres,
+            self.config.neighbours,
+            self.config.coarse_neighbours,
+            group_spread(query, group_of_point, centres),
+        )
         clusters = self.clusters_
         scores[finite] = decision_values(
             query,
@@ -310,7 +319,7 @@ class HilbertMap:
             clusters.means,
             clusters.transforms,
             clusters.weights,
-            self.bias_,
+            self.bias_ if self.config.query_intercept else 0.0,
         )
         return scores
 

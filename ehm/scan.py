@@ -13,11 +13,13 @@ from ehm.config import MapConfig
 class TrainingSamples:
     """Labelled points for the classifier.
 
-    points: (n, d) float64, metres, world frame. occupied: (n,) bool.
+    points: (n, d) float64, metres, world frame. occupied: (n,) bool. at_surface: (n,) bool,
+    True for the samples drawn around hits (both classes), False for free samples along rays.
     """
 
     points: np.ndarray
     occupied: np.ndarray
+    at_surface: np.ndarray
 
     def __len__(self) -> int:
         return len(self.points)
@@ -27,6 +29,7 @@ class TrainingSamples:
         return TrainingSamples(
             np.concatenate([p.points for p in parts]),
             np.concatenate([p.occupied for p in parts]),
+            np.concatenate([p.at_surface for p in parts]),
         )
 
 
@@ -101,10 +104,10 @@ class Scan:
     def training_samples(self, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
         """Occupied and free samples along every ray.
 
-        Hits are occupied, and so is one point up to `surface_margin` behind each hit. One free
-        point lies in the band (margin, 2 margin) in front of each hit. Free points are drawn
-        uniformly along each ray, `free_spacing` apart on average, up to `surface_margin`
-        before a hit, or over the whole length of a ray without return.
+        Around each hit: the hit and one point up to `occupied_depth` behind it are occupied;
+        one point in the band from `surface_margin` / 4 to `surface_margin` in front of it is
+        free. Along each ray, free points are drawn uniformly, `free_spacing` apart on average,
+        up to `surface_margin` before the hit, or over the whole length of a ray without return.
         """
         offsets = self.points_world - self.origin
         lengths = np.linalg.norm(offsets, axis=1)
@@ -115,7 +118,8 @@ class Scan:
 
         hit_points = self.points_world[usable][hits]
         hit_dirs = directions[hits]
-        behind = hit_points + hit_dirs * (margin * rng.random(len(hit_points)))[:, None]
+        behind_depth = config.occupied_depth * rng.random(len(hit_points))
+        behind = hit_points + hit_dirs * behind_depth[:, None]
         front_depth = np.minimum(
             margin * (0.25 + 0.75 * rng.random(len(hit_points))), lengths[hits]
         )
@@ -132,4 +136,6 @@ class Scan:
         n_occupied = 2 * len(hit_points)
         occupied = np.zeros(len(points), dtype=bool)
         occupied[:n_occupied] = True
-        return TrainingSamples(points, occupied)
+        at_surface = np.zeros(len(points), dtype=bool)
+        at_surface[: n_occupied + len(in_front)] = True
+        return TrainingSamples(points, occupied, at_surface)

@@ -10,12 +10,13 @@ from ehm.clusters import (
 from ehm.index import ClusterIndex
 
 
-def _set_from(groups):
+def _set_from(groups, coarse=None):
     clusters = ClusterSet.empty(3)
     clusters.append(
         np.array([g.mean(axis=0) for g in groups]),
         np.array([np.cov(g.T) for g in groups]),
         np.array([len(g) for g in groups]),
+        np.zeros(len(groups), bool) if coarse is None else np.asarray(coarse),
     )
     return clusters
 
@@ -63,7 +64,39 @@ def test_match_merges_only_within_one_standard_deviation(rng):
     clusters = _set_from([rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])])
     covariances = np.repeat(clusters.covariances[:1], 3, axis=0)
     means = np.array([[0.05, 0, 0], [1.0, 0, 0], [2.02, 0.01, 0]])
-    targets = match_new_clusters(
-        clusters, ClusterIndex(clusters.means).tree, means, covariances, 1.0, 1e-3
-    )
+    coarse = np.zeros(3, bool)
+    targets = match_new_clusters(clusters, clusters.index(), means, covariances, coarse, 1.0, 1e-3)
     np.testing.assert_array_equal(targets, [0, -1, 1])
+
+
+def test_match_merges_only_clusters_of_the_same_scale(rng):
+    clusters = _set_from(
+        [rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])], coarse=[False, True]
+    )
+    covariances = np.repeat(clusters.covariances[:1], 4, axis=0)
+    means = np.array([[0.05, 0, 0], [0.05, 0, 0], [2.02, 0, 0], [2.02, 0, 0]])
+    coarse = np.array([False, True, False, True])
+    targets = match_new_clusters(clusters, clusters.index(), means, covariances, coarse, 1.0, 1e-3)
+    np.testing.assert_array_equal(targets, [0, -1, -1, 1])
+
+
+def test_index_returns_nearest_fine_then_nearest_coarse_clusters(rng):
+    centres = rng.uniform(-5, 5, (200, 3))
+    coarse = rng.random(200) < 0.3
+    points = rng.uniform(-5, 5, (50, 3))
+    found = ClusterIndex(centres, coarse).nearest(points, 5, 2)
+    assert found.shape == (50, 7)
+    for point, row in zip(points, found, strict=True):
+        distance = np.linalg.norm(centres - point, axis=1)
+        for scale, columns in ((False, row[:5]), (True, row[5:])):
+            rows = np.flatnonzero(coarse == scale)
+            expected = rows[np.argsort(distance[rows])[: len(columns)]]
+            np.testing.assert_array_equal(np.sort(columns), np.sort(expected))
+
+
+def test_index_pads_missing_clusters_and_drops_an_absent_scale():
+    centres = np.array([[0.0, 0, 0], [1.0, 0, 0]])
+    found = ClusterIndex(centres, np.array([False, False])).nearest(np.zeros((1, 3)), 3, 2)
+    np.testing.assert_array_equal(found, [[0, 1, -1]])
+    found = ClusterIndex(centres, np.array([False, True])).nearest(np.zeros((1, 3)), 2, 2)
+    np.testing.assert_array_equal(found, [[0, -1, 1, -1]])

@@ -25,8 +25,8 @@ def test_room_map_scores_well_against_exact_occupancy(room, room_map, room_tests
     near, uniform = room_tests
     auc_uniform = roc_auc(room.scene.occupied(uniform), room_map.occupancy(uniform))
     auc_near = roc_auc(room.scene.occupied(near), room_map.occupancy(near))
-    assert auc_uniform >= 0.93
-    assert auc_near >= 0.85
+    assert auc_uniform >= 0.97
+    assert auc_near >= 0.95
 
 
 def test_room_map_beats_chance_by_far_on_held_out_rays(room):
@@ -45,11 +45,11 @@ def test_batch_and_exact_queries_agree(room_map, room_tests):
     batch = room_map.occupancy(points, mode="batch")
     exact = room_map.occupancy(points, mode="exact")
     difference = np.abs(batch - exact)
-    # Stated tolerance: mean difference below 0.03 and 90 % of points within 0.02. The modes
-    # differ only where a point's k nearest clusters are not its group's (a few per cent of
-    # points near cluster boundaries, where the difference can reach 0.3).
-    assert difference.mean() < 0.03
-    assert np.percentile(difference, 90) < 0.02
+    # Stated tolerance: mean difference below 0.005 and 98 % of points within 0.05. The modes
+    # differ only where a point's k nearest clusters of a scale are not those of its cell's
+    # centre (about 1 % of points, at cluster boundaries, where the difference can reach 0.5).
+    assert difference.mean() < 0.005
+    assert np.mean(difference < 0.05) > 0.98
 
 
 def test_predict_proba_columns(room_map):

@@ -38,7 +38,7 @@ def test_training_samples_lie_on_rays_with_the_right_labels(rng):
     lengths = rng.uniform(1.0, 5.0, 500)
     hit = rng.random(500) < 0.8
     scan = Scan(origin + directions * lengths[:, None], origin, hit)
-    config = MapConfig(free_spacing=0.25, surface_margin=0.05)
+    config = MapConfig(free_spacing=0.25, surface_margin=0.05, occupied_depth=0.1)
     samples = scan.training_samples(config, rng)
     offsets = samples.points - origin
     distance = np.linalg.norm(offsets, axis=1)
@@ -49,9 +49,15 @@ def test_training_samples_lie_on_rays_with_the_right_labels(rng):
     depth = distance - lengths[ray]  # > 0 behind the ray's end
     occupied = samples.occupied
     assert np.all(hit[ray[occupied]])
-    assert np.all((depth[occupied] >= -1e-9) & (depth[occupied] <= 0.05 + 1e-9))
+    assert np.all((depth[occupied] >= -1e-9) & (depth[occupied] <= 0.1 + 1e-9))
     free_on_hits = ~occupied & hit[ray]
     assert np.all(depth[free_on_hits] <= -0.05 / 4 + 1e-9)
+    # Samples around hits are flagged: all occupied ones, and one free one per hit in the band.
+    in_band = ~occupied & samples.at_surface
+    assert np.all(samples.at_surface[occupied])
+    assert in_band.sum() == hit.sum()
+    assert np.all((depth[in_band] >= -0.05 - 1e-9) & (depth[in_band] <= -0.05 / 4 + 1e-9))
+    assert not np.any(samples.at_surface & ~hit[ray])
     assert np.all(depth[~occupied & ~hit[ray]] <= 1e-9)
     # Free density follows the setting: about length / spacing samples per ray.
     along = ~occupied & (depth < -0.05 - 1e-9)
