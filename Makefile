@@ -23,6 +23,7 @@ lint: $(BIN)/ehm
 
 bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/octomap_scan.py
+	$(BIN)/python benchmarks/virtual_room.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
