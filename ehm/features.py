@@ -10,6 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ehm.cells import cell_keys
 from ehm.kernels import sparse_kernel, sparse_kernel_reference
 
 
@@ -19,12 +20,7 @@ def group_by_cell(points: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarr
     n, d = points.shape
     if n == 0:
         return np.zeros(0, dtype=np.int64), np.zeros((0, d))
-    cells = np.floor((points - points.min(axis=0)) / cell).astype(np.int64)
-    extents = cells.max(axis=0) + 1
-    if np.prod(extents.astype(np.float64)) > 2.0**62:
-        raise ValueError(f"query points span too many cells of {cell} m: cell keys overflow")
-    strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
-    _, group_of_point = np.unique(cells @ strides, return_inverse=True)
+    _, group_of_point = np.unique(cell_keys(points, cell).keys, return_inverse=True)
     group_of_point = group_of_point.ravel().astype(np.int64)
     sizes = np.bincount(group_of_point)
     sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)

@@ -31,7 +31,6 @@ class ClusterIndex:
     def __init__(
         self, centres: np.ndarray, coarse: np.ndarray, reach: np.ndarray | None = None
     ) -> None:
-        self.size = len(centres)
         self._rows = [np.flatnonzero(~coarse), np.flatnonzero(coarse)]
         self._trees = [
             cKDTree(centres[rows], leafsize=_KDTREE_LEAF_SIZE) if len(rows) else None

@@ -15,6 +15,8 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ehm.cells import cell_keys
+
 
 @dataclass(frozen=True)
 class QuickMeansResult:
@@ -117,17 +119,20 @@ def _quick_means_kernel(
 
 def _cell_hash(points: np.ndarray, cell: float):
     """Integer cells of side `cell`, their linear keys and the points sorted by key."""
-    cells = np.floor((points - points.min(axis=0)) / cell).astype(np.int64)
-    extents = cells.max(axis=0) + 1
-    if np.prod(extents.astype(np.float64)) > 2.0**62:
-        raise ValueError("point set too large for its cluster radius: cell keys overflow")
-    strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
-    keys = cells @ strides
-    sorted_points = np.argsort(keys, kind="stable")
-    cell_keys, cell_starts, cell_sizes = np.unique(
-        keys[sorted_points], return_index=True, return_counts=True
+    hashed = cell_keys(points, cell)
+    sorted_points = np.argsort(hashed.keys, kind="stable")
+    cell_keys_sorted, cell_starts, cell_sizes = np.unique(
+        hashed.keys[sorted_points], return_index=True, return_counts=True
     )
-    return cells, strides, extents, cell_keys, cell_starts, cell_sizes, sorted_points
+    return (
+        hashed.cells,
+        hashed.strides,
+        hashed.extents,
+        cell_keys_sorted,
+        cell_starts,
+        cell_sizes,
+        sorted_points,
+    )
 
 
 def quick_means(

@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from ehm.clusters import (
     ClusterSet,
@@ -7,6 +8,7 @@ from ehm.clusters import (
     merge_average,
     merge_pooled,
 )
+from ehm.features import decision_values, group_by_cell, group_spread
 from ehm.index import ClusterIndex
 
 
@@ -100,3 +102,33 @@ def test_index_pads_missing_clusters_and_drops_an_absent_scale():
     np.testing.assert_array_equal(found, [[0, 1, -1]])
     found = ClusterIndex(centres, np.array([False, True])).nearest(np.zeros((1, 3)), 2, 2)
     np.testing.assert_array_equal(found, [[0, -1, 1, -1]])
+
+
+def test_searches_bounded_by_kernel_reach_give_the_same_features(rng):
+    means = rng.uniform(-3, 3, (300, 3))
+    covariances = np.array([np.diag(rng.uniform(0.01, 0.3, 3) ** 2) for _ in range(300)])
+    clusters = ClusterSet.empty(3)
+    clusters.append(means, covariances, np.full(300, 10), rng.random(300) < 0.3)
+    clusters.refresh_transforms(np.arange(300), 3.0, 0.02)
+    points = rng.uniform(-3, 3, (2000, 3))
+    group_of_point, centres = group_by_cell(points, 0.5)
+    spread = group_spread(points, group_of_point, centres)
+    args = (points, group_of_point)
+    cluster_arrays = (clusters.means, clusters.transforms, rng.normal(size=300), 0.0)
+    bounded = clusters.index().nearest(centres, 8, 2, spread)
+    unbounded = ClusterIndex(clusters.means, clusters.coarse).nearest(centres, 8, 2)
+    assert (bounded == -1).sum() > (unbounded == -1).sum()  # the bound did prune
+    np.testing.assert_allclose(
+        decision_values(*args, bounded, *cluster_arrays),
+        decision_values(*args, unbounded, *cluster_arrays),
+        atol=1e-12,
+    )
+
+
+def test_group_by_cell_groups_points_sharing_a_cell():
+    points = np.array([[0.01, 0.01], [0.09, 0.02], [0.15, 0.01], [0.02, 0.19], [0.12, 0.05]])
+    group_of_point, centres = group_by_cell(points, 0.1)
+    assert group_of_point[0] == group_of_point[1] != group_of_point[2] == group_of_point[4]
+    assert len(centres) == 3
+    np.testing.assert_allclose(centres[group_of_point[2]], [0.135, 0.03])
+    assert group_spread(points, group_of_point, centres) == pytest.approx(np.hypot(0.04, 0.005))

@@ -51,6 +51,7 @@ def test_corrupt_truncated_and_foreign_files_are_refused(small_map, tmp_path):
         "truncated": data[: len(data) - 100],
         "not an ehm map file": b"PK\x03\x04 a zip file, not a map",
         "newer than this ehm reads": data[:8] + (99).to_bytes(4, "little") + data[12:],
+        "older than this ehm reads": data[:8] + (1).to_bytes(4, "little") + data[12:],
     }
     for message, content in cases.items():
         bad = tmp_path / "bad.ehm"

@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from ehm.model import HilbertMap
 
 MAGIC = b"EHMMAP\r\n"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
 
@@ -89,6 +89,11 @@ def load(path: str | PathLike[str]) -> HilbertMap:
     if len(data) < _PREAMBLE.size + _CRC.size:
         raise MapFileError(f"{path}: truncated ({len(data)} bytes)")
     _, version, header_length = _PREAMBLE.unpack_from(data)
+    if version < FORMAT_VERSION:
+        raise MapFileError(
+            f"{path}: format version {version} is older than this ehm reads "
+            f"({FORMAT_VERSION}); rebuild the map from its scans"
+        )
     if version > FORMAT_VERSION:
         raise MapFileError(
             f"{path}: format version {version} is newer than this ehm reads ({FORMAT_VERSION})"
