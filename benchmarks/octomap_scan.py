@@ -13,23 +13,20 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import time
 
 import numpy as np
 from common import (
-    MERGE_VARIANTS,
     RESOLUTION,
-    VARIANTS,
-    build_variant,
     heading,
     octomap_probabilities,
     octomap_tree,
+    print_held_out_table,
     timed,
 )
 
 import ehm
 from ehm.datasets.real import DataMissingError, octomap_scan
-from ehm.evaluation import held_out_rays, score
+from ehm.evaluation import held_out_rays
 
 
 def main() -> None:
@@ -94,29 +91,7 @@ def main() -> None:
     )
     print(f"| clusters / OctoMap nodes | {hilbert_map.n_clusters} | {tree.size()} | | |\n")
 
-    print("| train fraction | method | accuracy | F1 | ROC-AUC | unknown | build s | clusters |")
-    print("|---:|---|---:|---:|---:|---:|---:|---:|")
-    for fraction in (0.8, 0.6, 0.4):
-        split = held_out_rays([scan], fraction, RESOLUTION, seed=0)
-        (train,) = split.train
-        start = time.perf_counter()
-        tree = octomap_tree(train)
-        build = time.perf_counter() - start
-        probability, unknown = octomap_probabilities(tree, split.points)
-        s = score(split.occupied, probability, unknown)
-        print(
-            f"| {fraction} | OctoMap | {s.accuracy:.3f} | {s.f1:.3f} | {s.auc:.3f} | "
-            f"{s.unknown:.3f} | {build:.2f} | |"
-        )
-        for name, overrides in {**VARIANTS, **MERGE_VARIANTS}.items():
-            start = time.perf_counter()
-            hilbert_map = build_variant(overrides, train, halves=name in MERGE_VARIANTS)
-            build = time.perf_counter() - start
-            s = score(split.occupied, hilbert_map.occupancy(split.points))
-            print(
-                f"| {fraction} | {name} | {s.accuracy:.3f} | {s.f1:.3f} | {s.auc:.3f} | "
-                f"{s.unknown:.3f} | {build:.2f} | {hilbert_map.n_clusters} |"
-            )
+    print_held_out_table([scan])
 
 
 if __name__ == "__main__":

@@ -15,28 +15,26 @@ import time
 
 import numpy as np
 from common import (
-    MERGE_VARIANTS,
     RESOLUTION,
     VARIANTS,
     build_variant,
     heading,
     octomap_probabilities,
     octomap_tree,
+    print_held_out_table,
 )
 
 from ehm.datasets import virtual_room
-from ehm.evaluation import held_out_rays, near_surface_points, observed_mask, score
+from ehm.evaluation import exact_test_points, score
 
 
 def main() -> None:
     data = virtual_room()
     (scan,) = data.scans
-    rng = np.random.default_rng(5)
-    near = near_surface_points(data.scans, 0.1, 0.3, rng)
-    near = near[observed_mask(data.scans, near, 0.05)]
     low, high = data.scene.box_min.min(axis=0), data.scene.box_max.max(axis=0)
-    uniform = rng.uniform(low, high, (60_000, 3))
-    uniform = uniform[observed_mask(data.scans, uniform, 0.05)]
+    near, uniform = exact_test_points(
+        data.scans, low, high, 0.3, 60_000, 0.05, np.random.default_rng(5)
+    )
     truth = {"near": data.scene.occupied(near), "uniform": data.scene.occupied(uniform)}
     print(heading("virtual_room", f"{len(scan)} rays, resolution {RESOLUTION} m"))
     print(
@@ -67,24 +65,8 @@ def main() -> None:
         hilbert_map = build_variant(overrides, scan, halves=False)
         exact_row(name, hilbert_map.occupancy, time.perf_counter() - start)
 
-    print("\n| train fraction | method | accuracy | F1 | ROC-AUC | unknown |")
-    print("|---:|---|---:|---:|---:|---:|")
-    for fraction in (0.8, 0.6, 0.4):
-        split = held_out_rays(data.scans, fraction, RESOLUTION, seed=0)
-        (train,) = split.train
-        probability, unknown = octomap_probabilities(octomap_tree(train), split.points)
-        s = score(split.occupied, probability, unknown)
-        print(
-            f"| {fraction} | OctoMap | {s.accuracy:.3f} | {s.f1:.3f} | {s.auc:.3f} | "
-            f"{s.unknown:.3f} |"
-        )
-        for name, overrides in {**VARIANTS, **MERGE_VARIANTS}.items():
-            hilbert_map = build_variant(overrides, train, halves=name in MERGE_VARIANTS)
-            s = score(split.occupied, hilbert_map.occupancy(split.points))
-            print(
-                f"| {fraction} | {name} | {s.accuracy:.3f} | {s.f1:.3f} | {s.auc:.3f} | "
-                f"{s.unknown:.3f} |"
-            )
+    print()
+    print_held_out_table(data.scans)
 
 
 if __name__ == "__main__":

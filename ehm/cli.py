@@ -80,7 +80,7 @@ def demo(
     import numpy as np
 
     from ehm.datasets import virtual_room
-    from ehm.evaluation import near_surface_points, observed_mask, score
+    from ehm.evaluation import exact_test_points, score
     from ehm.model import HilbertMap
     from ehm.plots import occupancy_slices
     from ehm.timing import StageTimer
@@ -98,11 +98,10 @@ def demo(
     stages = dict(hilbert_map.timings_)
 
     rng = np.random.default_rng(seed + 1)
-    near = near_surface_points(data.scans, 0.1, 0.5, rng)
-    near = near[observed_mask(data.scans, near, hilbert_map.config.surface_margin)]
     low, high = data.scene.box_min.min(axis=0), data.scene.box_max.max(axis=0)
-    uniform = rng.uniform(low, high, (200_000, 3))
-    uniform = uniform[observed_mask(data.scans, uniform, hilbert_map.config.surface_margin)]
+    near, uniform = exact_test_points(
+        data.scans, low, high, 0.5, 200_000, hilbert_map.config.surface_margin, rng
+    )
     table = Table(title="Accuracy against the exact occupancy of the virtual room")
     for column in ("test points", "n", "occupied", "accuracy", "F1", "ROC-AUC"):
         table.add_column(column, justify="right" if column != "test points" else "left")

@@ -118,3 +118,24 @@ def near_surface_points(
     hits = np.concatenate([s.points_world[s.hit_mask] for s in scans])
     chosen = rng.choice(len(hits), size=round(per_hit * len(hits)), replace=True)
     return hits[chosen] + rng.normal(0.0, spread, (len(chosen), hits.shape[1]))
+
+
+def exact_test_points(
+    scans: list[Scan],
+    box_min: np.ndarray,
+    box_max: np.ndarray,
+    per_hit: float,
+    n_uniform: int,
+    tolerance: float,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Test points for scoring against a scene's exact occupancy, both kept only where observed
+    (within `tolerance` metres past a ray's end): points 0.1 m (Gaussian, per axis) around the
+    hits, `per_hit` of them per hit, and `n_uniform` uniform draws in the box from `box_min` to
+    `box_max` (d,), metres. Returns (near, uniform), each (m, d)."""
+    near = near_surface_points(scans, 0.1, per_hit, rng)
+    uniform = rng.uniform(box_min, box_max, (n_uniform, len(box_min)))
+    return (
+        near[observed_mask(scans, near, tolerance)],
+        uniform[observed_mask(scans, uniform, tolerance)],
+    )

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 import ehm
-from ehm.evaluation import near_surface_points, observed_mask, roc_auc, score
+from ehm.evaluation import exact_test_points, near_surface_points, observed_mask, roc_auc, score
 
 
 @pytest.fixture(scope="module")
@@ -12,13 +12,8 @@ def room_map(room):
 
 @pytest.fixture(scope="module")
 def room_tests(room):
-    rng = np.random.default_rng(5)
-    near = near_surface_points(room.scans, 0.1, 0.3, rng)
-    near = near[observed_mask(room.scans, near, 0.05)]
     low, high = room.scene.box_min.min(axis=0), room.scene.box_max.max(axis=0)
-    uniform = rng.uniform(low, high, (60_000, 3))
-    uniform = uniform[observed_mask(room.scans, uniform, 0.05)]
-    return near, uniform
+    return exact_test_points(room.scans, low, high, 0.3, 60_000, 0.05, np.random.default_rng(5))
 
 
 def test_room_map_scores_well_against_exact_occupancy(room, room_map, room_tests):
