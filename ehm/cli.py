@@ -1,5 +1,5 @@
-"""The `ehm` command: demo, map, query, info. Heavy imports happen inside each command so that
-`ehm --help` is instant."""
+"""The `ehm` command: demo, map, query, grid, mesh, render, info. Heavy imports happen inside
+each command so that `ehm --help` is instant."""
 
 from __future__ import annotations
 
@@ -16,6 +16,15 @@ app = typer.Typer(
     rich_markup_mode="rich",
 )
 console = Console()
+
+Resolution = Annotated[float, typer.Option(help="Voxel side of the grid, metres.")]
+Bounds = Annotated[
+    str | None,
+    typer.Option(
+        help="Grid box 'x0,y0,z0,x1,y1,z1' (2D: 'x0,y0,x1,y1'), metres; default: all of the map."
+    ),
+]
+MaxGiB = Annotated[float, typer.Option(help="Refuse grids larger than this, GiB.")]
 
 
 def _parse_settings(settings: list[str]) -> dict:
@@ -47,6 +56,25 @@ def _load_or_fail(path: Path):
         raise typer.Exit(1) from error
 
 
+def _grid_or_fail(hilbert_map, bounds: str | None, resolution: float, max_gib: float):
+    """The map's grid over `bounds` ('x0,y0,..' text), or a usage error naming the problem."""
+    import numpy as np
+
+    try:
+        box = None
+        if bounds is not None:
+            box = np.array([float(v) for v in bounds.split(",")])
+            if len(box) != 2 * hilbert_map.dim:
+                raise ValueError(
+                    f"bounds need {2 * hilbert_map.dim} numbers for a {hilbert_map.dim}D map, "
+                    f"got {len(box)}"
+                )
+            box = box.reshape(2, hilbert_map.dim)
+        return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30))
+    except ValueError as error:
+        raise typer.BadParameter(str(error)) from error
+
+
 def _progress():
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
@@ -76,13 +104,16 @@ def demo(
     ] = Path("ehm_demo"),
     seed: Annotated[int, typer.Option(help="Seed of the simulation and the map.")] = 0,
 ) -> None:
-    """Simulate the virtual room, map it, score the map against the exact occupancy."""
+    """Simulate the virtual room, map it, score the map against the exact occupancy, and write
+    the map, occupancy slices, a mesh (PLY) and a picture of the mesh."""
     import numpy as np
 
     from ehm.datasets import virtual_room
     from ehm.evaluation import exact_test_points, score
+    from ehm.io.mesh_file import write_ply_mesh
     from ehm.model import HilbertMap
-    from ehm.plots import occupancy_slices
+    from ehm.plots import mesh_picture, occupancy_slices
+    from ehm.render import Camera
     from ehm.timing import StageTimer
 
     out.mkdir(parents=True, exist_ok=True)
@@ -121,16 +152,30 @@ def demo(
     map_path = out / "virtual_room.ehm"
     with timer("save map"):
         hilbert_map.save(map_path)
+    slices_path = out / "virtual_room_slices.png"
     with timer("draw slices"):
-        occupancy_slices(hilbert_map, low, high, out / "virtual_room_slices.png", data.scene)
+        occupancy_slices(hilbert_map, low, high, slices_path, data.scene, (0.3, 0.75, 1.2, 2.0))
+    with timer("grid (0.05 m)"):
+        occupancy_grid = hilbert_map.grid(resolution=0.05)
+    with timer("mesh"):
+        vertices, faces = occupancy_grid.mesh()
+    mesh_path, picture_path = out / "virtual_room.ply", out / "virtual_room_mesh.png"
+    with timer("save mesh"):
+        write_ply_mesh(mesh_path, vertices, faces, _height_colors(vertices))
+    with timer("render mesh"):
+        camera = Camera(azimuth=-60.0, elevation=55.0)
+        title = "virtual room, mesh at p = 0.5 cut at 2.2 m"
+        mesh_picture(vertices, faces, picture_path, camera, cut_above=2.2, title=title)
 
     console.print(table)
     console.print(_timings_table("Integrate, per stage (Table 2)", stages))
     console.print(_timings_table("Demo, per step", timer.seconds))
     console.print(
         f"{hilbert_map!r}: {hilbert_map.memory_bytes() / 1e6:.2f} MB from "
-        f"{len(data.scans[0])} rays\nwrote {map_path} and {out / 'virtual_room_slices.png'}"
+        f"{len(data.scans[0])} rays; {occupancy_grid!r}; mesh of {len(faces)} faces"
     )
+    for path in (map_path, slices_path, mesh_path, picture_path):
+        console.print(f"wrote {path}")
 
 
 @app.command("map")
@@ -214,6 +259,105 @@ def query(
         np.save(output, probability)
     else:
         np.savetxt(output, probability, fmt="%.6f")
+
+
+@app.command()
+def grid(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Grid file to write (.npz).")],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    max_gib: MaxGiB = 1.0,
+) -> None:
+    """Occupancy grid of a map (incremental grid reconstruction), saved as .npz with arrays
+    probability, scores, origin, resolution and intercept."""
+    from ehm.grid import save_grid
+
+    hilbert_map = _load_or_fail(map_path)
+    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
+    save_grid(occupancy_grid, output)
+    console.print(f"{occupancy_grid!r}\nwrote {output}")
+
+
+@app.command()
+def mesh(
+    map_path: Annotated[Path, typer.Argument(help="Map file (3D).")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Mesh file to write (.ply).")],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    level: Annotated[float, typer.Option(help="Occupancy probability of the surface.")] = 0.5,
+    max_gib: MaxGiB = 1.0,
+) -> None:
+    """Surface mesh of a 3D map by marching cubes, as binary PLY coloured by height."""
+    from ehm.io.mesh_file import write_ply_mesh
+
+    hilbert_map = _load_or_fail(map_path)
+    if hilbert_map.dim != 3:
+        raise typer.BadParameter(
+            "a 2D map has no surface mesh: 'ehm render' draws it as a PNG and 'ehm grid' "
+            "saves its grid"
+        )
+    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
+    try:
+        vertices, faces = occupancy_grid.mesh(level)
+    except ValueError as error:
+        raise typer.BadParameter(str(error)) from error
+    write_ply_mesh(output, vertices, faces, _height_colors(vertices))
+    console.print(f"{len(vertices)} vertices, {len(faces)} faces\nwrote {output}")
+
+
+def _height_colors(vertices):
+    """(V, 3) uint8 RGB of each vertex's height on the colour map of rendered pictures."""
+    import matplotlib
+    import numpy as np
+
+    from ehm.render import HEIGHT_COLORMAP
+
+    if len(vertices) == 0:
+        return np.zeros((0, 3), dtype=np.uint8)
+    z = vertices[:, 2]
+    fraction = (z - z.min()) / max(float(np.ptp(z)), 1e-9)
+    return np.round(255 * matplotlib.colormaps[HEIGHT_COLORMAP](fraction)[:, :3]).astype(np.uint8)
+
+
+@app.command()
+def render(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Picture to write (.png).")],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    level: Annotated[float, typer.Option(help="Occupancy probability of the surface.")] = 0.5,
+    cut_above: Annotated[
+        float | None, typer.Option(help="Leave out the mesh above this height, metres.")
+    ] = None,
+    azimuth: Annotated[float, typer.Option(help="View direction, degrees from +x.")] = -60.0,
+    elevation: Annotated[float, typer.Option(help="View angle above the horizon.")] = 45.0,
+    slices: Annotated[
+        Path | None, typer.Option(help="Also write horizontal occupancy slices to this PNG.")
+    ] = None,
+    max_gib: MaxGiB = 1.0,
+) -> None:
+    """Picture of a map, off-screen: its mesh coloured by height (3D) or its grid (2D)."""
+    from ehm.plots import grid_picture, mesh_picture, occupancy_slices
+    from ehm.render import Camera
+
+    hilbert_map = _load_or_fail(map_path)
+    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
+    try:
+        if occupancy_grid.dim == 2:
+            grid_picture(occupancy_grid, output, title=map_path.name)
+        else:
+            vertices, faces = occupancy_grid.mesh(level)
+            camera = Camera(azimuth=azimuth, elevation=elevation)
+            mesh_picture(vertices, faces, output, camera, cut_above, title=map_path.name)
+    except ValueError as error:
+        raise typer.BadParameter(str(error)) from error
+    written = [output]
+    if slices is not None:
+        low, high = occupancy_grid.bounds
+        occupancy_slices(hilbert_map, low, high, slices)
+        written.append(slices)
+    console.print("wrote " + " and ".join(str(p) for p in written))
 
 
 @app.command()

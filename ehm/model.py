@@ -3,11 +3,13 @@
 m = HilbertMap(neighbours=8)
 m.integrate(points_world, origin)      # one scan, Alg. 2
 p = m.occupancy(query_points)          # (n,) probability of occupied, Alg. 3
+g = m.grid(resolution=0.05)            # OccupancyGrid over the mapped region (Sec. 3.5)
 m.save("room.ehm"); m2 = ehm.load("room.ehm")
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass
 from os import PathLike
@@ -18,6 +20,7 @@ import numpy as np
 from ehm.clusters import ClusterSet, match_new_clusters, merge_average, merge_pooled
 from ehm.config import MapConfig
 from ehm.features import decision_values, group_by_cell, group_spread, kernel_values
+from ehm.grid import DEFAULT_MAX_BYTES, OccupancyGrid, grid_shape, support_bounds
 from ehm.quickmeans import kmeans_refine, quick_means
 from ehm.scan import Scan, TrainingSamples
 from ehm.sgd import sgd_pass
@@ -63,6 +66,9 @@ class HilbertMap:
         self.last_update_: dict[str, int] = {}
         self._index = ClusterSet.empty(1).index()
         self._rng = np.random.default_rng(self.config.seed)
+        # Grids compare this token to tell a map that was refitted from one that grew.
+        self._lineage = object()
+        self._followers: weakref.WeakSet[OccupancyGrid] = weakref.WeakSet()
 
     # ------------------------------------------------------------------ state
     @property
@@ -119,6 +125,7 @@ class HilbertMap:
             samples = scan.training_samples(self.config, self._rng)
         self._learn(samples, timer)
         self.n_scans_ += 1
+        self._update_followers()
         return self
 
     def fit(self, scans: Iterable[Scan]) -> HilbertMap:
@@ -131,7 +138,9 @@ class HilbertMap:
                 raise ValueError(f"scan {i}: expected ehm.Scan, got {type(scan).__name__}")
             if scan.dim != scans[0].dim:
                 raise ValueError(f"scan {i}: points are {scan.dim}D, scan 0 is {scans[0].dim}D")
+        followers = list(self._followers)
         self._reset()
+        self._followers.update(followers)
         timer = StageTimer()
         with timer("samples"):
             samples = TrainingSamples.concatenate(
@@ -139,6 +148,7 @@ class HilbertMap:
             )
         self._learn(samples, timer)
         self.n_scans_ = len(scans)
+        self._update_followers()
         return self
 
     def _check_dim(self, dim: int, what: str) -> None:
@@ -322,6 +332,43 @@ class HilbertMap:
             self.bias_ if self.config.query_intercept else 0.0,
         )
         return scores
+
+    # ------------------------------------------------------------------ grids
+    def grid(
+        self,
+        bounds: np.ndarray | None = None,
+        resolution: float = 0.05,
+        follow: bool = False,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+    ) -> OccupancyGrid:
+        """Occupancy grid by incremental grid reconstruction (Sec. 3.5).
+
+        bounds: (2, d) metres, world frame, [low corner, high corner]; None: the box holding
+        every kernel's support. resolution: voxel side, metres. follow: keep the grid up to
+        date after every integrate or fit, for as long as it is referenced (several grids,
+        at any resolutions, can follow one map). max_bytes: refuse larger grids (ValueError)
+        before allocating.
+        """
+        if self.clusters_ is None:
+            raise RuntimeError("the map is empty: integrate a scan or fit before building a grid")
+        if bounds is None:
+            bounds = support_bounds(self.clusters_.means, self.clusters_.transforms)
+        origin, shape = grid_shape(bounds, resolution, self.dim, max_bytes)
+        grid = OccupancyGrid(origin, resolution, shape)
+        grid.update(self)
+        if follow:
+            self._followers.add(grid)
+        return grid
+
+    def _update_followers(self) -> None:
+        """Bring every following grid up to date, timed as the stage 'grids'."""
+        if len(self._followers) == 0:
+            return
+        timer = StageTimer()
+        with timer("grids"):
+            for grid in self._followers:
+                grid.update(self)
+        self.timings_.update(timer.seconds)
 
     # ------------------------------------------------------------ persistence
     def save(self, path: str | PathLike[str]) -> None:

@@ -1,4 +1,5 @@
-"""Pictures of a map: occupancy slices through its volume (off-screen, PNG)."""
+"""Pictures of a map, off-screen PNGs: occupancy slices through its volume, a rendered mesh
+coloured by height, a 2D grid as an image."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ from os import PathLike
 import numpy as np
 
 from ehm.datasets.scene import Scene
+from ehm.grid import OccupancyGrid
 from ehm.model import HilbertMap
+from ehm.render import HEIGHT_COLORMAP, Camera, height_range, render_mesh
 
 
 def occupancy_slices(
@@ -16,12 +19,12 @@ def occupancy_slices(
     high: np.ndarray,
     path: str | PathLike[str],
     scene: Scene | None = None,
-    heights: tuple[float, ...] = (0.3, 0.75, 1.2, 2.0),
+    heights: tuple[float, ...] | None = None,
     resolution: float = 0.025,
 ) -> None:
-    """Write a PNG of horizontal occupancy slices (3D maps, at `heights` metres) or of the
-    whole plane (2D maps) over the box [low, high]; the exact surfaces of `scene`, when
-    given, are drawn as contours."""
+    """Write a PNG of horizontal occupancy slices (3D maps, at `heights` metres; default four
+    evenly inside [low, high]) or of the whole plane (2D maps) over the box [low, high]; the
+    exact surfaces of `scene`, when given, are drawn as contours."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -31,7 +34,12 @@ def occupancy_slices(
     ys = np.arange(low[1], high[1], resolution)
     grid_x, grid_y = np.meshgrid(xs, ys)
     planar = np.column_stack([grid_x.ravel(), grid_y.ravel()])
-    levels = heights if hilbert_map.dim == 3 else (None,)
+    if hilbert_map.dim == 2:
+        levels: tuple[float | None, ...] = (None,)
+    elif heights is None:
+        levels = tuple(np.linspace(low[2], high[2], 6)[1:-1])
+    else:
+        levels = heights
     figure, axes = plt.subplots(1, len(levels), figsize=(4.2 * len(levels), 4), squeeze=False)
     for axis, z in zip(axes[0], levels, strict=True):
         points = planar if z is None else np.column_stack([planar, np.full(len(planar), z)])
@@ -51,5 +59,67 @@ def occupancy_slices(
         axis.set_xlabel("x (m)")
         axis.set_ylabel("y (m)")
     figure.colorbar(image, ax=axes[0].tolist(), shrink=0.8, label="p(occupied)")
-    figure.savefig(path, dpi=110)
+    figure.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(figure)
+
+
+def mesh_picture(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    path: str | PathLike[str],
+    camera: Camera | None = None,
+    cut_above: float | None = None,
+    title: str | None = None,
+) -> None:
+    """Write a PNG of a mesh rendered off-screen and coloured by height, with a height colour
+    bar. vertices: (V, 3) metres, world frame; faces: (F, 3). cut_above: leave out faces above
+    this height, metres (to look into rooms)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    camera = camera or Camera()
+    if cut_above is not None and len(faces):
+        faces = faces[vertices[faces][:, :, 2].mean(axis=1) <= cut_above]
+    if len(faces) == 0:
+        raise ValueError("nothing to draw: the mesh has no faces (below the cut)")
+    heights = height_range(vertices, faces)
+    image, _ = render_mesh(vertices, faces, camera, heights)
+    figure, axis = plt.subplots(figsize=(camera.width / 100 + 1.6, camera.height / 100 + 0.6))
+    axis.imshow(image)
+    axis.set_axis_off()
+    axis.set_title(title or f"{len(faces)} faces, azimuth {camera.azimuth:g} deg")
+    colors = matplotlib.cm.ScalarMappable(
+        matplotlib.colors.Normalize(*heights), matplotlib.colormaps[HEIGHT_COLORMAP]
+    )
+    figure.colorbar(colors, ax=axis, shrink=0.7, label="height z (m)")
+    figure.savefig(path, dpi=100, bbox_inches="tight")
+    plt.close(figure)
+
+
+def grid_picture(grid: OccupancyGrid, path: str | PathLike[str], title: str | None = None) -> None:
+    """Write a PNG of a 2D grid's occupancy probabilities, x to the right and y up."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if grid.dim != 2:
+        raise ValueError(f"grid_picture draws 2D grids, this one is {grid.dim}D")
+    (x0, y0), (x1, y1) = grid.bounds
+    figure, axis = plt.subplots(figsize=(8, 8 * (y1 - y0) / (x1 - x0) + 0.6))
+    image = axis.imshow(
+        grid.probability.T,
+        origin="lower",
+        extent=(x0, x1, y0, y1),
+        cmap="gray_r",
+        vmin=0.0,
+        vmax=1.0,
+    )
+    axis.set_title(title or f"occupancy, {grid.resolution} m voxels")
+    axis.set_xlabel("x (m)")
+    axis.set_ylabel("y (m)")
+    figure.colorbar(image, ax=axis, shrink=0.8, label="p(occupied)")
+    figure.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(figure)
