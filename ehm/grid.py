@@ -68,11 +68,13 @@ def grid_shape(
     resolution = float(resolution)
     if not np.isfinite(resolution) or resolution <= 0.0:
         raise ValueError(f"grid resolution must be a positive number of metres, got {resolution}")
-    bounds = np.asarray(bounds, dtype=np.float64)
+    expected = f"grid bounds must have shape (2, {dim}), [low corner, high corner]"
+    try:
+        bounds = np.asarray(bounds, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{expected}, got {bounds!r}") from error
     if bounds.shape != (2, dim):
-        raise ValueError(
-            f"grid bounds must have shape (2, {dim}), [low corner, high corner], got {bounds.shape}"
-        )
+        raise ValueError(f"{expected}, got shape {bounds.shape}")
     if not np.all(np.isfinite(bounds)):
         raise ValueError(f"grid bounds must be finite, got {bounds.tolist()}")
     low, high = bounds

@@ -12,9 +12,9 @@ if TYPE_CHECKING:
 
 def marching_cubes(grid: OccupancyGrid, level: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """Iso-surface of a 3D grid's probability at `level`: vertices (V, 3) float64, metres,
-    world frame, and faces (F, 3) int64 rows of `vertices`, wound so that normals point from
-    occupied (p > level) to free space. Both are empty when the probability never crosses
-    `level`."""
+    world frame, and faces (F, 3) int64 rows of `vertices`. A face (a, b, c) is wound so that
+    (b - a) x (c - a) points from occupied (p > level) into free space. Both are empty when the
+    probability never crosses `level`."""
     from skimage.measure import marching_cubes as skimage_marching_cubes
 
     if grid.dim != 3:
@@ -31,4 +31,5 @@ def marching_cubes(grid: OccupancyGrid, level: float = 0.5) -> tuple[np.ndarray,
         probability, level, spacing=(grid.resolution,) * 3, allow_degenerate=False
     )
     vertices = vertices.astype(np.float64) + grid.origin + 0.5 * grid.resolution
-    return vertices, faces.astype(np.int64)
+    # scikit-image winds faces toward larger values; reverse them to face free space.
+    return vertices, faces[:, ::-1].astype(np.int64)

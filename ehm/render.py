@@ -23,6 +23,14 @@ class Camera:
     width: int = 1200
     height: int = 900
 
+    def __post_init__(self) -> None:
+        if not -90.0 < self.elevation < 90.0:
+            raise ValueError(
+                f"camera elevation must lie inside (-90, 90) degrees, got {self.elevation}"
+            )
+        if self.width < 1 or self.height < 1:
+            raise ValueError(f"picture size must be positive, got {self.width} x {self.height}")
+
     def rotation(self) -> np.ndarray:
         """(3, 3) R_camera_world: rows are the camera's right, up and toward-viewer axes."""
         az, el = np.deg2rad(self.azimuth), np.deg2rad(self.elevation)

@@ -1,0 +1,189 @@
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+import ehm
+from ehm.features import decision_values
+from ehm.grid import (
+    OccupancyGrid,
+    accumulate_local_grids,
+    accumulate_local_grids_reference,
+    load_grid,
+    save_grid,
+)
+from ehm.kernels import kernel_reach, kernel_transforms
+
+
+@pytest.fixture(scope="module")
+def room_map(room):
+    return ehm.HilbertMap().fit(room.scans)
+
+
+def sector_scans(scan: ehm.Scan, parts: int) -> list[ehm.Scan]:
+    """The scan split into `parts` azimuth sectors, as if the sensor swept round in steps."""
+    offsets = scan.points_world - scan.origin
+    sector = np.floor((np.arctan2(offsets[:, 1], offsets[:, 0]) + np.pi) / (2 * np.pi) * parts)
+    return [scan.subset(sector == s) for s in range(parts)]
+
+
+def random_local_grids(dim: int, rng: np.random.Generator):
+    """A grid and the local grids of 60 random clusters, some reaching past its edges."""
+    grid = OccupancyGrid(np.full(dim, -1.0), 0.1, (20, 24, 16)[:dim])
+    means = rng.uniform(-1.5, 1.5, (60, dim))
+    spread = rng.normal(size=(60, dim, dim)) * rng.uniform(0.02, 0.2, (60, 1, 1))
+    transforms = kernel_transforms(spread @ np.swapaxes(spread, 1, 2), 3.0, 0.02)
+    weights = rng.normal(size=60)
+    weights[::7] = 0.0
+    return grid, grid._contributions(means, transforms, weights, np.arange(60))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_compiled_accumulation_matches_reference(dim, rng):
+    grid, local = random_local_grids(dim, rng)
+    compiled = np.zeros(grid._scores_3d().shape)
+    reference = np.zeros_like(compiled)
+    accumulate_local_grids(compiled, grid._origin_3d(), grid.resolution, local)
+    accumulate_local_grids_reference(reference, grid._origin_3d(), grid.resolution, local)
+    assert np.count_nonzero(reference) > 0.3 * reference.size
+    np.testing.assert_allclose(compiled, reference, rtol=0, atol=1e-12)
+
+
+def test_grid_is_the_sum_over_every_kernel_at_voxel_centres(room_map):
+    """Eq. 17 exactly: at each voxel centre, the weighted sum of all kernels reaching it."""
+    grid = room_map.grid(resolution=0.1)
+    centres = grid.centers()
+    picked = np.random.default_rng(0).choice(len(centres), 20_000, replace=False)
+    clusters = room_map.clusters_
+    reach = kernel_reach(clusters.transforms)
+    lists = cKDTree(clusters.means).query_ball_point(centres[picked], reach.max())
+    every = np.full((len(picked), max(map(len, lists))), -1)
+    for row, found in enumerate(lists):
+        every[row, : len(found)] = found
+    expected = decision_values(
+        centres[picked],
+        np.arange(len(picked)),
+        every,
+        clusters.means,
+        clusters.transforms,
+        clusters.weights,
+        0.0,
+    )
+    np.testing.assert_allclose(grid.scores.ravel()[picked], expected, rtol=0, atol=1e-9)
+
+
+def test_grid_matches_point_queries_within_tolerance(room_map):
+    """Point queries use the nearest 8 fine and 8 coarse kernels, the grid every kernel that
+    reaches a voxel: they agree to 0.005 on average, and within 0.05 at 99 % of voxels."""
+    grid = room_map.grid(resolution=0.1)
+    difference = np.abs(room_map.occupancy(grid.centers()) - grid.probability.ravel())
+    assert difference.mean() < 0.005
+    assert np.quantile(difference, 0.99) < 0.05
+
+
+def test_grid_geometry_and_centres_order(room_map):
+    bounds = np.array([[-1.0, -2.0, 0.0], [1.0, 0.5, 1.25]])
+    grid = room_map.grid(bounds, resolution=0.25)
+    assert grid.shape == (8, 10, 5) and grid.probability.shape == grid.shape
+    np.testing.assert_allclose(grid.bounds, bounds)
+    centres = grid.centers()
+    assert centres.shape == (400, 3)
+    index = np.unravel_index(137, grid.shape)
+    np.testing.assert_allclose(centres[137], bounds[0] + (np.array(index) + 0.5) * 0.25)
+    np.testing.assert_allclose(
+        grid.probability.ravel(), room_map.occupancy(centres), rtol=0, atol=0.1
+    )
+
+
+def test_default_bounds_hold_every_kernel(room_map):
+    grid = room_map.grid(resolution=0.2)
+    means = room_map.clusters_.means
+    reach = kernel_reach(room_map.clusters_.transforms)
+    assert np.all(grid.bounds[0] <= means.min(axis=0))
+    assert np.all(grid.bounds[1] >= means.max(axis=0))
+    assert np.all(grid.bounds[0] >= means.min(axis=0) - reach.max() - 0.2)
+
+
+def test_followed_grids_stay_equal_to_rebuilt_ones(room):
+    hilbert_map = ehm.HilbertMap()
+    scans = sector_scans(room.scans[0], 4)
+    hilbert_map.integrate_scan(scans[0])
+    bounds = np.array([[-4.5, -3.5, -0.5], [4.5, 3.5, 3.5]])
+    fine = hilbert_map.grid(bounds, resolution=0.1, follow=True)
+    coarse = hilbert_map.grid(bounds, resolution=0.25, follow=True)
+    kinds = []
+    for scan in scans[1:]:
+        hilbert_map.integrate_scan(scan)
+        assert "grids" in hilbert_map.timings_
+        kinds.append(fine.update(hilbert_map).kind)  # already current: nothing to do
+        for followed in (fine, coarse):
+            rebuilt = hilbert_map.grid(bounds, followed.resolution)
+            np.testing.assert_allclose(followed.scores, rebuilt.scores, rtol=0, atol=1e-9)
+            np.testing.assert_array_equal(followed.probability, 1 / (1 + np.exp(-followed.scores)))
+    assert kinds == ["incremental"] * 3
+
+
+def test_incremental_update_touches_only_changed_clusters(room):
+    hilbert_map = ehm.HilbertMap()
+    first, second = sector_scans(room.scans[0], 2)
+    hilbert_map.integrate_scan(first)
+    grid = hilbert_map.grid(resolution=0.2)
+    weights = hilbert_map.clusters_.weights.copy()
+    hilbert_map.integrate_scan(second)
+    changed = np.count_nonzero(hilbert_map.clusters_.weights[: len(weights)] != weights)
+    new = hilbert_map.n_clusters - len(weights)
+    update = grid.update(hilbert_map)
+    assert update.kind == "incremental"
+    assert update.local_grids <= 2 * changed + new < 2 * hilbert_map.n_clusters
+
+
+def test_refitted_map_rebuilds_its_grids(plan):
+    hilbert_map = ehm.HilbertMap().fit(plan.scans[:2])
+    grid = hilbert_map.grid(resolution=0.1, follow=True)
+    hilbert_map.fit(plan.scans)
+    rebuilt = hilbert_map.grid(grid.bounds, 0.1)
+    np.testing.assert_allclose(grid.scores, rebuilt.scores, rtol=0, atol=1e-9)
+    assert grid.update(ehm.HilbertMap().fit(plan.scans[:1])).kind == "rebuild"
+
+
+def test_2d_grid_matches_point_queries(plan):
+    hilbert_map = ehm.HilbertMap().fit(plan.scans)
+    grid = hilbert_map.grid(resolution=0.05)
+    assert grid.dim == 2 and grid.centers().shape == (grid.probability.size, 2)
+    difference = np.abs(hilbert_map.occupancy(grid.centers()) - grid.probability.ravel())
+    assert difference.mean() < 0.005 and np.quantile(difference, 0.99) < 0.05
+    truth = plan.scene.occupied(grid.centers())
+    seen = np.abs(grid.probability.ravel() - 0.5) > 0.1
+    assert np.mean((grid.probability.ravel()[seen] > 0.5) == truth[seen]) > 0.9
+
+
+def test_grid_file_round_trip(plan, tmp_path):
+    grid = ehm.HilbertMap().fit(plan.scans).grid(resolution=0.1)
+    save_grid(grid, tmp_path / "plan.npz")
+    loaded = load_grid(tmp_path / "plan.npz")
+    np.testing.assert_array_equal(loaded.probability, grid.probability)
+    np.testing.assert_array_equal(loaded.origin, grid.origin)
+    assert loaded.resolution == grid.resolution
+
+
+@pytest.mark.parametrize(
+    ("bounds", "resolution", "message"),
+    [
+        (None, 0.0, "resolution must be a positive"),
+        (None, -0.1, "resolution must be a positive"),
+        (None, float("nan"), "resolution must be a positive"),
+        ([[0, 0, 0], [1, 1]], 0.1, "shape (2, 3)"),
+        ([[0, 0, 0], [1, np.inf, 1]], 0.1, "must be finite"),
+        ([[0, 0, 0], [1, -1, 1]], 0.1, "inverted"),
+        ([[0, 0, 0], [1, 1, 0]], 0.1, "empty: zero extent on axis 2"),
+        ([[-1e4, -1e4, -10], [1e4, 1e4, 10]], 0.01, "more than the limit of 1.00 GiB"),
+    ],
+)
+def test_bad_grids_are_refused_before_allocating(room_map, bounds, resolution, message):
+    with pytest.raises(ValueError, match="grid") as error:
+        room_map.grid(bounds, resolution)
+    assert message in str(error.value)
+
+
+def test_grid_of_an_empty_map_is_refused():
+    with pytest.raises(RuntimeError, match="map is empty"):
+        ehm.HilbertMap().grid()
