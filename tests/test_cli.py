@@ -4,6 +4,8 @@ from typer.testing import CliRunner
 
 import ehm
 from ehm.cli import app
+from ehm.grid import load_grid
+from ehm.io.pointcloud import read_ply
 
 runner = CliRunner(env={"COLUMNS": "240"})
 
@@ -30,6 +32,13 @@ def map_file(tmp_path_factory, plan):
     assert result.exit_code == 0, result.output
     assert "5 scans" in result.output and "sgd" in result.output
     return output
+
+
+@pytest.fixture(scope="module")
+def room_map_file(tmp_path_factory, room):
+    path = tmp_path_factory.mktemp("room") / "room.ehm"
+    ehm.HilbertMap().fit(room.scans).save(path)
+    return path
 
 
 def test_map_then_info_and_query(map_file, tmp_path):
@@ -64,9 +73,61 @@ def test_bad_inputs_give_clear_errors(map_file, tmp_path):
     assert result.exit_code != 0
 
 
-def test_demo_writes_map_and_picture(tmp_path):
+def test_demo_writes_map_mesh_and_pictures(tmp_path):
     result = runner.invoke(app, ["demo", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
     assert "ROC-AUC" in result.output and "near surfaces" in result.output
     assert (tmp_path / "virtual_room_slices.png").stat().st_size > 10_000
-    assert ehm.load(tmp_path / "virtual_room.ehm").dim == 3
+    assert (tmp_path / "virtual_room_mesh.png").stat().st_size > 10_000
+    room_map = ehm.load(tmp_path / "virtual_room.ehm")
+    assert room_map.dim == 3
+    vertices = read_ply(tmp_path / "virtual_room.ply")
+    # Mesh vertices sit where the map reads 0.5, well inside the room's walls.
+    assert len(vertices) > 10_000
+    assert np.all(np.abs(vertices[:, :2]) < [4.5 + 2.0, 3.5 + 2.0])
+    assert np.median(np.abs(room_map.occupancy(vertices) - 0.5)) < 0.05
+
+
+def test_grid_mesh_and_render_commands(room_map_file, map_file, tmp_path):
+    bounds = "-4.2,-3.2,-0.2,4.2,3.2,2.5"
+    result = runner.invoke(
+        app, ["grid", str(room_map_file), "-o", str(tmp_path / "g.npz"), "--resolution", "0.1"]
+    )
+    assert result.exit_code == 0, result.output
+    grid = load_grid(tmp_path / "g.npz")
+    assert grid.resolution == 0.1 and grid.dim == 3
+    ply = tmp_path / "room.ply"
+    result = runner.invoke(app, ["mesh", str(room_map_file), "-o", str(ply), "--bounds", bounds])
+    assert result.exit_code == 0, result.output
+    vertices = read_ply(ply)
+    assert np.all(vertices >= [-4.2, -3.2, -0.2]) and np.all(vertices <= [4.2, 3.2, 2.5])
+    picture = tmp_path / "room.png"
+    result = runner.invoke(
+        app,
+        ["render", str(room_map_file), "-o", str(picture), "--cut-above", "2.0"]
+        + ["--resolution", "0.1", "--slices", str(tmp_path / "slices.png")],
+    )
+    assert result.exit_code == 0, result.output
+    assert picture.stat().st_size > 10_000 and (tmp_path / "slices.png").exists()
+    # 2D maps: a picture and a grid, no mesh
+    result = runner.invoke(app, ["render", str(map_file), "-o", str(tmp_path / "plan.png")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "plan.png").stat().st_size > 10_000
+    result = runner.invoke(app, ["mesh", str(map_file), "-o", str(tmp_path / "plan.ply")])
+    assert result.exit_code != 0 and "no surface mesh" in result.output
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--resolution", "0"], "resolution must be a positive"),
+        (["--bounds", "0,0,0,1,1"], "bounds need 6 numbers"),
+        (["--bounds", "0,0,0,1,-1,1"], "inverted"),
+        (["--resolution", "0.001", "--max-gib", "0.5"], "more than the limit of 0.50 GiB"),
+    ],
+)
+def test_bad_grid_options_give_clear_errors(room_map_file, tmp_path, options, message):
+    result = runner.invoke(
+        app, ["mesh", str(room_map_file), "-o", str(tmp_path / "m.ply")] + options
+    )
+    assert result.exit_code != 0 and message in " ".join(result.output.split()), result.output
