@@ -104,8 +104,18 @@ def test_grid_mesh_and_render_commands(room_map_file, map_file, tmp_path):
     picture = tmp_path / "room.png"
     result = runner.invoke(
         app,
-        ["render", str(room_map_file), "-o", str(picture), "--cut-above", "2.0"]
-        + ["--resolution", "0.1", "--slices", str(tmp_path / "slices.png")],
+        [
+            "render",
+            str(room_map_file),
+            "-o",
+            str(picture),
+            "--cut-above",
+            "2.0",
+            "--resolution",
+            "0.1",
+            "--slices",
+            str(tmp_path / "slices.png"),
+        ],  # fmt: skip
     )
     assert result.exit_code == 0, result.output
     assert picture.stat().st_size > 10_000 and (tmp_path / "slices.png").exists()
@@ -128,6 +138,6 @@ def test_grid_mesh_and_render_commands(room_map_file, map_file, tmp_path):
 )
 def test_bad_grid_options_give_clear_errors(room_map_file, tmp_path, options, message):
     result = runner.invoke(
-        app, ["mesh", str(room_map_file), "-o", str(tmp_path / "m.ply")] + options
+        app, ["mesh", str(room_map_file), "-o", str(tmp_path / "m.ply"), *options]
     )
     assert result.exit_code != 0 and message in " ".join(result.output.split()), result.output
