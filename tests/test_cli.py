@@ -115,7 +115,7 @@ def test_grid_mesh_and_render_commands(room_map_file, map_file, tmp_path):
             "0.1",
             "--slices",
             str(tmp_path / "slices.png"),
-        ],  # fmt: skip
+        ],
     )
     assert result.exit_code == 0, result.output
     assert picture.stat().st_size > 10_000 and (tmp_path / "slices.png").exists()
