@@ -35,11 +35,14 @@ DEFAULT_MAX_BYTES = 2**30
 
 @dataclass(frozen=True)
 class GridUpdate:
-    """What one `OccupancyGrid.update` did: 'rebuild' or 'incremental', and how many clusters'
-    local grids it recomputed (changed ones count twice: out with the old, in with the new)."""
+    """What one `OccupancyGrid.update` did: kind 'rebuild' or 'incremental'; local_grids and
+    voxels: the local grids it recomputed and the voxels they cover (changed clusters count
+    twice: out with the old, in with the new); rebuild_voxels: what a rebuild covers."""
 
     kind: str
     local_grids: int
+    voxels: int
+    rebuild_voxels: int
 
 
 @dataclass(frozen=True)
@@ -201,18 +204,21 @@ class OccupancyGrid:
         added = self._contributions(
             *current, np.concatenate([changed, np.arange(n_old, len(clusters))])
         )
-        if removed.voxels + added.voxels >= everything.voxels:
+        voxels = removed.voxels + added.voxels
+        if voxels >= everything.voxels:
             return self._rebuild(hilbert_map, everything, current)
         accumulate_local_grids(self._scores_3d(), self._origin_3d(), self.resolution, removed)
         accumulate_local_grids(self._scores_3d(), self._origin_3d(), self.resolution, added)
         self._remember(hilbert_map, current)
-        return GridUpdate("incremental", len(removed.weights) + len(added.weights))
+        n_local = len(removed.weights) + len(added.weights)
+        return GridUpdate("incremental", n_local, voxels, everything.voxels)
 
     def _rebuild(self, hilbert_map, everything: _Contributions, current) -> GridUpdate:
         self.scores[...] = 0.0
         accumulate_local_grids(self._scores_3d(), self._origin_3d(), self.resolution, everything)
         self._remember(hilbert_map, current)
-        return GridUpdate("rebuild", len(everything.weights))
+        n_local, voxels = len(everything.weights), everything.voxels
+        return GridUpdate("rebuild", n_local, voxels, voxels)
 
     def _remember(self, hilbert_map: HilbertMap, current) -> None:
         self._lineage = hilbert_map._lineage

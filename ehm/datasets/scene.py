@@ -34,6 +34,24 @@ class Scene:
             inside |= np.sum((points - centre) ** 2, axis=1) <= radius**2
         return inside
 
+    def surface_distance(self, points: np.ndarray) -> np.ndarray:
+        """(n,) metres from each point (n, d) to the nearest solid surface. Outside the solids:
+        the distance to the nearest solid. Inside: the depth below the surface of the solid
+        the point lies deepest in (exact where solids do not overlap)."""
+        points = np.asarray(points, dtype=np.float64)
+        outside = np.full(len(points), np.inf)
+        depth = np.zeros(len(points))
+        for lo, hi in zip(self.box_min, self.box_max, strict=True):
+            gap = np.maximum(np.maximum(lo - points, points - hi), 0.0)
+            outside = np.minimum(outside, np.linalg.norm(gap, axis=1))
+            inner = np.minimum(points - lo, hi - points).min(axis=1)
+            depth = np.maximum(depth, inner)
+        for centre, radius in zip(self.ball_centres, self.ball_radii, strict=True):
+            signed = np.linalg.norm(points - centre, axis=1) - radius
+            outside = np.minimum(outside, np.maximum(signed, 0.0))
+            depth = np.maximum(depth, -signed)
+        return np.where(depth > 0.0, depth, outside)
+
     def raycast(self, origin: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(n,) distance, metres, from origin along unit directions (n, d) to the first solid
         surface; inf where a ray hits nothing."""
