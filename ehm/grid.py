@@ -306,12 +306,25 @@ def _accumulate_planes(
             m = plane_clusters[e]
             t = transforms[m]
             dx = x - means[m, 0]
+            # r^2 = |T d|^2 = d^T A d with A = T^T T; along a row of constant x and y it is a
+            # quadratic in dz, so only the voxels between its roots (plus one) are visited.
+            a_zz = t[0, 2] * t[0, 2] + t[1, 2] * t[1, 2] + t[2, 2] * t[2, 2]
             for j in range(low[m, 1], high[m, 1] + 1):
                 dy = origin[1] + (j + 0.5) * resolution - means[m, 1]
                 a0 = t[0, 0] * dx + t[0, 1] * dy
                 a1 = t[1, 0] * dx + t[1, 1] * dy
                 a2 = t[2, 0] * dx + t[2, 1] * dy
-                for k in range(low[m, 2], high[m, 2] + 1):
+                half_b = a0 * t[0, 2] + a1 * t[1, 2] + a2 * t[2, 2]
+                c = a0 * a0 + a1 * a1 + a2 * a2 - 1.0
+                disc = half_b * half_b - a_zz * c
+                if disc < 0.0:
+                    continue
+                root = np.sqrt(disc)
+                z_low = means[m, 2] + (-half_b - root) / a_zz - origin[2]
+                z_high = means[m, 2] + (-half_b + root) / a_zz - origin[2]
+                k_low = max(low[m, 2], int(np.floor(z_low / resolution - 0.5)))
+                k_high = min(high[m, 2], int(np.ceil(z_high / resolution - 0.5)))
+                for k in range(k_low, k_high + 1):
                     dz = origin[2] + (k + 0.5) * resolution - means[m, 2]
                     p0 = a0 + t[0, 2] * dz
                     p1 = a1 + t[1, 2] * dz
