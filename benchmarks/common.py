@@ -22,6 +22,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "EHM, intercept in queries": {"query_intercept": True},
     "EHM, no coarse neighbours": {"coarse_neighbours": 0},
     "EHM, coarse_neighbours=2": {"coarse_neighbours": 2},
+    "EHM, coarse_neighbours=8": {"coarse_neighbours": 8},
     "EHM, occupied_depth=0.05": {"occupied_depth": 0.05},
     "EHM, balance_classes=True": {"balance_classes": True},
     "EHM, samples clustered together": {"cluster_free_apart": False},

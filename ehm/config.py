@@ -49,10 +49,11 @@ class MapConfig:
     """Floor on each cluster's standard deviation along any axis, metres."""
     neighbours: int = 8
     """Fine clusters that enter each point's feature vector (k nearest fine centres)."""
-    coarse_neighbours: int = 8
+    coarse_neighbours: int = 4
     """Coarse free-space clusters that enter each point's feature vector as well. Coarse
     kernels overlap more than fine ones (about 7 reach a point of open space in the virtual
-    room); with 8, point queries match the grid's sum over every kernel (Sec. 3.5)."""
+    room): with 4, point queries differ from the grid's sum over every kernel (Sec. 3.5) by
+    0.008 on average there; 8 brings that to 0.003 but makes queries 30 % slower."""
 
     # Alg. 2: merging and stochastic gradient descent.
     merge_rule: MergeRule = "pooled"
