@@ -24,6 +24,7 @@ lint: $(BIN)/ehm
 bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/octomap_scan.py
 	$(BIN)/python benchmarks/virtual_room.py
+	$(BIN)/python benchmarks/grids.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
