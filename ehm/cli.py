@@ -25,6 +25,7 @@ Bounds = Annotated[
     ),
 ]
 MaxGiB = Annotated[float, typer.Option(help="Refuse grids larger than this, GiB.")]
+Level = Annotated[float, typer.Option(help="Occupancy probability of the surface.")]
 
 
 def _parse_settings(settings: list[str]) -> dict:
@@ -285,7 +286,7 @@ def mesh(
     output: Annotated[Path, typer.Option("--output", "-o", help="Mesh file to write (.ply).")],
     resolution: Resolution = 0.05,
     bounds: Bounds = None,
-    level: Annotated[float, typer.Option(help="Occupancy probability of the surface.")] = 0.5,
+    level: Level = 0.5,
     max_gib: MaxGiB = 1.0,
 ) -> None:
     """Surface mesh of a 3D map by marching cubes, as binary PLY coloured by height."""
@@ -308,16 +309,14 @@ def mesh(
 
 def _height_colors(vertices):
     """(V, 3) uint8 RGB of each vertex's height on the colour map of rendered pictures."""
-    import matplotlib
     import numpy as np
 
-    from ehm.render import HEIGHT_COLORMAP
+    from ehm.render import height_colors
 
     if len(vertices) == 0:
         return np.zeros((0, 3), dtype=np.uint8)
     z = vertices[:, 2]
-    fraction = (z - z.min()) / max(float(np.ptp(z)), 1e-9)
-    return np.round(255 * matplotlib.colormaps[HEIGHT_COLORMAP](fraction)[:, :3]).astype(np.uint8)
+    return np.round(255 * height_colors(z, (z.min(), z.max()))).astype(np.uint8)
 
 
 @app.command()
@@ -326,7 +325,7 @@ def render(
     output: Annotated[Path, typer.Option("--output", "-o", help="Picture to write (.png).")],
     resolution: Resolution = 0.05,
     bounds: Bounds = None,
-    level: Annotated[float, typer.Option(help="Occupancy probability of the surface.")] = 0.5,
+    level: Level = 0.5,
     cut_above: Annotated[
         float | None, typer.Option(help="Leave out the mesh above this height, metres.")
     ] = None,

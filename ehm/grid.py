@@ -362,8 +362,12 @@ def save_grid(grid: OccupancyGrid, path: str | PathLike[str]) -> None:
 
 
 def load_grid(path: str | PathLike[str]) -> OccupancyGrid:
-    """Read a grid written by save_grid (it no longer follows any map)."""
+    """Read a grid written by save_grid (it no longer follows any map); ValueError for a file
+    that lacks its arrays."""
     with np.load(path) as data:
+        missing = {"scores", "intercept", "origin", "resolution"} - set(data.files)
+        if missing:
+            raise ValueError(f"{path}: not an ehm grid file (no {', '.join(sorted(missing))})")
         grid = OccupancyGrid(data["origin"], float(data["resolution"]), data["scores"].shape)
         grid.scores[...] = data["scores"]
         grid.intercept = float(data["intercept"])

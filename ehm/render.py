@@ -62,14 +62,22 @@ def height_range(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, float]
     return float(z.min()), float(z.max())
 
 
+def height_colors(z: np.ndarray, heights: tuple[float, float]) -> np.ndarray:
+    """(n, 3) float RGB in [0, 1]: HEIGHT_COLORMAP at heights z (n,), metres, over the range
+    `heights` (clipped at its ends)."""
+    import matplotlib
+
+    low, high = heights
+    fraction = np.clip((z - low) / max(high - low, 1e-9), 0.0, 1.0)
+    return matplotlib.colormaps[HEIGHT_COLORMAP](fraction)[:, :3]
+
+
 def face_colors(
     vertices: np.ndarray, faces: np.ndarray, camera: Camera, heights: tuple[float, float]
 ) -> np.ndarray:
     """(F, 3) float RGB in [0, 1] per face: HEIGHT_COLORMAP at the face's height (z over the
     range `heights`, metres) times Lambert shading from a light behind the viewer's left
     shoulder (both sides of a face are lit)."""
-    import matplotlib
-
     corners = vertices[faces]
     normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
@@ -77,10 +85,7 @@ def face_colors(
     light = toward + 0.5 * up - 0.4 * right
     light /= np.linalg.norm(light)
     shade = 0.3 + 0.7 * np.abs(normals @ light)
-    low, high = heights
-    fraction = (corners[:, :, 2].mean(axis=1) - low) / max(high - low, 1e-9)
-    base = matplotlib.colormaps[HEIGHT_COLORMAP](np.clip(fraction, 0.0, 1.0))[:, :3]
-    return base * shade[:, None]
+    return height_colors(corners[:, :, 2].mean(axis=1), heights) * shade[:, None]
 
 
 def render_mesh(

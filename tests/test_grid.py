@@ -160,6 +160,11 @@ def test_grid_file_round_trip(plan, tmp_path):
     np.testing.assert_array_equal(loaded.probability, grid.probability)
     np.testing.assert_array_equal(loaded.origin, grid.origin)
     assert loaded.resolution == grid.resolution
+    np.savez(tmp_path / "other.npz", scores=np.zeros(3))
+    with pytest.raises(
+        ValueError, match=r"not an ehm grid file \(no intercept, origin, resolution\)"
+    ):
+        load_grid(tmp_path / "other.npz")
 
 
 @pytest.mark.parametrize(
