@@ -6,8 +6,14 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ehm.config import MapConfig
 from ehm.index import ClusterIndex
-from ehm.kernels import covariance_square_roots, kernel_reach, kernel_transforms
+from ehm.kernels import (
+    covariance_square_roots,
+    kernel_reach,
+    kernel_transforms,
+    planar_clusters,
+)
 
 
 @dataclass
@@ -18,7 +24,11 @@ class ClusterSet:
     counts: (M,) float64, samples the statistics summarise. weights: (M,) float64, classifier
     weights. grad_sq: (M,) float64, AdaGrad accumulators. transforms: (M, d, d) float64, 1/m,
     kernel transforms derived from the covariances (see ehm.kernels). coarse: (M,) bool, True
-    for clusters of open free space (see ehm.index).
+    for clusters of open free space (see ehm.index). occupied: (M,) bool, True for clusters
+    of occupied samples. planar: (M,) bool, the covariance is flat (see
+    ehm.kernels.planar_clusters). planar_kernel: (M,) bool, the cluster uses the
+    planar-surface kernel. Transforms and both planar flags follow from the covariances and
+    the map's settings (`refresh`).
     """
 
     means: np.ndarray
@@ -28,9 +38,13 @@ class ClusterSet:
     grad_sq: np.ndarray
     transforms: np.ndarray
     coarse: np.ndarray
+    occupied: np.ndarray
+    planar: np.ndarray
+    planar_kernel: np.ndarray
 
     @classmethod
     def empty(cls, dim: int) -> ClusterSet:
+        flags = [np.zeros(0, dtype=bool) for _ in range(4)]
         return cls(
             np.zeros((0, dim)),
             np.zeros((0, dim, dim)),
@@ -38,7 +52,7 @@ class ClusterSet:
             np.zeros(0),
             np.zeros(0),
             np.zeros((0, dim, dim)),
-            np.zeros(0, dtype=bool),
+            *flags,
         )
 
     def __len__(self) -> int:
@@ -56,9 +70,15 @@ class ClusterSet:
         return sum(a.nbytes for a in self.arrays().values())
 
     def append(
-        self, means: np.ndarray, covariances: np.ndarray, counts: np.ndarray, coarse: np.ndarray
+        self,
+        means: np.ndarray,
+        covariances: np.ndarray,
+        counts: np.ndarray,
+        coarse: np.ndarray,
+        occupied: np.ndarray,
     ) -> None:
-        """Add clusters with weight 0 (no prior knowledge of their occupancy)."""
+        """Add clusters with weight 0 (no prior knowledge of their occupancy); `refresh` them
+        before use."""
         n = len(means)
         self.means = np.concatenate([self.means, means])
         self.covariances = np.concatenate([self.covariances, covariances])
@@ -67,15 +87,33 @@ class ClusterSet:
         self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n)])
         self.transforms = np.concatenate([self.transforms, np.zeros((n,) + means.shape[1:] * 2)])
         self.coarse = np.concatenate([self.coarse, np.asarray(coarse, dtype=bool)])
+        self.occupied = np.concatenate([self.occupied, np.asarray(occupied, dtype=bool)])
+        self.planar = np.concatenate([self.planar, np.zeros(n, dtype=bool)])
+        self.planar_kernel = np.concatenate([self.planar_kernel, np.zeros(n, dtype=bool)])
 
-    def index(self) -> ClusterIndex:
-        """A spatial index over the current centres."""
-        return ClusterIndex(self.means, self.coarse, kernel_reach(self.transforms))
+    def keep(self, rows: np.ndarray) -> None:
+        """Keep only clusters `rows` ((K,) int64, ascending), dropping the others."""
+        for name, array in self.arrays().items():
+            setattr(self, name, array[rows])
 
-    def refresh_transforms(self, rows: np.ndarray, length_scale: float, min_std: float) -> None:
-        """Recompute the kernel transforms of some clusters after their statistics changed."""
-        if len(rows):
-            self.transforms[rows] = kernel_transforms(self.covariances[rows], length_scale, min_std)
+    def reach(self) -> np.ndarray:
+        """(M,) metres: how far from its mean each cluster's kernel is non-zero."""
+        return kernel_reach(self.transforms, self.planar_kernel)
+
+    def index(self, config: MapConfig | None = None) -> ClusterIndex:
+        """A spatial index over the current centres, searched as `config` says."""
+        return ClusterIndex(self.means, self.coarse, self.reach())
+
+    def refresh(self, rows: np.ndarray, config: MapConfig) -> None:
+        """Recompute what follows from the statistics of clusters `rows` after they changed:
+        planar flags and kernel transforms."""
+        if len(rows) == 0:
+            return
+        self.planar[rows] = planar_clusters(self.covariances[rows], config.planar_ratio)
+        self.planar_kernel[rows] = self.planar[rows] & config.planar_kernel
+        self.transforms[rows] = kernel_transforms(
+            self.covariances[rows], config.length_scale, config.min_std, self.planar_kernel[rows]
+        )
 
 
 def anisotropic_distances(
@@ -94,13 +132,14 @@ def match_new_clusters(
     new_means: np.ndarray,
     new_covariances: np.ndarray,
     new_coarse: np.ndarray,
+    new_occupied: np.ndarray,
     threshold: float,
     min_std: float,
     candidates: int = 4,
 ) -> np.ndarray:
-    """For each new cluster, the map cluster of the same scale it merges into (anisotropic
-    distance of Eq. 14 below `threshold`, nearest of `candidates` centres), or -1 to add it.
-    Returns (n,) int64."""
+    """For each new cluster, the map cluster of the same scale and label (occupied or free)
+    it merges into (anisotropic distance of Eq. 14 below `threshold`, nearest of `candidates`
+    centres), or -1 to add it. Returns (n,) int64."""
     n = len(new_means)
     targets = np.full(n, -1, dtype=np.int64)
     if n == 0 or len(clusters) == 0:
@@ -110,6 +149,10 @@ def match_new_clusters(
         rows = new_coarse == coarse
         nearest[rows] = index.nearest_of_scale(new_means[rows], coarse, candidates)
     found = nearest >= 0
+    found[found] = (
+        clusters.occupied[nearest[found]]
+        == np.broadcast_to(new_occupied[:, None], found.shape)[found]
+    )
     pair_new = np.nonzero(found)[0]
     pair_old = nearest[found]
     distances = np.full((n, candidates), np.inf)

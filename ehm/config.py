@@ -55,6 +55,36 @@ class MapConfig:
     room): with 4, point queries differ from the grid's sum over every kernel (Sec. 3.5) by
     0.008 on average there; 8 brings that to 0.003 but makes queries 30 % slower."""
 
+    # Kernel selection (Sec. 3.2).
+    planar_ratio: float = 0.1
+    """A cluster is planar (a wall, a floor; a line segment in 2D) when its smallest covariance
+    eigenvalue is at most this share of the next smallest."""
+    planar_kernel: bool = False
+    """Planar clusters use the planar-surface kernel (Eq. 13, 1 within two standard deviations
+    along each eigen-axis); the others, and all when False, the localized length-scale one."""
+    merge_coplanar: bool = False
+    """Orientation clustering (Eq. 14-15): after each update, planar clusters it touched merge
+    with planar neighbours of the same kind whose normals and positions agree, until no more
+    merge."""
+    coplanar_angle: float = 10.0
+    """Largest angle between the normals of clusters that merge as co-planar, degrees."""
+    coplanar_distance: float = 2.0
+    """Largest anisotropic distance (Eq. 14) between clusters that merge as co-planar."""
+
+    # Neighbour search (Sec. 3.1, 3.4).
+    anisotropic_search: bool = False
+    """Rank the clusters of a point by the radius their kernel gives it, |T_m (x - mu_m)|,
+    rather than by the Euclidean distance between the point and their centres."""
+    anisotropic_candidates: int = 3
+    """Anisotropic search re-ranks this many times k nearest centres."""
+    anchor_layers: int = 1
+    """Layers of the cluster hierarchy (Fig. 6): 1 searches the clusters directly (kd-tree);
+    each further layer groups the one below into anchors, searched top-down."""
+    anchor_radius_factor: float = 8.0
+    """Inner quick-means radius of the first anchor layer, as a multiple of the clusters'
+    radius (`cluster_radius` or `free_cluster_radius`); each further layer multiplies it
+    again."""
+
     # Alg. 2: merging and stochastic gradient descent.
     merge_rule: MergeRule = "pooled"
     """'pooled': exact pooled mean and covariance weighted by sample counts; 'average': the
@@ -95,6 +125,10 @@ class MapConfig:
             "learning_rate",
             "merge_threshold",
             "query_cell",
+            "planar_ratio",
+            "coplanar_angle",
+            "coplanar_distance",
+            "anchor_radius_factor",
         )
         for name in positive:
             value = getattr(self, name)
@@ -110,11 +144,23 @@ class MapConfig:
             ("coarse_neighbours", 0),
             ("epochs", 1),
             ("kmeans_iterations", 0),
+            ("anisotropic_candidates", 1),
+            ("anchor_layers", 1),
         )
         for name, low in integers:
             value = getattr(self, name)
             if not isinstance(value, int) or value < low:
                 raise ValueError(f"MapConfig.{name} must be an integer >= {low}, got {value!r}")
+        if not self.planar_ratio < 1.0:
+            raise ValueError(f"MapConfig.planar_ratio must be below 1, got {self.planar_ratio!r}")
+        if not self.coplanar_angle < 90.0:
+            raise ValueError(
+                f"MapConfig.coplanar_angle must be below 90 degrees, got {self.coplanar_angle!r}"
+            )
+        if not self.anchor_radius_factor > 1.0:
+            raise ValueError(
+                f"MapConfig.anchor_radius_factor must be above 1, got {self.anchor_radius_factor!r}"
+            )
         if self.l2 < 0:
             raise ValueError(f"MapConfig.l2 must be >= 0, got {self.l2!r}")
         if self.merge_rule not in ("pooled", "average"):

@@ -2,7 +2,8 @@
 features of many points, with the nearest clusters searched once per group of points.
 
 Point i belongs to group g = group_of_point[i]; its feature vector has non-zeros only at the
-clusters group_neighbours[g] (k of them, -1 where the map has fewer than k clusters).
+clusters group_neighbours[g] (k of them, -1 where the map has fewer than k clusters). Cluster
+m's kernel is the planar-surface one where planar[m], else k_SP (see ehm.kernels).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import numba
 import numpy as np
 
 from ehm.cells import cell_keys
-from ehm.kernels import sparse_kernel, sparse_kernel_reference
+from ehm.kernels import cluster_kernel, cluster_kernel_reference
 
 
 def group_by_cell(points: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
@@ -35,20 +36,22 @@ def group_spread(points: np.ndarray, group_of_point: np.ndarray, centres: np.nda
 
 
 @numba.njit(cache=True, inline="always")
-def _kernel_at(points, i, cluster, means, transforms):  # pragma: no cover - compiled
+def _kernel_at(points, i, cluster, means, transforms, planar):  # pragma: no cover - compiled
     d = points.shape[1]
     r2 = 0.0
+    r_max = 0.0
     for a in range(d):
         projected = 0.0
         for b in range(d):
             projected += transforms[cluster, a, b] * (points[i, b] - means[cluster, b])
         r2 += projected * projected
-    return sparse_kernel(np.sqrt(r2))
+        r_max = max(r_max, abs(projected))
+    return cluster_kernel(r2, r_max, planar[cluster])
 
 
 @numba.njit(cache=True, parallel=True)
 def kernel_values(
-    points, group_of_point, group_neighbours, means, transforms
+    points, group_of_point, group_neighbours, means, transforms, planar
 ):  # pragma: no cover - compiled
     """(n, k) float64 kernel values of each point at its group's k clusters."""
     n = points.shape[0]
@@ -59,13 +62,13 @@ def kernel_values(
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster >= 0:
-                values[i, j] = _kernel_at(points, i, cluster, means, transforms)
+                values[i, j] = _kernel_at(points, i, cluster, means, transforms, planar)
     return values
 
 
 @numba.njit(cache=True, parallel=True)
 def decision_values(
-    points, group_of_point, group_neighbours, means, transforms, weights, bias
+    points, group_of_point, group_neighbours, means, transforms, planar, weights, bias
 ):  # pragma: no cover - compiled
     """(n,) float64 w^T phi(x) + bias of each point, without storing the features."""
     n = points.shape[0]
@@ -76,7 +79,8 @@ def decision_values(
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster >= 0:
-                scores[i] += weights[cluster] * _kernel_at(points, i, cluster, means, transforms)
+                value = _kernel_at(points, i, cluster, means, transforms, planar)
+                scores[i] += weights[cluster] * value
     return scores
 
 
@@ -86,13 +90,14 @@ def kernel_values_reference(
     group_neighbours: np.ndarray,
     means: np.ndarray,
     transforms: np.ndarray,
+    planar: np.ndarray,
 ) -> np.ndarray:
     """Plain NumPy twin of `kernel_values`."""
     neighbours = group_neighbours[group_of_point]
     safe = np.maximum(neighbours, 0)
     offsets = points[:, None, :] - means[safe]
     projected = np.einsum("nkab,nkb->nka", transforms[safe], offsets)
-    values = sparse_kernel_reference(np.linalg.norm(projected, axis=2))
+    values = cluster_kernel_reference(projected, planar[safe])
     return np.where(neighbours >= 0, values, 0.0)
 
 
@@ -102,10 +107,13 @@ def decision_values_reference(
     group_neighbours: np.ndarray,
     means: np.ndarray,
     transforms: np.ndarray,
+    planar: np.ndarray,
     weights: np.ndarray,
     bias: float,
 ) -> np.ndarray:
     """Plain NumPy twin of `decision_values`."""
-    values = kernel_values_reference(points, group_of_point, group_neighbours, means, transforms)
+    values = kernel_values_reference(
+        points, group_of_point, group_neighbours, means, transforms, planar
+    )
     neighbours = group_neighbours[group_of_point]
     return bias + np.sum(values * weights[np.maximum(neighbours, 0)], axis=1)

@@ -2,10 +2,12 @@
 
 Each cluster owns a local grid: the voxels of the global grid inside the axis-aligned box
 around its kernel's support, the ellipsoid |T_m (x - mu_m)| < 1 (`length_scale` standard
-deviations along its eigen-axes, 3 by default). Its kernel values there, times its weight, add
-into a global score grid s_g = sum_m w_m k(x_g, M_m) (Eq. 17), and p_g = sigmoid(s_g) (Eq. 18).
-No neighbour search is needed: the local grids say which kernels reach a voxel. Kernel values
-are recomputed when needed rather than stored, which keeps a grid's memory at its voxels.
+deviations along its eigen-axes, 3 by default) or, for the planar-surface kernel, the box
+max_a |(T_m (x - mu_m))_a| < 1 (two standard deviations). Its kernel values there, times its
+weight, add into a global score grid s_g = sum_m w_m k(x_g, M_m) (Eq. 17), and p_g =
+sigmoid(s_g) (Eq. 18). No neighbour search is needed: the local grids say which kernels reach
+a voxel. Kernel values are recomputed when needed rather than stored, which keeps a grid's
+memory at its voxels.
 
 A grid remembers the mean, kernel transform and weight each cluster had when it was last
 added. `OccupancyGrid.update` takes out the old contribution of every cluster that changed
@@ -22,7 +24,7 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from ehm.kernels import sparse_kernel, sparse_kernel_reference
+from ehm.kernels import cluster_kernel, cluster_kernel_reference
 
 if TYPE_CHECKING:
     from ehm.model import HilbertMap
@@ -52,6 +54,7 @@ class _Contributions:
     means: np.ndarray  # (K, 3) metres
     transforms: np.ndarray  # (K, 3, 3) 1/m
     weights: np.ndarray  # (K,)
+    planar: np.ndarray  # (K,) bool, planar-surface kernel
     low: np.ndarray  # (K, 3) int64 first voxel of each box
     high: np.ndarray  # (K, 3) int64 last voxel of each box (high < low: empty)
 
@@ -101,18 +104,21 @@ def grid_shape(
     return low.copy(), tuple(int(c) for c in counts)
 
 
-def support_bounds(means: np.ndarray, transforms: np.ndarray) -> np.ndarray:
+def support_bounds(means: np.ndarray, transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
     """(2, d) metres: the smallest box holding every kernel's support (all of the map where
-    any kernel is non-zero). means: (M >= 1, d) metres; transforms: (M, d, d), 1/m."""
-    half = support_half_widths(transforms)
+    any kernel is non-zero). means: (M >= 1, d) metres; transforms: (M, d, d), 1/m; planar:
+    (M,) bool, planar-surface kernels."""
+    half = support_half_widths(transforms, planar)
     return np.stack([(means - half).min(axis=0), (means + half).max(axis=0)])
 
 
-def support_half_widths(transforms: np.ndarray) -> np.ndarray:
+def support_half_widths(transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
     """(M, d) metres: half-widths of the axis-aligned box around each kernel's support.
 
-    The support {mu + T^-1 u : |u| < 1} reaches |row a of T^-1| along world axis a."""
-    return np.linalg.norm(np.linalg.inv(transforms), axis=2)
+    The support {mu + T^-1 u} with |u| < 1 (ball) reaches |row a of T^-1| along world axis a;
+    with max_b |u_b| < 1 (box, where `planar`) it reaches the sum of |row a of T^-1|."""
+    inverse = np.linalg.inv(transforms)
+    return np.where(planar[:, None], np.abs(inverse).sum(axis=2), np.linalg.norm(inverse, axis=2))
 
 
 class OccupancyGrid:
@@ -131,7 +137,7 @@ class OccupancyGrid:
         self.intercept = 0.0
         self._probability: np.ndarray | None = None
         self._lineage: object | None = None
-        self._snapshot: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._snapshot: tuple[np.ndarray, ...] | None = None
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -184,14 +190,14 @@ class OccupancyGrid:
             raise RuntimeError("the map is empty: integrate a scan or fit before building a grid")
         if clusters.dim != self.dim:
             raise ValueError(f"the grid is {self.dim}D, the map is {clusters.dim}D")
-        current = (clusters.means, clusters.transforms, clusters.weights)
+        current = (clusters.means, clusters.transforms, clusters.weights, clusters.planar_kernel)
         config = hilbert_map.config
         self.intercept = hilbert_map.bias_ if config.query_intercept else 0.0
         self._probability = None
         everything = self._contributions(*current, np.arange(len(clusters)))
         if self._lineage is not hilbert_map._lineage or self._snapshot is None:
             return self._rebuild(hilbert_map, everything, current)
-        old_means, old_transforms, old_weights = self._snapshot
+        old_means, old_transforms, old_weights, old_planar = self._snapshot
         n_old = len(old_weights)
         if n_old > len(clusters):
             return self._rebuild(hilbert_map, everything, current)
@@ -199,8 +205,9 @@ class OccupancyGrid:
             (clusters.weights[:n_old] != old_weights)
             | np.any(clusters.means[:n_old] != old_means, axis=1)
             | np.any(clusters.transforms[:n_old] != old_transforms, axis=(1, 2))
+            | (clusters.planar_kernel[:n_old] != old_planar)
         )
-        removed = self._contributions(old_means, old_transforms, -old_weights, changed)
+        removed = self._contributions(old_means, old_transforms, -old_weights, old_planar, changed)
         added = self._contributions(
             *current, np.concatenate([changed, np.arange(n_old, len(clusters))])
         )
@@ -233,12 +240,18 @@ class OccupancyGrid:
         return np.array([self.origin[0], self.origin[1], -0.5 * self.resolution])
 
     def _contributions(
-        self, means: np.ndarray, transforms: np.ndarray, weights: np.ndarray, rows: np.ndarray
+        self,
+        means: np.ndarray,
+        transforms: np.ndarray,
+        weights: np.ndarray,
+        planar: np.ndarray,
+        rows: np.ndarray,
     ) -> _Contributions:
         """The local grids of clusters `rows` (weight 0 left out: they add nothing)."""
         rows = rows[weights[rows] != 0.0]
         means, transforms, weights = means[rows], transforms[rows], weights[rows]
-        half = support_half_widths(transforms) if len(rows) else np.zeros_like(means)
+        planar = planar[rows]
+        half = support_half_widths(transforms, planar) if len(rows) else np.zeros_like(means)
         if self.dim == 2:
             means = np.column_stack([means, np.zeros(len(rows))])
             half = np.column_stack([half, np.zeros(len(rows))])
@@ -256,6 +269,7 @@ class OccupancyGrid:
             np.ascontiguousarray(means),
             np.ascontiguousarray(transforms),
             np.ascontiguousarray(weights),
+            np.ascontiguousarray(planar),
             np.clip(low, 0, None),
             np.minimum(high, extent),
         )
@@ -276,6 +290,7 @@ def accumulate_local_grids(
         local.means,
         local.transforms,
         local.weights,
+        local.planar,
         local.low,
         local.high,
         plane_start,
@@ -298,7 +313,17 @@ def _clusters_per_plane(local: _Contributions, n_planes: int) -> tuple[np.ndarra
 
 @numba.njit(cache=True, parallel=True)
 def _accumulate_planes(
-    scores, origin, resolution, means, transforms, weights, low, high, plane_start, plane_clusters
+    scores,
+    origin,
+    resolution,
+    means,
+    transforms,
+    weights,
+    planar,
+    low,
+    high,
+    plane_start,
+    plane_clusters,
 ):  # pragma: no cover - compiled
     for i in numba.prange(scores.shape[0]):
         x = origin[0] + (i + 0.5) * resolution
@@ -307,7 +332,9 @@ def _accumulate_planes(
             t = transforms[m]
             dx = x - means[m, 0]
             # r^2 = |T d|^2 = d^T A d with A = T^T T; along a row of constant x and y it is a
-            # quadratic in dz, so only the voxels between its roots (plus one) are visited.
+            # quadratic in dz, so only the voxels where r^2 < bound (plus one) are visited. The
+            # ball's bound is 1; the box max_a |u_a| < 1 lies within r^2 < 3.
+            bound = 3.0 if planar[m] else 1.0
             a_zz = t[0, 2] * t[0, 2] + t[1, 2] * t[1, 2] + t[2, 2] * t[2, 2]
             for j in range(low[m, 1], high[m, 1] + 1):
                 dy = origin[1] + (j + 0.5) * resolution - means[m, 1]
@@ -315,7 +342,7 @@ def _accumulate_planes(
                 a1 = t[1, 0] * dx + t[1, 1] * dy
                 a2 = t[2, 0] * dx + t[2, 1] * dy
                 half_b = a0 * t[0, 2] + a1 * t[1, 2] + a2 * t[2, 2]
-                c = a0 * a0 + a1 * a1 + a2 * a2 - 1.0
+                c = a0 * a0 + a1 * a1 + a2 * a2 - bound
                 disc = half_b * half_b - a_zz * c
                 if disc < 0.0:
                     continue
@@ -330,8 +357,8 @@ def _accumulate_planes(
                     p1 = a1 + t[1, 2] * dz
                     p2 = a2 + t[2, 2] * dz
                     r2 = p0 * p0 + p1 * p1 + p2 * p2
-                    if r2 < 1.0:
-                        scores[i, j, k] += weights[m] * sparse_kernel(np.sqrt(r2))
+                    r_max = max(abs(p0), abs(p1), abs(p2))
+                    scores[i, j, k] += weights[m] * cluster_kernel(r2, r_max, planar[m])
 
 
 def accumulate_local_grids_reference(
@@ -344,9 +371,9 @@ def accumulate_local_grids_reference(
             continue
         axes = [origin[a] + (np.arange(low[a], high[a] + 1) + 0.5) * resolution for a in range(3)]
         points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1) - local.means[m]
-        radius = np.linalg.norm(points @ local.transforms[m].T, axis=-1)
+        projected = points @ local.transforms[m].T
         box = tuple(slice(low[a], high[a] + 1) for a in range(3))
-        scores[box] += local.weights[m] * sparse_kernel_reference(radius)
+        scores[box] += local.weights[m] * cluster_kernel_reference(projected, local.planar[m])
 
 
 def save_grid(grid: OccupancyGrid, path: str | PathLike[str]) -> None:

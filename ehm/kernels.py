@@ -1,9 +1,16 @@
-"""The sparse kernel k_SP (Eq. 8) and the localized length-scale transform (Eq. 10-12).
+"""The kernels of a cluster: k_SP with localized length-scales (Eq. 8, 10-12) and the
+planar-surface kernel k_PS (Eq. 13).
 
-A cluster m with mean mu_m and covariance Sigma_m contributes k_SP(r) with the Mahalanobis
-radius r = |T_m (x - mu_m)|, where T_m = diag(1 / (l sqrt(lambda'))) V^T from the eigen
-decomposition Sigma_m = V diag(lambda) V^T, lambda' = max(lambda, min_std^2) (so flat clusters
-stay usable) and l the length-scale factor: the kernel vanishes at l standard deviations.
+Both act on u = T_m (x - mu_m), where T_m = diag(1 / (s sqrt(lambda'))) V^T comes from the
+eigen decomposition Sigma_m = V diag(lambda) V^T, lambda' = max(lambda, min_std^2) (so flat
+clusters stay usable) and s is how many standard deviations the kernel spans along each
+eigen-axis:
+- localized length-scale kernel: k_SP(|u|) with s = length_scale: it fades to 0 on the
+  ellipsoid |u| = 1;
+- planar-surface kernel: 1 inside the box max_a |u_a| < 1, else 0, with s = 2 (the paper's
+  lambda'_k = 2 sqrt(lambda_k): the transition sits two standard deviations out).
+Clusters whose smallest eigenvalue is a small share of the next one are planar (walls,
+floors; segments of lines in 2D), and their normal is the eigenvector of that eigenvalue.
 """
 
 from __future__ import annotations
@@ -12,6 +19,8 @@ import numba
 import numpy as np
 
 TWO_PI = 2.0 * np.pi
+# Standard deviations the planar-surface kernel spans on each side of its mean (Eq. 13).
+PLANAR_SPAN = 2.0
 
 
 @numba.njit(cache=True, inline="always")
@@ -29,17 +38,54 @@ def sparse_kernel_reference(r: np.ndarray) -> np.ndarray:
     return np.where(r < 1.0, inside, 0.0)
 
 
+@numba.njit(cache=True, inline="always")
+def cluster_kernel(r2: float, r_max: float, planar: bool) -> float:  # pragma: no cover
+    """Kernel value from |u|^2 and max_a |u_a| of u = T_m (x - mu_m): k_PS when `planar`,
+    else k_SP."""
+    if planar:
+        return 1.0 if r_max < 1.0 else 0.0
+    return sparse_kernel(np.sqrt(r2))
+
+
+def cluster_kernel_reference(projected: np.ndarray, planar: np.ndarray) -> np.ndarray:
+    """Plain NumPy twin of `cluster_kernel`: projected (..., d) u, planar (...) bool."""
+    inside_box = np.max(np.abs(projected), axis=-1) < 1.0
+    values = sparse_kernel_reference(np.linalg.norm(projected, axis=-1))
+    return np.where(planar, inside_box.astype(np.float64), values)
+
+
 def floored_eigen(covariances: np.ndarray, min_std: float) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (M, d), floored at min_std^2, and eigenvectors (M, d, d) as columns."""
     eigenvalues, eigenvectors = np.linalg.eigh(covariances)
     return np.maximum(eigenvalues, min_std**2), eigenvectors
 
 
-def kernel_transforms(covariances: np.ndarray, length_scale: float, min_std: float) -> np.ndarray:
-    """T_m (M, d, d), 1/m, so that r = |T_m (x - mu_m)| is the kernel's radius."""
+def kernel_transforms(
+    covariances: np.ndarray, length_scale: float, min_std: float, planar: np.ndarray | None = None
+) -> np.ndarray:
+    """T_m (M, d, d), 1/m, mapping offsets from the mean to the kernel's unit ball (k_SP) or
+    unit box (k_PS, rows where `planar`, (M,) bool; None: none)."""
     eigenvalues, eigenvectors = floored_eigen(covariances, min_std)
-    scale = 1.0 / (length_scale * np.sqrt(eigenvalues))
+    span = np.full(len(covariances), float(length_scale))
+    if planar is not None:
+        span[planar] = PLANAR_SPAN
+    scale = 1.0 / (span[:, None] * np.sqrt(eigenvalues))
     return scale[:, :, None] * np.swapaxes(eigenvectors, 1, 2)
+
+
+def planar_clusters(covariances: np.ndarray, ratio: float) -> np.ndarray:
+    """(M,) bool: clusters whose smallest covariance eigenvalue is at most `ratio` times the
+    next smallest (unfloored), so their spread across one axis is small against the others."""
+    if len(covariances) == 0:
+        return np.zeros(0, dtype=bool)
+    eigenvalues = np.linalg.eigvalsh(covariances)
+    return eigenvalues[:, 0] <= ratio * eigenvalues[:, 1]
+
+
+def cluster_normals(covariances: np.ndarray) -> np.ndarray:
+    """(M, d) unit eigenvectors of the smallest eigenvalue: the normal of planar clusters
+    (sign arbitrary)."""
+    return np.linalg.eigh(covariances)[1][:, :, 0]
 
 
 def covariance_square_roots(covariances: np.ndarray, min_std: float) -> np.ndarray:
@@ -48,12 +94,17 @@ def covariance_square_roots(covariances: np.ndarray, min_std: float) -> np.ndarr
     return np.einsum("mij,mj,mkj->mik", eigenvectors, np.sqrt(eigenvalues), eigenvectors)
 
 
-def kernel_reach(transforms: np.ndarray) -> np.ndarray:
+def kernel_reach(transforms: np.ndarray, planar: np.ndarray | None = None) -> np.ndarray:
     """(M,) metres: the distance from its mean beyond which each cluster's kernel is zero.
 
-    Row a of T_m is (1 / (l sqrt(lambda'_a))) v_a^T, so the reach is the largest
-    l sqrt(lambda'_a) = 1 / (smallest row norm)."""
+    Row a of T_m is (1 / (s sqrt(lambda'_a))) v_a^T, with half-width h_a = 1 / |row a| along
+    eigen-axis a. The ball reaches the largest h_a; the box (rows where `planar`) reaches its
+    corners, sqrt(sum_a h_a^2)."""
     if len(transforms) == 0:
         return np.zeros(0)
     with np.errstate(divide="ignore"):  # an all-zero transform reaches everywhere
-        return 1.0 / np.linalg.norm(transforms, axis=2).min(axis=1)
+        half_widths = 1.0 / np.linalg.norm(transforms, axis=2)
+    reach = half_widths.max(axis=1)
+    if planar is not None:
+        reach[planar] = np.linalg.norm(half_widths[planar], axis=1)
+    return reach

@@ -32,8 +32,8 @@ class SampleGroups:
     """Samples grouped for neighbour search, and the new clusters found among them.
 
     group_of_point: (n,) int64. centres: (G, d) float64, metres. new_means (C, d),
-    new_covariances (C, d, d), new_counts (C,), new_coarse (C,): statistics and scale of the
-    clusters proper.
+    new_covariances (C, d, d), new_counts (C,), new_coarse (C,), new_occupied (C,): statistics,
+    scale and label of the clusters proper.
     """
 
     group_of_point: np.ndarray
@@ -42,6 +42,7 @@ class SampleGroups:
     new_covariances: np.ndarray
     new_counts: np.ndarray
     new_coarse: np.ndarray
+    new_occupied: np.ndarray
 
 
 class HilbertMap:
@@ -101,7 +102,7 @@ class HilbertMap:
         self.clusters_ = clusters
         self.bias_state_ = np.asarray(bias_state, dtype=np.float64).copy()
         self.n_scans_ = n_scans
-        self._index = clusters.index()
+        self._index = clusters.index(self.config)
 
     # --------------------------------------------------------------- training
     def integrate(
@@ -173,6 +174,7 @@ class HilbertMap:
                 neighbours,
                 clusters.means,
                 clusters.transforms,
+                clusters.planar_kernel,
             )
         with timer("sgd"):
             labels = samples.occupied.astype(np.float64)
@@ -216,7 +218,7 @@ class HilbertMap:
         else:
             parts = [(np.arange(len(samples)), cfg.cluster_radius, False)]
         group_of_point = np.empty(len(samples), dtype=np.int64)
-        centres, means, covariances, counts, coarse = [], [], [], [], []
+        centres, means, covariances, counts, coarse, occupied = [], [], [], [], [], []
         n_groups = 0
         for rows, radius, is_coarse in parts:
             points = samples.points[rows]
@@ -231,6 +233,11 @@ class HilbertMap:
             covariances.append(result.covariances[result.kept])
             counts.append(result.counts[result.kept])
             coarse.append(np.full(int(result.kept.sum()), is_coarse))
+            # Label: the majority of the samples each seed took out of the pool.
+            n_seeds = len(result.means)
+            n_occupied = np.bincount(result.owner, samples.occupied[rows], n_seeds)
+            majority = 2 * n_occupied > np.bincount(result.owner, None, n_seeds)
+            occupied.append(majority[result.kept])
         return SampleGroups(
             group_of_point,
             np.concatenate(centres),
@@ -238,6 +245,7 @@ class HilbertMap:
             np.concatenate(covariances),
             np.concatenate(counts),
             np.concatenate(coarse),
+            np.concatenate(occupied),
         )
 
     def _absorb(self, groups: SampleGroups) -> None:
@@ -252,6 +260,7 @@ class HilbertMap:
             groups.new_means,
             groups.new_covariances,
             groups.new_coarse,
+            groups.new_occupied,
             cfg.merge_threshold,
             cfg.min_std,
         )
@@ -271,10 +280,11 @@ class HilbertMap:
             groups.new_covariances[~merging],
             groups.new_counts[~merging],
             groups.new_coarse[~merging],
+            groups.new_occupied[~merging],
         )
         changed = np.concatenate([np.unique(targets[merging]), np.arange(start, len(clusters))])
-        clusters.refresh_transforms(changed, cfg.length_scale, cfg.min_std)
-        self._index = clusters.index()
+        clusters.refresh(changed, cfg)
+        self._index = clusters.index(cfg)
         self.last_update_ = {
             "new_clusters": int((~merging).sum()),
             "merged_clusters": int(merging.sum()),
@@ -328,6 +338,7 @@ class HilbertMap:
             neighbours,
             clusters.means,
             clusters.transforms,
+            clusters.planar_kernel,
             clusters.weights,
             self.bias_ if self.config.query_intercept else 0.0,
         )
@@ -352,7 +363,9 @@ class HilbertMap:
         if self.clusters_ is None:
             raise RuntimeError("the map is empty: integrate a scan or fit before building a grid")
         if bounds is None:
-            bounds = support_bounds(self.clusters_.means, self.clusters_.transforms)
+            bounds = support_bounds(
+                self.clusters_.means, self.clusters_.transforms, self.clusters_.planar_kernel
+            )
         origin, shape = grid_shape(bounds, resolution, self.dim, max_bytes)
         grid = OccupancyGrid(origin, resolution, shape)
         grid.update(self)

@@ -8,18 +8,21 @@ from ehm.clusters import (
     merge_average,
     merge_pooled,
 )
+from ehm.config import MapConfig
 from ehm.features import decision_values, group_by_cell, group_spread
 from ehm.index import ClusterIndex
 
 
-def _set_from(groups, coarse=None):
+def _set_from(groups, coarse=None, occupied=None):
     clusters = ClusterSet.empty(3)
     clusters.append(
         np.array([g.mean(axis=0) for g in groups]),
         np.array([np.cov(g.T) for g in groups]),
         np.array([len(g) for g in groups]),
         np.zeros(len(groups), bool) if coarse is None else np.asarray(coarse),
+        np.ones(len(groups), bool) if occupied is None else np.asarray(occupied),
     )
+    clusters.refresh(np.arange(len(groups)), MapConfig())
     return clusters
 
 
@@ -66,8 +69,10 @@ def test_match_merges_only_within_one_standard_deviation(rng):
     clusters = _set_from([rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])])
     covariances = np.repeat(clusters.covariances[:1], 3, axis=0)
     means = np.array([[0.05, 0, 0], [1.0, 0, 0], [2.02, 0.01, 0]])
-    coarse = np.zeros(3, bool)
-    targets = match_new_clusters(clusters, clusters.index(), means, covariances, coarse, 1.0, 1e-3)
+    coarse, occupied = np.zeros(3, bool), np.ones(3, bool)
+    targets = match_new_clusters(
+        clusters, clusters.index(), means, covariances, coarse, occupied, 1.0, 1e-3
+    )
     np.testing.assert_array_equal(targets, [0, -1, 1])
 
 
@@ -78,8 +83,23 @@ def test_match_merges_only_clusters_of_the_same_scale(rng):
     covariances = np.repeat(clusters.covariances[:1], 4, axis=0)
     means = np.array([[0.05, 0, 0], [0.05, 0, 0], [2.02, 0, 0], [2.02, 0, 0]])
     coarse = np.array([False, True, False, True])
-    targets = match_new_clusters(clusters, clusters.index(), means, covariances, coarse, 1.0, 1e-3)
+    targets = match_new_clusters(
+        clusters, clusters.index(), means, covariances, coarse, np.ones(4, bool), 1.0, 1e-3
+    )
     np.testing.assert_array_equal(targets, [0, -1, -1, 1])
+
+
+def test_match_merges_only_clusters_of_the_same_label(rng):
+    clusters = _set_from(
+        [rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [0.1, 0, 0])], occupied=[True, False]
+    )
+    covariances = np.repeat(clusters.covariances[:1], 2, axis=0)
+    means = np.array([[0.08, 0, 0], [0.02, 0, 0]])
+    occupied = np.array([True, False])
+    targets = match_new_clusters(
+        clusters, clusters.index(), means, covariances, np.zeros(2, bool), occupied, 1.0, 1e-3
+    )
+    np.testing.assert_array_equal(targets, [0, 1])
 
 
 def test_index_returns_nearest_fine_then_nearest_coarse_clusters(rng):
@@ -108,13 +128,20 @@ def test_searches_bounded_by_kernel_reach_give_the_same_features(rng):
     means = rng.uniform(-3, 3, (300, 3))
     covariances = np.array([np.diag(rng.uniform(0.01, 0.3, 3) ** 2) for _ in range(300)])
     clusters = ClusterSet.empty(3)
-    clusters.append(means, covariances, np.full(300, 10), rng.random(300) < 0.3)
-    clusters.refresh_transforms(np.arange(300), 3.0, 0.02)
+    clusters.append(means, covariances, np.full(300, 10), rng.random(300) < 0.3, np.ones(300))
+    clusters.refresh(np.arange(300), MapConfig(planar_kernel=True))
+    assert 0 < clusters.planar_kernel.sum() < 300
     points = rng.uniform(-3, 3, (2000, 3))
     group_of_point, centres = group_by_cell(points, 0.5)
     spread = group_spread(points, group_of_point, centres)
     args = (points, group_of_point)
-    cluster_arrays = (clusters.means, clusters.transforms, rng.normal(size=300), 0.0)
+    cluster_arrays = (
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+        rng.normal(size=300),
+        0.0,
+    )
     bounded = clusters.index().nearest(centres, 8, 2, spread)
     unbounded = ClusterIndex(clusters.means, clusters.coarse).nearest(centres, 8, 2)
     assert (bounded == -1).sum() > (unbounded == -1).sum()  # the bound did prune

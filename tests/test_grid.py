@@ -11,12 +11,17 @@ from ehm.grid import (
     load_grid,
     save_grid,
 )
-from ehm.kernels import kernel_reach, kernel_transforms
+from ehm.kernels import kernel_transforms
 
 
 @pytest.fixture(scope="module")
 def room_map(room):
     return ehm.HilbertMap().fit(room.scans)
+
+
+@pytest.fixture(scope="module")
+def planar_room_map(room):
+    return ehm.HilbertMap(planar_kernel=True).fit(room.scans)
 
 
 def sector_scans(scan: ehm.Scan, parts: int) -> list[ehm.Scan]:
@@ -31,10 +36,11 @@ def random_local_grids(dim: int, rng: np.random.Generator):
     grid = OccupancyGrid(np.full(dim, -1.0), 0.1, (20, 24, 16)[:dim])
     means = rng.uniform(-1.5, 1.5, (60, dim))
     spread = rng.normal(size=(60, dim, dim)) * rng.uniform(0.02, 0.2, (60, 1, 1))
-    transforms = kernel_transforms(spread @ np.swapaxes(spread, 1, 2), 3.0, 0.02)
+    planar = rng.random(60) < 0.5
+    transforms = kernel_transforms(spread @ np.swapaxes(spread, 1, 2), 3.0, 0.02, planar)
     weights = rng.normal(size=60)
     weights[::7] = 0.0
-    return grid, grid._contributions(means, transforms, weights, np.arange(60))
+    return grid, grid._contributions(means, transforms, weights, planar, np.arange(60))
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -48,13 +54,16 @@ def test_compiled_accumulation_matches_reference(dim, rng):
     np.testing.assert_allclose(compiled, reference, rtol=0, atol=1e-12)
 
 
-def test_grid_is_the_sum_over_every_kernel_at_voxel_centres(room_map):
+@pytest.mark.parametrize("fixture", ["room_map", "planar_room_map"])
+def test_grid_is_the_sum_over_every_kernel_at_voxel_centres(fixture, request):
     """Eq. 17 exactly: at each voxel centre, the weighted sum of all kernels reaching it."""
-    grid = room_map.grid(resolution=0.1)
+    hilbert_map = request.getfixturevalue(fixture)
+    grid = hilbert_map.grid(resolution=0.1)
     centres = grid.centers()
     picked = np.random.default_rng(0).choice(len(centres), 20_000, replace=False)
-    clusters = room_map.clusters_
-    reach = kernel_reach(clusters.transforms)
+    clusters = hilbert_map.clusters_
+    assert clusters.planar_kernel.any() == (fixture == "planar_room_map")
+    reach = clusters.reach()
     lists = cKDTree(clusters.means).query_ball_point(centres[picked], reach.max())
     every = np.full((len(picked), max(map(len, lists))), -1)
     for row, found in enumerate(lists):
@@ -65,6 +74,7 @@ def test_grid_is_the_sum_over_every_kernel_at_voxel_centres(room_map):
         every,
         clusters.means,
         clusters.transforms,
+        clusters.planar_kernel,
         clusters.weights,
         0.0,
     )
@@ -94,7 +104,7 @@ def test_grid_geometry_and_centres_order(room_map):
 def test_default_bounds_hold_every_kernel(room_map):
     grid = room_map.grid(resolution=0.2)
     means = room_map.clusters_.means
-    reach = kernel_reach(room_map.clusters_.transforms)
+    reach = room_map.clusters_.reach()
     assert np.all(grid.bounds[0] <= means.min(axis=0))
     assert np.all(grid.bounds[1] >= means.max(axis=0))
     assert np.all(grid.bounds[0] >= means.min(axis=0) - reach.max() - 0.2)

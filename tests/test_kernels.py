@@ -6,7 +6,16 @@ from ehm.features import (
     kernel_values,
     kernel_values_reference,
 )
-from ehm.kernels import kernel_transforms, sparse_kernel, sparse_kernel_reference
+from ehm.kernels import (
+    cluster_kernel,
+    cluster_kernel_reference,
+    cluster_normals,
+    kernel_reach,
+    kernel_transforms,
+    planar_clusters,
+    sparse_kernel,
+    sparse_kernel_reference,
+)
 
 
 def test_sparse_kernel_matches_reference_and_known_values():
@@ -36,17 +45,58 @@ def test_eigenvalue_floor_keeps_flat_clusters_usable():
     np.testing.assert_allclose(np.linalg.norm(transform @ [0, 0, 0.05]), 1.0)
 
 
+def test_planar_kernel_is_one_within_two_standard_deviations_of_each_axis():
+    # A wall in the x-z plane: standard deviations 0.5 (x), 0.01 (y, floored to 0.02), 1 (z).
+    covariance = np.diag([0.25, 1e-4, 1.0])
+    transform = kernel_transforms(covariance[None], 3.0, 0.02, np.array([True]))[0]
+    offsets = np.array(
+        [[0.99, 0.0, 0.0], [1.01, 0, 0], [0.9, 0.039, 1.9], [0, 0.041, 0], [0, 0, 2.01]]
+    )
+    projected = offsets @ transform.T
+    values = cluster_kernel_reference(projected, np.ones(5, bool))
+    np.testing.assert_array_equal(values, [1, 0, 1, 0, 0])
+    compiled = [
+        cluster_kernel(float(np.sum(u**2)), float(np.max(np.abs(u))), True) for u in projected
+    ]
+    np.testing.assert_array_equal(compiled, values)
+    # Corners of the box: sqrt(1^2 + 0.04^2 + 2^2) metres from the mean.
+    reach = kernel_reach(transform[None], np.array([True]))
+    np.testing.assert_allclose(reach, [np.sqrt(1 + 0.04**2 + 4)])
+
+
+def test_cluster_kernel_is_k_sp_of_the_radius_where_not_planar(rng):
+    projected = rng.uniform(-1, 1, (200, 3))
+    compiled = [
+        cluster_kernel(float(np.sum(u**2)), float(np.max(np.abs(u))), False) for u in projected
+    ]
+    expected = sparse_kernel_reference(np.linalg.norm(projected, axis=1))
+    np.testing.assert_allclose(compiled, expected, atol=1e-15)
+    np.testing.assert_allclose(cluster_kernel_reference(projected, np.zeros(200, bool)), expected)
+
+
+def test_planar_clusters_and_normals(rng):
+    rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    shapes = np.array([[1.0, 1.0, 0.05], [1.0, 1.0, 0.15], [1.0, 0.05, 0.05], [1, 1, 1]]) ** 2
+    covariances = np.einsum("ij,nj,kj->nik", rotation, shapes, rotation)
+    # Variance ratios of the smallest to the next: 0.0025, 0.0225, 1 (a line), 1.
+    np.testing.assert_array_equal(planar_clusters(covariances, 0.01), [True, False, False, False])
+    np.testing.assert_array_equal(planar_clusters(covariances, 0.1), [True, True, False, False])
+    normals = cluster_normals(covariances[:2])
+    np.testing.assert_allclose(np.abs(normals @ rotation[:, 2]), [1.0, 1.0])
+
+
 def _random_problem(rng, dim):
     n_clusters, n_points, n_groups, k = 40, 500, 30, 6
     means = rng.uniform(0, 2, (n_clusters, dim))
     a = rng.normal(size=(n_clusters, dim, dim)) * 0.2
     covariances = a @ np.swapaxes(a, 1, 2)
-    transforms = kernel_transforms(covariances, 3.0, 0.05)
+    planar = rng.random(n_clusters) < 0.5
+    transforms = kernel_transforms(covariances, 3.0, 0.05, planar)
     points = rng.uniform(0, 2, (n_points, dim))
     group_of_point = rng.integers(0, n_groups, n_points)
     neighbours = rng.integers(0, n_clusters, (n_groups, k))
     neighbours[0, 3:] = -1  # fewer clusters than k
-    return points, group_of_point, neighbours, means, transforms
+    return points, group_of_point, neighbours, means, transforms, planar
 
 
 def test_kernel_values_match_reference(rng):
@@ -54,7 +104,8 @@ def test_kernel_values_match_reference(rng):
         problem = _random_problem(rng, dim)
         compiled = kernel_values(*problem)
         np.testing.assert_allclose(compiled, kernel_values_reference(*problem), atol=1e-12)
-        assert np.count_nonzero(compiled) > 0.1 * compiled.size
+        assert np.count_nonzero(compiled) > 0.05 * compiled.size
+        assert np.any(compiled == 1.0) and np.any((compiled > 0) & (compiled < 1))
 
 
 def test_decision_values_match_reference(rng):

@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from ehm.model import HilbertMap
 
 MAGIC = b"EHMMAP\r\n"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
 
