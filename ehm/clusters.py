@@ -91,10 +91,18 @@ class ClusterSet:
         self.planar = np.concatenate([self.planar, np.zeros(n, dtype=bool)])
         self.planar_kernel = np.concatenate([self.planar_kernel, np.zeros(n, dtype=bool)])
 
-    def keep(self, rows: np.ndarray) -> None:
-        """Keep only clusters `rows` ((K,) int64, ascending), dropping the others."""
+    def remove(self, rows: np.ndarray) -> np.ndarray:
+        """Drop clusters `rows` ((R,) int64, distinct). The last clusters move into the holes,
+        so every other cluster keeps its row. Returns (M - R,) int64: the old row of each."""
+        dropped = np.zeros(len(self), dtype=bool)
+        dropped[rows] = True
+        n_after = len(self) - len(rows)
+        source = np.arange(n_after)
+        holes = np.flatnonzero(dropped[:n_after])
+        source[holes] = np.flatnonzero(~dropped[n_after:]) + n_after
         for name, array in self.arrays().items():
-            setattr(self, name, array[rows])
+            setattr(self, name, array[source])
+        return source
 
     def reach(self) -> np.ndarray:
         """(M,) metres: how far from its mean each cluster's kernel is non-zero."""

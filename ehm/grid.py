@@ -183,8 +183,9 @@ class OccupancyGrid:
     # ------------------------------------------------------------ computing
     def update(self, hilbert_map: HilbertMap) -> GridUpdate:
         """Bring the grid up to date with `hilbert_map`: recompute only the local grids of
-        clusters whose weight, mean or covariance changed since the last update, and of new
-        clusters, or rebuild when that is less work (or the map was refitted or is another)."""
+        clusters whose weight, mean or covariance changed since the last update, of new
+        clusters and of clusters merged away, or rebuild when that is less work (or the map
+        was refitted or is another)."""
         clusters = hilbert_map.clusters_
         if clusters is None:
             raise RuntimeError("the map is empty: integrate a scan or fit before building a grid")
@@ -198,19 +199,24 @@ class OccupancyGrid:
         if self._lineage is not hilbert_map._lineage or self._snapshot is None:
             return self._rebuild(hilbert_map, everything, current)
         old_means, old_transforms, old_weights, old_planar = self._snapshot
-        n_old = len(old_weights)
-        if n_old > len(clusters):
-            return self._rebuild(hilbert_map, everything, current)
+        n_old, n_new = len(old_weights), len(clusters)
+        n_both = min(n_old, n_new)
+        # Rows present before and now that differ, rows only before (clusters merged away)
+        # and rows only now (new clusters).
         changed = np.flatnonzero(
-            (clusters.weights[:n_old] != old_weights)
-            | np.any(clusters.means[:n_old] != old_means, axis=1)
-            | np.any(clusters.transforms[:n_old] != old_transforms, axis=(1, 2))
-            | (clusters.planar_kernel[:n_old] != old_planar)
+            (clusters.weights[:n_both] != old_weights[:n_both])
+            | np.any(clusters.means[:n_both] != old_means[:n_both], axis=1)
+            | np.any(clusters.transforms[:n_both] != old_transforms[:n_both], axis=(1, 2))
+            | (clusters.planar_kernel[:n_both] != old_planar[:n_both])
         )
-        removed = self._contributions(old_means, old_transforms, -old_weights, old_planar, changed)
-        added = self._contributions(
-            *current, np.concatenate([changed, np.arange(n_old, len(clusters))])
+        removed = self._contributions(
+            old_means,
+            old_transforms,
+            -old_weights,
+            old_planar,
+            np.concatenate([changed, np.arange(n_both, n_old)]),
         )
+        added = self._contributions(*current, np.concatenate([changed, np.arange(n_both, n_new)]))
         voxels = removed.voxels + added.voxels
         if voxels >= everything.voxels:
             return self._rebuild(hilbert_map, everything, current)

@@ -19,6 +19,7 @@ import numpy as np
 
 from ehm.clusters import ClusterSet, match_new_clusters, merge_average, merge_pooled
 from ehm.config import MapConfig
+from ehm.coplanar import merge_coplanar
 from ehm.features import decision_values, group_by_cell, group_spread, kernel_values
 from ehm.grid import DEFAULT_MAX_BYTES, OccupancyGrid, grid_shape, support_bounds
 from ehm.quickmeans import kmeans_refine, quick_means
@@ -161,7 +162,13 @@ class HilbertMap:
         with timer("clustering"):
             groups = self._group_samples(samples)
         with timer("length_scales"):
-            self._absorb(groups)
+            touched = self._absorb(groups)
+        if cfg.merge_coplanar:
+            with timer("coplanar"):
+                merge = merge_coplanar(self.clusters_, touched, cfg)
+            self.last_update_["coplanar_merged"] = merge.merged
+        with timer("index"):
+            self._index = self.clusters_.index(cfg)
         clusters = self.clusters_
         with timer("features"):
             spread = group_spread(samples.points, groups.group_of_point, groups.centres)
@@ -248,8 +255,9 @@ class HilbertMap:
             np.concatenate(occupied),
         )
 
-    def _absorb(self, groups: SampleGroups) -> None:
-        """Merge each new cluster into the map's or add it with weight 0 (Alg. 2 lines 4-21)."""
+    def _absorb(self, groups: SampleGroups) -> np.ndarray:
+        """Merge each new cluster into the map's or add it with weight 0 (Alg. 2 lines 4-21).
+        Returns the rows of the clusters that changed or are new."""
         cfg = self.config
         if self.clusters_ is None:
             self.clusters_ = ClusterSet.empty(groups.centres.shape[1])
@@ -284,11 +292,11 @@ class HilbertMap:
         )
         changed = np.concatenate([np.unique(targets[merging]), np.arange(start, len(clusters))])
         clusters.refresh(changed, cfg)
-        self._index = clusters.index(cfg)
         self.last_update_ = {
             "new_clusters": int((~merging).sum()),
             "merged_clusters": int(merging.sum()),
         }
+        return changed
 
     # ---------------------------------------------------------------- queries
     def occupancy(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:

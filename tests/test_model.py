@@ -89,6 +89,7 @@ def test_incremental_merges_reobserved_clusters(room):
         "samples",
         "clustering",
         "length_scales",
+        "index",
         "features",
         "sgd",
     }
