@@ -108,8 +108,8 @@ class ClusterSet:
         """(M,) metres: how far from its mean each cluster's kernel is non-zero."""
         return kernel_reach(self.transforms, self.planar_kernel)
 
-    def index(self, config: MapConfig | None = None) -> ClusterIndex:
-        """A spatial index over the current centres, searched as `config` says."""
+    def index(self) -> ClusterIndex:
+        """kd-trees over the current centres, bounded by the kernels' reach."""
         return ClusterIndex(self.means, self.coarse, self.reach())
 
     def refresh(self, rows: np.ndarray, config: MapConfig) -> None:
@@ -122,6 +122,44 @@ class ClusterSet:
         self.transforms[rows] = kernel_transforms(
             self.covariances[rows], config.length_scale, config.min_std, self.planar_kernel[rows]
         )
+
+
+@dataclass(frozen=True)
+class ClusterView:
+    """A copy of a map's clusters for users, one row per cluster.
+
+    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2.
+    weights: (M,) float64, log-odds each kernel adds at its peak. counts: (M,) float64,
+    samples behind each cluster. kind: (M,) str, 'planar' (walls, floors: flat clusters) or
+    'volumetric'. kernel: (M,) str, 'planar' (Eq. 13) or 'local' (k_SP with localized
+    length-scales). scale: (M,) str, 'fine' or 'coarse' (open free space along rays).
+    occupied: (M,) bool, built from occupied samples (else free ones).
+    """
+
+    means: np.ndarray
+    covariances: np.ndarray
+    weights: np.ndarray
+    counts: np.ndarray
+    kind: np.ndarray
+    kernel: np.ndarray
+    scale: np.ndarray
+    occupied: np.ndarray
+
+    @classmethod
+    def of(cls, clusters: ClusterSet) -> ClusterView:
+        return cls(
+            clusters.means.copy(),
+            clusters.covariances.copy(),
+            clusters.weights.copy(),
+            clusters.counts.copy(),
+            np.where(clusters.planar, "planar", "volumetric"),
+            np.where(clusters.planar_kernel, "planar", "local"),
+            np.where(clusters.coarse, "coarse", "fine"),
+            clusters.occupied.copy(),
+        )
+
+    def __len__(self) -> int:
+        return len(self.means)
 
 
 def anisotropic_distances(

@@ -80,7 +80,7 @@ class MapConfig:
     anchor_layers: int = 1
     """Layers of the cluster hierarchy (Fig. 6): 1 searches the clusters directly (kd-tree);
     each further layer groups the one below into anchors, searched top-down."""
-    anchor_radius_factor: float = 8.0
+    anchor_radius_factor: float = 4.0
     """Inner quick-means radius of the first anchor layer, as a multiple of the clusters'
     radius (`cluster_radius` or `free_cluster_radius`); each further layer multiplies it
     again."""

@@ -26,13 +26,12 @@ CANDIDATES = 8
 @dataclass(frozen=True)
 class CoplanarMerge:
     """What orientation clustering did: merged, clusters absorbed into others; passes, passes
-    run (the last merged nothing); source: (M_after,) int64, the row each cluster had before;
-    grown: rows (after) whose statistics changed."""
+    run (the last merged nothing); source: (M_after,) int64, the row each cluster had
+    before."""
 
     merged: int
     passes: int
     source: np.ndarray
-    grown: np.ndarray
 
 
 def coplanar_pairs(
@@ -91,7 +90,6 @@ def merge_coplanar(clusters: ClusterSet, touched: np.ndarray, config: MapConfig)
     in place. A merged cluster pools both clusters' samples (exact mean and covariance); its
     weight and AdaGrad state are the sample-weighted means of the pair's."""
     source = np.arange(len(clusters))
-    grown = np.zeros(len(clusters), dtype=bool)
     rows, merged, passes = np.asarray(touched, dtype=np.int64), 0, 0
     while True:
         passes += 1
@@ -113,13 +111,11 @@ def merge_coplanar(clusters: ClusterSet, touched: np.ndarray, config: MapConfig)
             clusters.counts[absorb],
         )
         clusters.refresh(keep, config)
-        grown[keep] = True
         moved = clusters.remove(absorb)
         source = source[moved]
-        grown = grown[moved]
         # Where the kept clusters sit now (a removal moves rows from the end into holes).
         new_row = np.full(len(moved) + len(absorb), -1, dtype=np.int64)
         new_row[moved] = np.arange(len(moved))
         rows = new_row[keep]
         merged += len(pairs)
-    return CoplanarMerge(merged, passes, source, np.flatnonzero(grown))
+    return CoplanarMerge(merged, passes, source)

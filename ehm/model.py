@@ -17,11 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from ehm.clusters import ClusterSet, match_new_clusters, merge_average, merge_pooled
+from ehm.anchors import AnchorLayers
+from ehm.clusters import ClusterSet, ClusterView, match_new_clusters, merge_average, merge_pooled
 from ehm.config import MapConfig
 from ehm.coplanar import merge_coplanar
 from ehm.features import decision_values, group_by_cell, group_spread, kernel_values
 from ehm.grid import DEFAULT_MAX_BYTES, OccupancyGrid, grid_shape, support_bounds
+from ehm.index import ClusterIndex, KernelRanking
 from ehm.quickmeans import kmeans_refine, quick_means
 from ehm.scan import Scan, TrainingSamples
 from ehm.sgd import sgd_pass
@@ -51,7 +53,8 @@ class HilbertMap:
 
     config: a MapConfig; keyword overrides replace single settings, for example
     HilbertMap(cluster_radius=0.2). Learned state ends in an underscore: clusters_ (a
-    ClusterSet), bias_, n_scans_, and timings_ (seconds per stage of the last update).
+    ClusterSet), anchors_ (AnchorLayers, empty unless config.anchor_layers > 1), bias_,
+    n_scans_, and timings_ (seconds per stage of the last update).
     """
 
     def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
@@ -67,6 +70,7 @@ class HilbertMap:
         self.timings_: dict[str, float] = {}
         self.last_update_: dict[str, int] = {}
         self._index = ClusterSet.empty(1).index()
+        self.anchors_ = AnchorLayers()
         self._rng = np.random.default_rng(self.config.seed)
         # Grids compare this token to tell a map that was refitted from one that grew.
         self._lineage = object()
@@ -92,18 +96,28 @@ class HilbertMap:
             f", {settings})" if settings else ")"
         )
 
+    def clusters(self) -> ClusterView:
+        """A copy of the clusters: centres, covariances, weights, kind ('planar' or
+        'volumetric'), kernel, scale and label, one row per cluster (see ClusterView)."""
+        if self.clusters_ is None:
+            raise RuntimeError("the map is empty: integrate a scan or fit first")
+        return ClusterView.of(self.clusters_)
+
     def memory_bytes(self) -> int:
         """Bytes of everything the map keeps: cluster arrays, weights, optimiser state and the
         kd-tree over cluster centres."""
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
-        return clusters + self.bias_state_.nbytes + self._index.nbytes
+        return clusters + self.bias_state_.nbytes + self._index.nbytes + self.anchors_.nbytes
 
-    def _restore(self, clusters: ClusterSet, bias_state: np.ndarray, n_scans: int) -> None:
+    def _restore(
+        self, clusters: ClusterSet, bias_state: np.ndarray, n_scans: int, anchors: AnchorLayers
+    ) -> None:
         """Install learned state (used by ehm.load)."""
         self.clusters_ = clusters
         self.bias_state_ = np.asarray(bias_state, dtype=np.float64).copy()
         self.n_scans_ = n_scans
-        self._index = clusters.index(self.config)
+        self.anchors_ = anchors
+        self._index = self._build_index()
 
     # --------------------------------------------------------------- training
     def integrate(
@@ -167,8 +181,9 @@ class HilbertMap:
             with timer("coplanar"):
                 merge = merge_coplanar(self.clusters_, touched, cfg)
             self.last_update_["coplanar_merged"] = merge.merged
+            self.anchors_.drop_clusters(merge.source)
         with timer("index"):
-            self._index = self.clusters_.index(cfg)
+            self._index = self._build_index()
         clusters = self.clusters_
         with timer("features"):
             spread = group_spread(samples.points, groups.group_of_point, groups.centres)
@@ -253,6 +268,31 @@ class HilbertMap:
             np.concatenate(counts),
             np.concatenate(coarse),
             np.concatenate(occupied),
+        )
+
+    def _build_index(self) -> ClusterIndex:
+        """The search structure over the clusters that config asks for, placing new clusters
+        in the anchor layers first."""
+        cfg, clusters = self.config, self.clusters_
+        ranking = None
+        if cfg.anisotropic_search:
+            ranking = KernelRanking(
+                clusters.means,
+                clusters.transforms,
+                clusters.planar_kernel,
+                cfg.anisotropic_candidates,
+            )
+        if cfg.anchor_layers == 1:
+            return ClusterIndex(clusters.means, clusters.coarse, clusters.reach(), ranking)
+        self.anchors_.extend(
+            clusters.means,
+            clusters.coarse,
+            (cfg.cluster_radius, cfg.free_cluster_radius),
+            cfg.anchor_radius_factor,
+            cfg.anchor_layers - 1,
+        )
+        return ClusterIndex(
+            clusters.means, clusters.coarse, clusters.reach(), ranking, self.anchors_
         )
 
     def _absorb(self, groups: SampleGroups) -> np.ndarray:

@@ -4,8 +4,9 @@ Layout (little-endian):
     8 bytes   magic b"EHMMAP\\r\\n"
     4 bytes   uint32 format version
     8 bytes   uint64 length of the JSON header
-    header    UTF-8 JSON: config, dim, n_scans, bias state, and for each array its name,
-              dtype, shape and byte offset into the payload
+    header    UTF-8 JSON: config, dim, n_scans, bias state, and for each array (the
+              clusters', then the anchor layers') its name, dtype, shape and byte offset
+              into the payload
     payload   the arrays' raw bytes, one after another
     4 bytes   uint32 CRC-32 of everything before it
 """
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ehm.anchors import AnchorLayers
 from ehm.clusters import ClusterSet
 from ehm.config import MapConfig
 
@@ -30,6 +32,8 @@ if TYPE_CHECKING:
     from ehm.model import HilbertMap
 
 MAGIC = b"EHMMAP\r\n"
+# Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
+ANCHOR_PREFIX = "anchor_"
 FORMAT_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -45,6 +49,10 @@ def save_map(hilbert_map: HilbertMap, path: str | PathLike[str]) -> None:
     if hilbert_map.clusters_ is None:
         raise ValueError("the map is empty: integrate a scan before saving")
     arrays = {name: np.ascontiguousarray(a) for name, a in hilbert_map.clusters_.arrays().items()}
+    anchors = hilbert_map.anchors_
+    for layer, (parents, coarse) in enumerate(zip(anchors.parents, anchors.coarse, strict=True)):
+        arrays[f"{ANCHOR_PREFIX}parents_{layer}"] = parents
+        arrays[f"{ANCHOR_PREFIX}coarse_{layer}"] = coarse
     entries, offset = [], 0
     for name, array in arrays.items():
         dtype = array.dtype.newbyteorder("<")
@@ -118,6 +126,13 @@ def load(path: str | PathLike[str]) -> HilbertMap:
         start = payload_start + entry["offset"]
         flat = np.frombuffer(data, dtype=dtype, count=count, offset=start)
         arrays[entry["name"]] = flat.reshape(entry["shape"]).astype(dtype.newbyteorder("="))
+    n_layers = sum(name.startswith(f"{ANCHOR_PREFIX}parents_") for name in arrays)
+    anchors = AnchorLayers(
+        [arrays.pop(f"{ANCHOR_PREFIX}parents_{layer}") for layer in range(n_layers)],
+        [arrays.pop(f"{ANCHOR_PREFIX}coarse_{layer}") for layer in range(n_layers)],
+    )
     hilbert_map = HilbertMap(MapConfig.from_dict(header["config"]))
-    hilbert_map._restore(ClusterSet(**arrays), np.array(header["bias_state"]), header["n_scans"])
+    hilbert_map._restore(
+        ClusterSet(**arrays), np.array(header["bias_state"]), header["n_scans"], anchors
+    )
     return hilbert_map
