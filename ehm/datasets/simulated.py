@@ -1,4 +1,5 @@
-"""Embedded synthetic scenes with exact occupancy: the virtual room (3D) and a floor plan (2D).
+"""Embedded synthetic scenes with exact occupancy: the virtual room and a warehouse (3D), and a
+floor plan (2D).
 
 Both are deterministic for a seed; the seed only draws the range noise.
 """
@@ -74,6 +75,51 @@ def virtual_room(
     rng = np.random.default_rng(seed)
     scan = simulate_scan(scene, np.array([0.0, 0.0, 1.2]), directions, 30.0, noise_std, rng)
     return SimulatedDataset("virtual_room", [scan], scene)
+
+
+def warehouse_scene() -> Scene:
+    """A 40 x 24 x 8 m hall: six rows of 2 m shelving, a mezzanine deck, pillars, crates."""
+    walls_min, walls_max = room_shell([-20.0, -12.0, 0.0], [20.0, 12.0, 8.0], thickness=0.3)
+    solids = []
+    for row in range(6):  # shelving rows along x, each broken by an aisle in the middle
+        y = -9.0 + 3.2 * row
+        solids += [([-16.0, y, 0.0], [-2.0, y + 1.0, 2.0]), ([2.0, y, 0.0], [16.0, y + 1.0, 2.0])]
+    for x in (-12.0, -4.0, 4.0, 12.0):  # pillars between rows and walls
+        for y in (-11.0, 10.6):
+            solids.append(([x, y, 0.0], [x + 0.4, y + 0.4, 8.0]))
+    solids += [
+        ([-20.0, -12.0, 4.0], [-17.0, 12.0, 4.2]),  # mezzanine deck along the west wall
+        ([17.5, -6.0, 0.0], [19.0, -4.5, 1.2]),  # crates by the east wall
+        ([17.5, 3.0, 0.0], [18.7, 4.2, 0.9]),
+    ]
+    box_min = np.vstack([walls_min, [b[0] for b in solids]])
+    box_max = np.vstack([walls_max, [b[1] for b in solids]])
+    balls = np.array([[0.0, 0.0, 0.6], [-18.0, 0.0, 4.8]])
+    return Scene(box_min, box_max, balls, np.array([0.6, 0.5]))
+
+
+def warehouse(
+    seed: int = 0, rings: int = 64, azimuths: int = 1406, noise_std: float = 0.01
+) -> SimulatedDataset:
+    """Six simulated LiDAR scans (rings x azimuths rays each, elevations -30 to +30 degrees,
+    50 m range) from 1.5 m up along the aisles of the warehouse: several times the virtual
+    room's extent, for measuring search and memory in large maps."""
+    elevation = np.deg2rad(np.linspace(-30.0, 30.0, rings))
+    azimuth = np.linspace(0.0, 2.0 * np.pi, azimuths, endpoint=False)
+    el, az = np.meshgrid(elevation, azimuth, indexing="ij")
+    directions = np.column_stack(
+        [(np.cos(el) * np.cos(az)).ravel(), (np.cos(el) * np.sin(az)).ravel(), np.sin(el).ravel()]
+    )
+    scene = warehouse_scene()
+    rng = np.random.default_rng(seed)
+    poses = np.array(
+        [[-17.5, -10.0], [-8.0, -6.6], [0.0, -1.7], [8.0, 2.7], [17.0, 4.7], [0.0, 10.5]]
+    )
+    scans = [
+        simulate_scan(scene, np.array([x, y, 1.5]), directions, 50.0, noise_std, rng)
+        for x, y in poses
+    ]
+    return SimulatedDataset("warehouse", scans, scene)
 
 
 def floor_plan_scene() -> Scene:
