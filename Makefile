@@ -25,6 +25,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/octomap_scan.py
 	$(BIN)/python benchmarks/virtual_room.py
 	$(BIN)/python benchmarks/grids.py
+	$(BIN)/python benchmarks/kernel_selection.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

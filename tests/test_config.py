@@ -16,3 +16,20 @@ def test_overrides_and_validation():
         MapConfig(merge_rule="mean")
     with pytest.raises(ValueError, match="neighbours must be an integer >= 1"):
         MapConfig(neighbours=0)
+
+
+@pytest.mark.parametrize(
+    ("setting", "value", "message"),
+    [
+        ("planar_ratio", 1.0, "planar_ratio must be below 1"),
+        ("planar_ratio", 0.0, "planar_ratio must be a positive number"),
+        ("coplanar_angle", 90.0, "coplanar_angle must be below 90 degrees"),
+        ("coplanar_distance", -1.0, "coplanar_distance must be a positive number"),
+        ("anisotropic_candidates", 0, "anisotropic_candidates must be an integer >= 1"),
+        ("anchor_layers", 0, "anchor_layers must be an integer >= 1"),
+        ("anchor_radius_factor", 1.0, "anchor_radius_factor must be above 1"),
+    ],
+)
+def test_kernel_selection_and_hierarchy_settings_are_validated(setting, value, message):
+    with pytest.raises(ValueError, match=message):
+        MapConfig(**{setting: value})

@@ -23,3 +23,15 @@ def test_surface_distance_by_hand():
         scene.surface_distance(points), [0.5, 0.3, np.sqrt(2.0), 0.8, 2.0], atol=1e-12
     )
     assert np.all(scene.surface_distance(points) >= 0.0)
+
+
+def test_warehouse_scans_start_in_free_space_and_end_on_surfaces():
+    from ehm.datasets import warehouse
+
+    data = warehouse(rings=8, azimuths=90, noise_std=0.0)
+    assert len(data.scans) == 6
+    for scan in data.scans:
+        assert not data.scene.occupied(scan.origin[None])[0]
+        hits = scan.points_world[scan.hit_mask]
+        assert len(hits) > 0.9 * len(scan)
+        np.testing.assert_allclose(data.scene.surface_distance(hits), 0.0, atol=1e-6)
