@@ -9,6 +9,11 @@ own kd-tree, and a point's neighbours are its nearest fine and its nearest coars
 Searches stop at the largest kernel reach of the scale (plus how far the points sharing a
 search lie from its centre): clusters farther away add zero to every feature, so leaving them
 out changes no result and prunes most of the tree.
+
+Two settings change the search: anisotropic search ranks a point's clusters by the radius
+their kernel gives it instead of by the distance to their centres (candidates from the
+Euclidean search, re-ranked), and anchor layers replace the kd-trees by a top-down search
+through clusters of clusters (ehm.anchors).
 """
 
 from __future__ import annotations

@@ -104,8 +104,8 @@ class HilbertMap:
         return ClusterView.of(self.clusters_)
 
     def memory_bytes(self) -> int:
-        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state and the
-        kd-tree over cluster centres."""
+        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, anchor
+        layers and the search structure over cluster centres."""
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
         return clusters + self.bias_state_.nbytes + self._index.nbytes + self.anchors_.nbytes
 
