@@ -61,8 +61,12 @@ def coplanar_pairs(
     first, second = np.concatenate(first), np.concatenate(second)
     usable = first != second
     first, second = first[usable], second[usable]
-    normals = cluster_normals(clusters.covariances)
-    cosines = np.abs(np.einsum("nd,nd->n", normals[first], normals[second]))
+    # Normals of the clusters in play only: a pass stays local to the update.
+    nearby = np.unique(np.concatenate([first, second]))
+    normals = cluster_normals(clusters.covariances[nearby])
+    first_normals = normals[np.searchsorted(nearby, first)]
+    second_normals = normals[np.searchsorted(nearby, second)]
+    cosines = np.abs(np.einsum("nd,nd->n", first_normals, second_normals))
     aligned = cosines >= np.cos(np.radians(max_angle_deg))
     first, second = first[aligned], second[aligned]
     if len(first) == 0:

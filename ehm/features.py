@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from ehm.cells import cell_keys
-from ehm.kernels import cluster_kernel, cluster_kernel_reference
+from ehm.kernels import cluster_kernel, cluster_kernel_reference, projected_radii
 
 
 def group_by_cell(points: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
@@ -37,15 +37,7 @@ def group_spread(points: np.ndarray, group_of_point: np.ndarray, centres: np.nda
 
 @numba.njit(cache=True, inline="always")
 def _kernel_at(points, i, cluster, means, transforms, planar):  # pragma: no cover - compiled
-    d = points.shape[1]
-    r2 = 0.0
-    r_max = 0.0
-    for a in range(d):
-        projected = 0.0
-        for b in range(d):
-            projected += transforms[cluster, a, b] * (points[i, b] - means[cluster, b])
-        r2 += projected * projected
-        r_max = max(r_max, abs(projected))
+    r2, r_max = projected_radii(points, i, cluster, means, transforms)
     return cluster_kernel(r2, r_max, planar[cluster])
 
 

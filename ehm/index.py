@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ehm.anchors import AnchorLayers, AnchorTree
+from ehm.kernels import projected_radii
 
 # cKDTree keeps a copy of the data, a permutation and about this many bytes per node.
 _KDTREE_NODE_BYTES = 80
@@ -56,22 +57,13 @@ def kernel_radii(points, candidates, means, transforms, planar):  # pragma: no c
     """(n, c) radius |T_m (x - mu_m)| (max_a |.| for planar kernels) of each point at its
     candidate clusters; inf where the candidate is -1. The kernel is 0 from radius 1 on."""
     n, c = candidates.shape
-    d = points.shape[1]
     radii = np.full((n, c), np.inf)
     for i in numba.prange(n):
         for j in range(c):
             m = candidates[i, j]
-            if m < 0:
-                continue
-            r2 = 0.0
-            r_max = 0.0
-            for a in range(d):
-                u = 0.0
-                for b in range(d):
-                    u += transforms[m, a, b] * (points[i, b] - means[m, b])
-                r2 += u * u
-                r_max = max(r_max, abs(u))
-            radii[i, j] = r_max if planar[m] else np.sqrt(r2)
+            if m >= 0:
+                r2, r_max = projected_radii(points, i, m, means, transforms)
+                radii[i, j] = r_max if planar[m] else np.sqrt(r2)
     return radii
 
 

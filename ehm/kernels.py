@@ -39,6 +39,21 @@ def sparse_kernel_reference(r: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, inline="always")
+def projected_radii(points, i, cluster, means, transforms):  # pragma: no cover - compiled
+    """|u|^2 and max_a |u_a| of u = T_m (x_i - mu_m), m = cluster."""
+    d = points.shape[1]
+    r2 = 0.0
+    r_max = 0.0
+    for a in range(d):
+        u = 0.0
+        for b in range(d):
+            u += transforms[cluster, a, b] * (points[i, b] - means[cluster, b])
+        r2 += u * u
+        r_max = max(r_max, abs(u))
+    return r2, r_max
+
+
+@numba.njit(cache=True, inline="always")
 def cluster_kernel(r2: float, r_max: float, planar: bool) -> float:  # pragma: no cover
     """Kernel value from |u|^2 and max_a |u_a| of u = T_m (x - mu_m): k_PS when `planar`,
     else k_SP."""

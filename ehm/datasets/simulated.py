@@ -40,6 +40,17 @@ def simulate_scan(
     return Scan(origin + directions * ranges[:, None], origin, hit)
 
 
+def lidar_directions(rings: int, azimuths: int, max_elevation_deg: float) -> np.ndarray:
+    """(rings * azimuths, 3) unit ray directions of a spinning LiDAR: rings evenly spaced
+    from -max_elevation_deg to +max_elevation_deg, azimuths evenly spaced round."""
+    elevation = np.deg2rad(np.linspace(-max_elevation_deg, max_elevation_deg, rings))
+    azimuth = np.linspace(0.0, 2.0 * np.pi, azimuths, endpoint=False)
+    el, az = np.meshgrid(elevation, azimuth, indexing="ij")
+    return np.column_stack(
+        [(np.cos(el) * np.cos(az)).ravel(), (np.cos(el) * np.sin(az)).ravel(), np.sin(el).ravel()]
+    )
+
+
 def virtual_room_scene() -> Scene:
     """An 8 x 6 x 3 m room with a table, a sofa, a cabinet, a crate and two balls."""
     walls_min, walls_max = room_shell([-4.0, -3.0, 0.0], [4.0, 3.0, 3.0], thickness=0.2)
@@ -65,12 +76,7 @@ def virtual_room(
 ) -> SimulatedDataset:
     """One simulated 3D LiDAR scan (rings x azimuths rays, about 90,000 by default) from
     (0, 0, 1.2) m in the virtual room, elevations -55 to +55 degrees."""
-    elevation = np.deg2rad(np.linspace(-55.0, 55.0, rings))
-    azimuth = np.linspace(0.0, 2.0 * np.pi, azimuths, endpoint=False)
-    el, az = np.meshgrid(elevation, azimuth, indexing="ij")
-    directions = np.column_stack(
-        [(np.cos(el) * np.cos(az)).ravel(), (np.cos(el) * np.sin(az)).ravel(), np.sin(el).ravel()]
-    )
+    directions = lidar_directions(rings, azimuths, 55.0)
     scene = virtual_room_scene()
     rng = np.random.default_rng(seed)
     scan = simulate_scan(scene, np.array([0.0, 0.0, 1.2]), directions, 30.0, noise_std, rng)
@@ -104,12 +110,7 @@ def warehouse(
     """Six simulated LiDAR scans (rings x azimuths rays each, elevations -30 to +30 degrees,
     50 m range) from 1.5 m up along the aisles of the warehouse: several times the virtual
     room's extent, for measuring search and memory in large maps."""
-    elevation = np.deg2rad(np.linspace(-30.0, 30.0, rings))
-    azimuth = np.linspace(0.0, 2.0 * np.pi, azimuths, endpoint=False)
-    el, az = np.meshgrid(elevation, azimuth, indexing="ij")
-    directions = np.column_stack(
-        [(np.cos(el) * np.cos(az)).ravel(), (np.cos(el) * np.sin(az)).ravel(), np.sin(el).ravel()]
-    )
+    directions = lidar_directions(rings, azimuths, 30.0)
     scene = warehouse_scene()
     rng = np.random.default_rng(seed)
     poses = np.array(
