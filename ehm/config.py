@@ -8,6 +8,7 @@ from typing import Any, Literal
 
 MergeRule = Literal["pooled", "average"]
 QueryMode = Literal["batch", "exact"]
+TrainSearch = Literal["group", "point"]
 
 
 @dataclass(frozen=True)
@@ -104,6 +105,9 @@ class MapConfig:
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2
     """Passes of stochastic gradient descent over each scan's samples."""
+    train_search: TrainSearch = "group"
+    """'group': one neighbour search per quick-means group of training samples (Alg. 2);
+    'point': one per sample, as LLS-HM (Guizilini & Ramos 2016) does."""
 
     # Queries (Alg. 3).
     query_intercept: bool = False
@@ -171,6 +175,10 @@ class MapConfig:
         if self.merge_rule not in ("pooled", "average"):
             raise ValueError(
                 f"MapConfig.merge_rule must be 'pooled' or 'average', got {self.merge_rule!r}"
+            )
+        if self.train_search not in ("group", "point"):
+            raise ValueError(
+                f"MapConfig.train_search must be 'group' or 'point', got {self.train_search!r}"
             )
         if self.query_mode not in ("batch", "exact"):
             raise ValueError(

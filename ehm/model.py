@@ -186,13 +186,15 @@ class HilbertMap:
             self._index = self._build_index()
         clusters = self.clusters_
         with timer("features"):
-            spread = group_spread(samples.points, groups.group_of_point, groups.centres)
-            neighbours = self._index.nearest(
-                groups.centres, cfg.neighbours, cfg.coarse_neighbours, spread
-            )
+            if cfg.train_search == "point":
+                group_of_point, centres = np.arange(len(samples)), samples.points
+            else:
+                group_of_point, centres = groups.group_of_point, groups.centres
+            spread = group_spread(samples.points, group_of_point, centres)
+            neighbours = self._index.nearest(centres, cfg.neighbours, cfg.coarse_neighbours, spread)
             values = kernel_values(
                 samples.points,
-                groups.group_of_point,
+                group_of_point,
                 neighbours,
                 clusters.means,
                 clusters.transforms,
@@ -204,7 +206,7 @@ class HilbertMap:
             for _ in range(cfg.epochs):
                 sgd_pass(
                     values,
-                    groups.group_of_point,
+                    group_of_point,
                     neighbours,
                     labels,
                     class_weights,
