@@ -1,4 +1,4 @@
-"""The `ehm` command: demo, map, query, grid, mesh, render, info. Heavy imports happen inside
+"""The `ehm` command: demo, map, query, grid, mesh, render, info, eval. Heavy imports happen inside
 each command so that `ehm --help` is instant."""
 
 from __future__ import annotations
@@ -377,3 +377,161 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     for name, value in hilbert_map.config.to_dict().items():
         table.add_row(f"config.{name}", repr(value))
     console.print(table)
+
+
+def _names(text: str, known: list[str], what: str) -> list[str]:
+    """Comma-separated names; 'all' stands for every known one."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if names == ["all"]:
+        return list(known)
+    if not names:
+        raise typer.BadParameter(f"no {what} given")
+    return names
+
+
+def _numbers(text: str, kind: type, what: str) -> list:
+    try:
+        return [kind(v) for v in text.split(",") if v.strip()]
+    except ValueError as error:
+        raise typer.BadParameter(f"{what}: {error}") from error
+
+
+def _mean_std(summary, measure: str, scale: float = 1.0, digits: int = 3) -> str:
+    text = f"{scale * summary.mean[measure]:.{digits}f}"
+    if summary.n_seeds > 1:
+        text += f"±{scale * summary.std[measure]:.{digits}f}"
+    return text
+
+
+def _summary_table(dataset: str, summaries) -> Table:
+    from rich import box
+
+    n_seeds = max(s.n_seeds for s in summaries)
+    spread = f"mean±std over {n_seeds} seeds" if n_seeds > 1 else "one seed"
+    table = Table(title=f"{dataset}: held-out rays, {spread}", box=box.SIMPLE_HEAD)
+    columns = ("method", "train", "accuracy", "F1", "ROC-AUC", "unknown", "build s", "query s")
+    for column in (*columns, "memory MB"):
+        table.add_column(column, justify="left" if column == "method" else "right", no_wrap=True)
+    for s in summaries:
+        table.add_row(
+            s.method,
+            f"{s.fraction:.0%}",
+            *(_mean_std(s, m) for m in ("accuracy", "f1", "auc", "unknown")),
+            _mean_std(s, "build_s", digits=2),
+            _mean_std(s, "query_s", digits=2),
+            _mean_std(s, "memory_bytes", 1e-6, 2),
+        )
+    return table
+
+
+@app.command("eval")
+def eval_command(
+    methods: Annotated[
+        str,
+        typer.Option(
+            help="Comma-separated: octomap hm (= hm-fourier hm-nystrom hm-grid) "
+            "lls-hm gpom ehm ehm-batch, or all."
+        ),
+    ] = "all",
+    datasets: Annotated[
+        str,
+        typer.Option(
+            help="Comma-separated: virtual_room octomap_scan tum_fr2_pioneer_slam2 "
+            "pcl_room intel_lab, or all."
+        ),
+    ] = "virtual_room",
+    fractions: Annotated[str, typer.Option(help="Train fractions of the rays.")] = "0.8,0.6,0.4",
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds of the splits.")] = "0",
+    resolution: Annotated[
+        float, typer.Option(help="Voxel side of OctoMap and of the test split's margin, metres.")
+    ] = 0.05,
+    json_path: Annotated[
+        Path | None, typer.Option("--json", help="Write one record per run to this JSON file.")
+    ] = None,
+    plots: Annotated[
+        Path | None, typer.Option(help="Write accuracy/F1-against-sparsity and cost PNGs here.")
+    ] = None,
+    data_dir: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder of the real data sets (default: $EHM_DATA_DIR or ../shared/data)."
+        ),
+    ] = None,
+) -> None:
+    """Compare mapping methods on held-out rays: in each scan a train fraction of the rays
+    builds every method, the rest are test points (hits occupied, one free point along each
+    ray). Every method is measured on the same split in this process."""
+    import json
+    import os
+
+    from ehm.baselines import METHODS, make_mapper, method_names
+    from ehm.comparison import evaluate_scans, summarise
+    from ehm.datasets import DATASETS, DataMissingError, load_dataset
+
+    if data_dir is not None:
+        os.environ["EHM_DATA_DIR"] = str(data_dir)
+    try:
+        method_list = method_names(_names(methods, list(METHODS), "methods"))
+        dataset_list = _names(datasets, list(DATASETS), "data sets")
+        unknown = [d for d in dataset_list if d not in DATASETS]
+        if unknown:
+            raise ValueError(
+                f"unknown data set(s) {', '.join(unknown)}; known: {', '.join(DATASETS)}"
+            )
+        fraction_list = _numbers(fractions, float, "fractions")
+        seed_list = _numbers(seeds, int, "seeds")
+        for fraction in fraction_list:
+            if not 0.0 < fraction < 1.0:
+                raise ValueError(f"train fractions must be in (0, 1), got {fraction}")
+    except ValueError as error:
+        raise typer.BadParameter(str(error)) from error
+
+    descriptions = {}
+    for method in list(method_list):
+        try:
+            descriptions[method] = make_mapper(method, resolution, 0).description
+        except ImportError as error:
+            console.print(f"[yellow]skipped {method}:[/yellow] {error}")
+            method_list.remove(method)
+    loaded = {}
+    for dataset in dataset_list:
+        try:
+            loaded[dataset] = load_dataset(dataset)
+        except DataMissingError as error:
+            console.print(f"[yellow]skipped {dataset}:[/yellow] {error}")
+    if not method_list or not loaded:
+        console.print("[red]error:[/red] nothing to evaluate")
+        raise typer.Exit(1)
+
+    records = []
+    runs = len(loaded) * len(fraction_list) * len(seed_list) * len(method_list)
+    with _progress() as progress:
+        task = progress.add_task("evaluating", total=runs)
+        for dataset, scans in loaded.items():
+            for record in evaluate_scans(
+                dataset, scans, method_list, fraction_list, seed_list, resolution
+            ):
+                records.append(record)
+                progress.update(
+                    task,
+                    advance=1,
+                    description=f"{dataset} {record.fraction:.0%} seed {record.seed}: "
+                    f"{record.method}",
+                )
+
+    summaries = summarise(records)
+    for dataset in loaded:
+        table = _summary_table(dataset, [s for s in summaries if s.dataset == dataset])
+        # Piped or logged output is 80 columns by default: too narrow for the table.
+        (console if console.is_terminal else Console(width=140)).print(table)
+    for method, description in descriptions.items():
+        if method in method_list:
+            console.print(f"[bold]{method}[/bold]: {description}")
+    if json_path is not None:
+        json_path.write_text(json.dumps([r.to_dict() for r in records], indent=1) + "\n")
+        console.print(f"wrote {json_path} ({len(records)} records)")
+    if plots is not None:
+        from ehm.comparison_plots import write_comparison_plots
+
+        for path in write_comparison_plots(summaries, plots):
+            console.print(f"wrote {path}")

@@ -13,6 +13,16 @@ from ehm.model import HilbertMap
 from ehm.render import HEIGHT_COLORMAP, Camera, height_range, render_mesh
 
 
+def pyplot():
+    """matplotlib.pyplot drawing off-screen (the Agg backend)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def occupancy_slices(
     hilbert_map: HilbertMap,
     low: np.ndarray,
@@ -25,10 +35,7 @@ def occupancy_slices(
     """Write a PNG of horizontal occupancy slices (3D maps, at `heights` metres; default four
     evenly inside [low, high]) or of the whole plane (2D maps) over the box [low, high]; the
     exact surfaces of `scene`, when given, are drawn as contours."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     xs = np.arange(low[0], high[0], resolution)
     ys = np.arange(low[1], high[1], resolution)
@@ -76,8 +83,7 @@ def mesh_picture(
     this height, metres (to look into rooms)."""
     import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     camera = camera or Camera()
     if cut_above is not None and len(faces):
@@ -100,10 +106,7 @@ def mesh_picture(
 
 def grid_picture(grid: OccupancyGrid, path: str | PathLike[str], title: str | None = None) -> None:
     """Write a PNG of a 2D grid's occupancy probabilities, x to the right and y up."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     if grid.dim != 2:
         raise ValueError(f"grid_picture draws 2D grids, this one is {grid.dim}D")
