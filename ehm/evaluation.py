@@ -6,7 +6,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.stats import rankdata
 
 from ehm.scan import Scan
 
@@ -21,13 +20,25 @@ class Scores:
     unknown: float
 
 
+def average_ranks(values: np.ndarray) -> np.ndarray:
+    """(n,) float64 ranks 1..n of values (n,), ties sharing the mean of their ranks."""
+    values = np.asarray(values, dtype=np.float64)
+    order = np.argsort(values, kind="stable")
+    ordered = values[order]
+    starts = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]])
+    ends = np.r_[starts[1:], len(values)]
+    ranks = np.empty(len(values))
+    ranks[order] = np.repeat((starts + 1 + ends) / 2.0, ends - starts)
+    return ranks
+
+
 def roc_auc(labels: np.ndarray, scores: np.ndarray) -> float:
     """Area under the ROC curve; tied scores count one half (Mann-Whitney U)."""
     labels = np.asarray(labels, dtype=bool)
     n_pos, n_neg = int(labels.sum()), int((~labels).sum())
     if n_pos == 0 or n_neg == 0:
         raise ValueError("ROC-AUC needs both occupied and free test points")
-    ranks = rankdata(scores)
+    ranks = average_ranks(scores)
     return float((ranks[labels].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
 
 
@@ -56,11 +67,13 @@ def score(
 
 @dataclass(frozen=True)
 class HeldOutSplit:
-    """Training scans and labelled test points: points (n, d), metres; occupied (n,) bool."""
+    """Training scans and labelled test points: points (n, d), metres; occupied (n,) bool;
+    train_rays: per scan, (N,) bool, True for the rays in the training scan."""
 
     train: list[Scan]
     points: np.ndarray
     occupied: np.ndarray
+    train_rays: list[np.ndarray]
 
 
 def held_out_rays(
@@ -75,10 +88,11 @@ def held_out_rays(
     if not 0.0 < train_fraction < 1.0:
         raise ValueError(f"train fraction must be in (0, 1), got {train_fraction}")
     rng = np.random.default_rng(seed)
-    train, points, occupied = [], [], []
+    train, points, occupied, train_rays = [], [], [], []
     for scan in scans:
         in_train = rng.random(len(scan)) < train_fraction
         train.append(scan.subset(in_train))
+        train_rays.append(in_train)
         ends, hits = scan.points_world[~in_train], scan.hit_mask[~in_train]
         offsets = ends - scan.origin
         lengths = np.linalg.norm(offsets, axis=1)
@@ -88,7 +102,7 @@ def held_out_rays(
         free = scan.origin + offsets[usable] / lengths[usable, None] * depth[:, None]
         points += [ends[hits], free]
         occupied += [np.ones(int(hits.sum()), bool), np.zeros(len(free), bool)]
-    return HeldOutSplit(train, np.concatenate(points), np.concatenate(occupied))
+    return HeldOutSplit(train, np.concatenate(points), np.concatenate(occupied), train_rays)
 
 
 def observed_mask(scans: list[Scan], points: np.ndarray, tolerance: float) -> np.ndarray:

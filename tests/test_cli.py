@@ -141,3 +141,46 @@ def test_bad_grid_options_give_clear_errors(room_map_file, tmp_path, options, me
         app, ["mesh", str(room_map_file), "-o", str(tmp_path / "m.ply"), *options]
     )
     assert result.exit_code != 0 and message in " ".join(result.output.split()), result.output
+
+
+def test_eval_writes_records_with_the_protocol_keys_and_plots(tmp_path, room):
+    import json
+
+    from ehm.comparison import RECORD_KEYS
+
+    out, plots = tmp_path / "records.json", tmp_path / "plots"
+    args = ["eval", "--methods", "ehm,ehm-batch", "--fractions", "0.8,0.5", "--seeds", "0,1"]
+    result = runner.invoke(app, [*args, "--json", str(out), "--plots", str(plots)])
+    assert result.exit_code == 0, result.output
+    assert "virtual_room: held-out rays, mean±std over 2 seeds" in result.output
+    assert "ehm-batch: EHM, single batch" in result.output
+    records = json.loads(out.read_text())
+    assert len(records) == 2 * 2 * 2
+    expected = {
+        "dataset", "method", "fraction", "seed", "accuracy", "f1", "auc", "unknown",
+        "build_s", "query_s", "memory_bytes", "n_train", "n_test",
+    }  # fmt: skip
+    assert set(RECORD_KEYS) == expected
+    for record in records:
+        assert set(record) == expected
+        assert record["dataset"] == "virtual_room"
+        assert 0.5 < record["auc"] <= 1.0 and 0.0 <= record["unknown"] <= 1.0
+        assert abs(record["n_train"] / len(room.scans[0]) - record["fraction"]) < 0.01
+    assert {(r["method"], r["fraction"], r["seed"]) for r in records} == {
+        (m, f, s) for m in ("ehm", "ehm-batch") for f in (0.8, 0.5) for s in (0, 1)
+    }
+    for name in ("sparsity_virtual_room.png", "cost_virtual_room.png"):
+        assert (plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_eval_names_bad_options(monkeypatch, tmp_path):
+    result = runner.invoke(app, ["eval", "--methods", "ehm,voxblox"])
+    assert result.exit_code == 2 and "unknown method 'voxblox'" in result.output
+    result = runner.invoke(app, ["eval", "--datasets", "kitti"])
+    assert result.exit_code == 2 and "unknown data set(s) kitti" in result.output
+    result = runner.invoke(app, ["eval", "--fractions", "0.8,1.2"])
+    assert result.exit_code == 2 and "must be in (0, 1), got 1.2" in result.output
+    monkeypatch.setenv("EHM_DATA_DIR", str(tmp_path))
+    result = runner.invoke(app, ["eval", "--methods", "ehm", "--datasets", "intel_lab"])
+    assert result.exit_code == 1
+    assert "skipped intel_lab" in result.output and "nothing to evaluate" in result.output

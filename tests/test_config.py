@@ -28,8 +28,9 @@ def test_overrides_and_validation():
         ("anisotropic_candidates", 0, "anisotropic_candidates must be an integer >= 1"),
         ("anchor_layers", 0, "anchor_layers must be an integer >= 1"),
         ("anchor_radius_factor", 1.0, "anchor_radius_factor must be above 1"),
+        ("train_search", "cluster", "train_search must be 'group' or 'point'"),
     ],
 )
-def test_kernel_selection_and_hierarchy_settings_are_validated(setting, value, message):
+def test_kernel_selection_search_and_hierarchy_settings_are_validated(setting, value, message):
     with pytest.raises(ValueError, match=message):
         MapConfig(**{setting: value})

@@ -97,5 +97,7 @@ def method_names(names: list[str]) -> list[str]:
 
 def make_mapper(name: str, resolution: float, seed: int) -> Mapper:
     """A fresh, empty mapper of method `name` (see METHODS)."""
-    (method,) = method_names([name])
-    return METHODS[method](resolution, seed)
+    methods = method_names([name])
+    if len(methods) != 1:
+        raise ValueError(f"{name!r} stands for {', '.join(methods)}: give one method")
+    return METHODS[methods[0]](resolution, seed)
