@@ -26,6 +26,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/virtual_room.py
 	$(BIN)/python benchmarks/grids.py
 	$(BIN)/python benchmarks/kernel_selection.py
+	$(BIN)/python benchmarks/paper_evaluation.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -71,8 +71,9 @@ class Runs:
         return [self.records[(dataset, m, f, s)] for f in fractions for s in seeds for m in methods]
 
 
-def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    align = ["---" if i == 0 else "---:" for i in range(len(header))]
+def table(header: Sequence[str], rows: Sequence[Sequence[str]], text_columns: int = 1) -> str:
+    """Markdown table, the first `text_columns` left-aligned and the others right."""
+    align = ["---" if i < text_columns else "---:" for i in range(len(header))]
     lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(align) + " |"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines) + "\n"
@@ -99,7 +100,8 @@ def table_3(runs: Runs, seeds: Sequence[int], figures: Path) -> str:
         f"### Table 3: training and query time per method, virtual room\n\n"
         f"Train fraction 0.8 ({records[0].n_train:,} rays), {n_test:,} test points queried at "
         f"once; mean ± standard deviation over seeds {list(seeds)}. Memory is what the built "
-        "map keeps (OctoMap: memoryUsage()).\n\n"
+        "map keeps (OctoMap: memoryUsage()). The room is one scan, so `ehm` and `ehm-batch` "
+        "do the same work here.\n\n"
     )
     rows = [
         [
@@ -156,7 +158,8 @@ def two_method_table(
         )
     scans = runs.scans[dataset]
     return (
-        f"### {title}\n\n{len(scans)} scans, {sum(len(s) for s in scans):,} rays; "
+        f"### {title}\n\n{len(scans)} scan{'s' if len(scans) > 1 else ''}, "
+        f"{sum(len(s) for s in scans):,} rays; "
         f"mean ± standard deviation over seeds {list(seeds)}.\n\n"
         + table(["measure", *methods], rows)
     )
@@ -217,7 +220,7 @@ def every_dataset(runs: Runs) -> str:
                 ]
             )
     header = ["data set", "method", "accuracy", "F1", "ROC-AUC", "unknown", "build s", "query s"]
-    text += table([*header, "memory MB"], rows)
+    text += table([*header, "memory MB"], rows, text_columns=2)
     for dataset, reason in runs.missing.items():
         text += f"\nLeft out {dataset}: {reason}\n"
     return text

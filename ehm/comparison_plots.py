@@ -12,6 +12,9 @@ import numpy as np
 from ehm.comparison import Summary
 from ehm.plots import pyplot
 
+# Methods that score alike (EHM scan by scan or in one batch, on one scan) stay apart.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+
 
 def sparsity_plot(summaries: Sequence[Summary], dataset: str, path: str | PathLike[str]) -> None:
     """Accuracy and F1 at 0.5 against the share of rays held out, one line per method, mean
@@ -19,7 +22,7 @@ def sparsity_plot(summaries: Sequence[Summary], dataset: str, path: str | PathLi
     plt = pyplot()
     rows = [s for s in summaries if s.dataset == dataset]
     figure, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharex=True)
-    for method in dict.fromkeys(s.method for s in rows):
+    for i, method in enumerate(dict.fromkeys(s.method for s in rows)):
         mine = sorted((s for s in rows if s.method == method), key=lambda s: -s.fraction)
         held_out = [round(100 * (1 - s.fraction)) for s in mine]
         for axis, measure in zip(axes, ("accuracy", "f1"), strict=True):
@@ -27,7 +30,8 @@ def sparsity_plot(summaries: Sequence[Summary], dataset: str, path: str | PathLi
                 held_out,
                 [s.mean[measure] for s in mine],
                 yerr=[s.std[measure] for s in mine],
-                marker="o",
+                marker=MARKERS[i % len(MARKERS)],
+                linestyle="-" if i % 2 == 0 else "--",
                 capsize=3,
                 label=method,
             )
