@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 import ehm
+from ehm.baselines.octree import OctoMapMapper
 from ehm.evaluation import held_out_rays, score
 
 RESOLUTION = 0.05
@@ -34,30 +35,15 @@ MERGE_VARIANTS: dict[str, dict[str, Any]] = {
 }
 
 
-def octomap_tree(scan: ehm.Scan, resolution: float = RESOLUTION):
-    """An OcTree with `scan` inserted (hits only; no-return rays are left out)."""
+def octomap_mapper(scan: ehm.Scan, resolution: float = RESOLUTION) -> OctoMapMapper:
+    """OctoMap with `scan`'s hits inserted (no-return rays are left out); `.tree` is the
+    OcTree, `.occupancy(points)` reads 0.5 in unknown voxels."""
     try:
-        import octomap
+        mapper = OctoMapMapper(resolution)
     except ImportError as error:
-        raise SystemExit("OctoMap bindings missing: pip install 'ehm[octomap]'") from error
-    tree = octomap.OcTree(resolution)
-    tree.insertPointCloud(scan.points_world[scan.hit_mask], scan.origin)
-    return tree
-
-
-def octomap_probabilities(tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Occupancy of each point's voxel; unknown voxels are 0.5 (and flagged)."""
-    import octomap
-
-    probability = np.full(len(points), 0.5)
-    unknown = np.ones(len(points), dtype=bool)
-    for i, point in enumerate(points):
-        try:
-            probability[i] = tree.search(point).getOccupancy()
-            unknown[i] = False
-        except octomap.NullPointerException:
-            pass
-    return probability, unknown
+        raise SystemExit(str(error)) from error
+    mapper.build([scan])
+    return mapper
 
 
 def timed(function: Callable[[], Any], repeats: int) -> tuple[float, Any]:
@@ -96,10 +82,10 @@ def print_held_out_table(scans: list[ehm.Scan]) -> None:
         split = held_out_rays(scans, fraction, RESOLUTION, seed=0)
         train = split.train[0]
         start = time.perf_counter()
-        tree = octomap_tree(train)
+        octomap = octomap_mapper(train)
         build = time.perf_counter() - start
-        probability, unknown = octomap_probabilities(tree, split.points)
-        s = score(split.occupied, probability, unknown)
+        probability = octomap.occupancy(split.points)
+        s = score(split.occupied, probability, probability == 0.5)
         print(
             f"| {fraction} | OctoMap | {s.accuracy:.3f} | {s.f1:.3f} | {s.auc:.3f} | "
             f"{s.unknown:.3f} | {build:.2f} | |"

@@ -22,7 +22,7 @@ import argparse
 import time
 
 import numpy as np
-from common import RESOLUTION, heading, octomap_tree, timed
+from common import RESOLUTION, heading, octomap_mapper, timed
 from scipy.spatial import cKDTree
 
 import ehm
@@ -51,7 +51,7 @@ def reconstruction_rows(name: str, scans: list[ehm.Scan], resolution: float, rep
     inference_s, _ = timed(lambda: 1.0 / (1.0 + np.exp(-grid.scores)), repeats)
     centres = grid.centers()
     query_s, probability = timed(lambda: hilbert_map.occupancy(centres), 1)
-    tree = octomap_tree(scans[0], RESOLUTION)
+    tree = octomap_mapper(scans[0], RESOLUTION).tree
     for scan in scans[1:]:
         tree.insertPointCloud(scan.points_world[scan.hit_mask], scan.origin)
     octomap_s, _ = timed(lambda: tree.getLabels(centres), 1)
@@ -111,7 +111,7 @@ def mesh_quality_rows() -> None:
         (scan,) = virtual_room(rings=rings, azimuths=azimuths).scans
         hilbert_map = ehm.HilbertMap().integrate_scan(scan)
         vertices, _ = hilbert_map.grid(hit_bounds([scan]), RESOLUTION).mesh()
-        occupied, _ = octomap_tree(scan).extractPointCloud()
+        occupied, _ = octomap_mapper(scan).tree.extractPointCloud()
         surfaces = {
             "EHM mesh vertices": vertices,
             "OctoMap occupied voxel centres": np.asarray(occupied, dtype=np.float64),

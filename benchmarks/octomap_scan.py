@@ -18,8 +18,7 @@ import numpy as np
 from common import (
     RESOLUTION,
     heading,
-    octomap_probabilities,
-    octomap_tree,
+    octomap_mapper,
     print_held_out_table,
     timed,
 )
@@ -47,7 +46,8 @@ def main() -> None:
         return hilbert_map
 
     t_ehm, hilbert_map = timed(build_ehm, args.repeats)
-    t_oct, tree = timed(lambda: octomap_tree(scan), args.repeats)
+    t_oct, octomap = timed(lambda: octomap_mapper(scan), args.repeats)
+    tree = octomap.tree
     stages = {k: statistics.median(r[k] for r in stage_runs) for k in stage_runs[0]}
 
     rng = np.random.default_rng(0)
@@ -56,7 +56,7 @@ def main() -> None:
     hilbert_map.occupancy(queries[:10])
     tq_ehm, _ = timed(lambda: hilbert_map.occupancy(queries), args.repeats)
     tq_exact, _ = timed(lambda: hilbert_map.occupancy(queries, mode="exact"), args.repeats)
-    tq_oct, _ = timed(lambda: octomap_probabilities(tree, queries), args.repeats)
+    tq_oct, _ = timed(lambda: octomap.occupancy(queries), args.repeats)
     tq_labels, _ = timed(lambda: tree.getLabels(queries), args.repeats)
     memory_ehm, memory_oct = hilbert_map.memory_bytes(), tree.memoryUsage()
 

@@ -79,13 +79,6 @@ def table(header: Sequence[str], rows: Sequence[Sequence[str]], text_columns: in
     return "\n".join(lines) + "\n"
 
 
-def mean_std(summary: Summary, measure: str, scale: float = 1.0, digits: int = 3) -> str:
-    text = f"{scale * summary.mean[measure]:,.{digits}f}"
-    if summary.n_seeds > 1:
-        text += f" ± {scale * summary.std[measure]:,.{digits}f}"
-    return text
-
-
 def find(summaries: Sequence[Summary], method: str, fraction: float) -> Summary:
     return next(s for s in summaries if s.method == method and s.fraction == fraction)
 
@@ -106,9 +99,9 @@ def table_3(runs: Runs, seeds: Sequence[int], figures: Path) -> str:
     rows = [
         [
             s.method,
-            mean_std(s, "build_s", 1000, 0),
-            mean_std(s, "query_s", 1000, 0),
-            mean_std(s, "memory_bytes", 1e-6, 2),
+            s.format("build_s", 1000, 0),
+            s.format("query_s", 1000, 0),
+            s.format("memory_bytes", 1e-6, 2),
         ]
         for s in summaries
         if s.fraction == 0.8
@@ -123,7 +116,7 @@ def table_3(runs: Runs, seeds: Sequence[int], figures: Path) -> str:
     for method in METHODS:
         cells = [method]
         for measure in ("accuracy", "f1"):
-            cells += [mean_std(find(summaries, method, f), measure) for f in DEFAULT_FRACTIONS]
+            cells += [find(summaries, method, f).format(measure) for f in DEFAULT_FRACTIONS]
         rows.append(cells)
     header = ["method"] + [f"{m} {f:.0%}" for m in ("accuracy", "F1") for f in DEFAULT_FRACTIONS]
     return text + table(header, rows)
@@ -140,21 +133,20 @@ def two_method_table(
     largest = max(DEFAULT_FRACTIONS)
     rows = [
         ["training ms (train 80 %)"]
-        + [mean_std(find(summaries, m, largest), "build_s", 1000, 0) for m in methods],
+        + [find(summaries, m, largest).format("build_s", 1000, 0) for m in methods],
         ["query ms (train 80 %)"]
-        + [mean_std(find(summaries, m, largest), "query_s", 1000, 0) for m in methods],
+        + [find(summaries, m, largest).format("query_s", 1000, 0) for m in methods],
         ["memory MB (train 80 %)"]
-        + [mean_std(find(summaries, m, largest), "memory_bytes", 1e-6, 2) for m in methods],
+        + [find(summaries, m, largest).format("memory_bytes", 1e-6, 2) for m in methods],
     ]
     for fraction in DEFAULT_FRACTIONS:
         rows.append(
-            [f"F1 ({fraction:.0%})"]
-            + [mean_std(find(summaries, m, fraction), "f1") for m in methods]
+            [f"F1 ({fraction:.0%})"] + [find(summaries, m, fraction).format("f1") for m in methods]
         )
     for fraction in DEFAULT_FRACTIONS:
         rows.append(
             [f"ROC-AUC ({fraction:.0%})"]
-            + [mean_std(find(summaries, m, fraction), "auc") for m in methods]
+            + [find(summaries, m, fraction).format("auc") for m in methods]
         )
     scans = runs.scans[dataset]
     return (

@@ -19,8 +19,7 @@ from common import (
     VARIANTS,
     build_variant,
     heading,
-    octomap_probabilities,
-    octomap_tree,
+    octomap_mapper,
     print_held_out_table,
 )
 
@@ -57,8 +56,8 @@ def main() -> None:
         )
 
     start = time.perf_counter()
-    tree = octomap_tree(scan)
-    exact_row("OctoMap", lambda p: octomap_probabilities(tree, p)[0], time.perf_counter() - start)
+    octomap = octomap_mapper(scan)
+    exact_row("OctoMap", octomap.occupancy, time.perf_counter() - start)
     build_variant({}, scan, halves=False)  # compile the kernels once
     for name, overrides in VARIANTS.items():
         start = time.perf_counter()

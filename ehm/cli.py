@@ -396,13 +396,6 @@ def _numbers(text: str, kind: type, what: str) -> list:
         raise typer.BadParameter(f"{what}: {error}") from error
 
 
-def _mean_std(summary, measure: str, scale: float = 1.0, digits: int = 3) -> str:
-    text = f"{scale * summary.mean[measure]:.{digits}f}"
-    if summary.n_seeds > 1:
-        text += f"±{scale * summary.std[measure]:.{digits}f}"
-    return text
-
-
 def _summary_table(dataset: str, summaries) -> Table:
     from rich import box
 
@@ -416,10 +409,10 @@ def _summary_table(dataset: str, summaries) -> Table:
         table.add_row(
             s.method,
             f"{s.fraction:.0%}",
-            *(_mean_std(s, m) for m in ("accuracy", "f1", "auc", "unknown")),
-            _mean_std(s, "build_s", digits=2),
-            _mean_std(s, "query_s", digits=2),
-            _mean_std(s, "memory_bytes", 1e-6, 2),
+            *(s.format(m) for m in ("accuracy", "f1", "auc", "unknown")),
+            s.format("build_s", digits=2),
+            s.format("query_s", digits=2),
+            s.format("memory_bytes", 1e-6, 2),
         )
     return table
 
@@ -464,25 +457,19 @@ def eval_command(
     import json
     import os
 
-    from ehm.baselines import METHODS, make_mapper, method_names
-    from ehm.comparison import evaluate_scans, summarise
+    from ehm.baselines import METHODS, make_mapper
+    from ehm.comparison import check_request, evaluate_scans, summarise
     from ehm.datasets import DATASETS, DataMissingError, load_dataset
 
     if data_dir is not None:
         os.environ["EHM_DATA_DIR"] = str(data_dir)
     try:
-        method_list = method_names(_names(methods, list(METHODS), "methods"))
         dataset_list = _names(datasets, list(DATASETS), "data sets")
-        unknown = [d for d in dataset_list if d not in DATASETS]
-        if unknown:
-            raise ValueError(
-                f"unknown data set(s) {', '.join(unknown)}; known: {', '.join(DATASETS)}"
-            )
         fraction_list = _numbers(fractions, float, "fractions")
         seed_list = _numbers(seeds, int, "seeds")
-        for fraction in fraction_list:
-            if not 0.0 < fraction < 1.0:
-                raise ValueError(f"train fractions must be in (0, 1), got {fraction}")
+        method_list = check_request(
+            _names(methods, list(METHODS), "methods"), dataset_list, fraction_list
+        )
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
 

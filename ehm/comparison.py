@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from ehm.baselines import METHODS, Mapper, make_mapper, method_names
-from ehm.datasets import load_dataset
+from ehm.datasets import DATASETS, load_dataset
 from ehm.evaluation import held_out_rays, score
 from ehm.scan import Scan
 
@@ -126,6 +126,20 @@ def evaluate_scans(
                 yield record
 
 
+def check_request(
+    methods: Sequence[str], datasets: Sequence[str], fractions: Sequence[float]
+) -> list[str]:
+    """The methods with group names expanded, once every name and fraction is checked:
+    ValueError names unknown methods or data sets and fractions outside (0, 1)."""
+    unknown = [d for d in datasets if d not in DATASETS]
+    if unknown:
+        raise ValueError(f"unknown data set(s) {', '.join(unknown)}; known: {', '.join(DATASETS)}")
+    for fraction in fractions:
+        if not 0.0 < fraction < 1.0:
+            raise ValueError(f"train fractions must be in (0, 1), got {fraction}")
+    return method_names(list(methods))
+
+
 def evaluate(
     datasets: Sequence[str] = ("virtual_room",),
     methods: Sequence[str] = tuple(METHODS),
@@ -139,10 +153,7 @@ def evaluate(
     Raises ValueError for unknown names or fractions outside (0, 1), DataMissingError when a
     real data set's files are absent, ImportError when the OctoMap bindings are.
     """
-    methods = method_names(list(methods))
-    for fraction in fractions:
-        if not 0.0 < fraction < 1.0:
-            raise ValueError(f"train fraction must be in (0, 1), got {fraction}")
+    methods = check_request(methods, datasets, fractions)
     records: list[EvalRecord] = []
     for dataset in datasets:
         scans = load_dataset(dataset)
@@ -161,6 +172,13 @@ class Summary:
     n_seeds: int
     mean: dict[str, float]
     std: dict[str, float]
+
+    def format(self, measure: str, scale: float = 1.0, digits: int = 3) -> str:
+        """'mean±std' of `measure` times `scale` (only the mean for one seed)."""
+        text = f"{scale * self.mean[measure]:,.{digits}f}"
+        if self.n_seeds > 1:
+            text += f"±{scale * self.std[measure]:,.{digits}f}"
+        return text
 
 
 MEASURES = ("accuracy", "f1", "auc", "unknown", "build_s", "query_s", "memory_bytes")
