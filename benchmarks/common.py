@@ -12,8 +12,10 @@ from typing import Any
 import numpy as np
 
 import ehm
-from ehm.baselines.octree import OctoMapMapper
-from ehm.evaluation import held_out_rays, score
+from ehm.eval.baselines.octree import OctoMapMapper
+from ehm.eval.metrics import score
+from ehm.eval.protocol import held_out_rays
+from ehm.pipeline import MappingPipeline
 
 RESOLUTION = 0.05
 
@@ -58,14 +60,9 @@ def timed(function: Callable[[], Any], repeats: int) -> tuple[float, Any]:
 
 def build_variant(overrides: dict[str, Any], train: ehm.Scan, halves: bool) -> ehm.HilbertMap:
     """An EHM with `overrides` learned from `train`, as one scan or as two halves."""
-    hilbert_map = ehm.HilbertMap(**overrides)
-    if halves:
-        rays = np.arange(len(train))
-        hilbert_map.integrate_scan(train.subset(rays % 2 == 0))
-        hilbert_map.integrate_scan(train.subset(rays % 2 == 1))
-    else:
-        hilbert_map.integrate_scan(train)
-    return hilbert_map
+    rays = np.arange(len(train))
+    scans = [train.subset(rays % 2 == part) for part in (0, 1)] if halves else [train]
+    return MappingPipeline(scans, ehm.HilbertMap(**overrides)).run().hilbert_map
 
 
 def heading(name: str, detail: str) -> str:

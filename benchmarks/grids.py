@@ -26,8 +26,9 @@ from common import RESOLUTION, heading, octomap_mapper, timed
 from scipy.spatial import cKDTree
 
 import ehm
-from ehm.datasets import virtual_room
-from ehm.datasets.real import DataMissingError, octomap_scan, tum_fr2_pioneer_slam2
+from ehm.eval.datasets import virtual_room
+from ehm.eval.datasets.real import DataMissingError, octomap_scan, tum_fr2_pioneer_slam2
+from ehm.pipeline import MappingPipeline
 
 
 def sectors(scan: ehm.Scan, parts: int) -> list[ehm.Scan]:
@@ -55,7 +56,7 @@ def reconstruction_rows(name: str, scans: list[ehm.Scan], resolution: float, rep
     for scan in scans[1:]:
         tree.insertPointCloud(scan.points_world[scan.hit_mask], scan.origin)
     octomap_s, _ = timed(lambda: tree.getLabels(centres), 1)
-    local_voxels = grid.update(hilbert_map).rebuild_voxels  # up to date: counts only
+    local_voxels = grid.update(hilbert_map.snapshot()).rebuild_voxels  # up to date: counts only
     difference = np.abs(probability - grid.probability.ravel())
     voxels = grid.probability.size
     shape = " x ".join(map(str, grid.shape))
@@ -74,14 +75,12 @@ def reconstruction_rows(name: str, scans: list[ehm.Scan], resolution: float, rep
 
 def incremental_row(name: str, scans: list[ehm.Scan], resolution: float, repeats: int) -> None:
     """Time of one incremental update after the last scan against a rebuild."""
-    hilbert_map = ehm.HilbertMap()
-    for scan in scans[:-1]:
-        hilbert_map.integrate_scan(scan)
+    hilbert_map = MappingPipeline(scans[:-1]).run().hilbert_map
     bounds = hit_bounds(scans)
     grid = hilbert_map.grid(bounds, resolution)
     hilbert_map.integrate_scan(scans[-1])
     start = time.perf_counter()
-    update = grid.update(hilbert_map)
+    update = grid.update(hilbert_map.snapshot())
     update_s = time.perf_counter() - start
     rebuild_s, rebuilt = timed(lambda: hilbert_map.grid(bounds, resolution), repeats)
     error = np.abs(grid.scores - rebuilt.scores).max()

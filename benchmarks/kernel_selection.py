@@ -20,9 +20,11 @@ import numpy as np
 from common import RESOLUTION, heading
 
 import ehm
-from ehm.datasets import virtual_room, warehouse
-from ehm.datasets.real import DataMissingError, tum_fr2_pioneer_slam2
-from ehm.evaluation import exact_test_points, held_out_rays, score
+from ehm.eval.datasets import virtual_room, warehouse
+from ehm.eval.datasets.real import DataMissingError, tum_fr2_pioneer_slam2
+from ehm.eval.metrics import score
+from ehm.eval.protocol import exact_test_points, held_out_rays
+from ehm.pipeline import MappingPipeline
 
 SWITCHES = {
     "defaults": {},
@@ -81,11 +83,8 @@ def main() -> None:
         print(columns)
         print(rule)
         for switch, overrides in SWITCHES.items():
-            hilbert_map = ehm.HilbertMap(**overrides)
-            start = time.perf_counter()
-            for scan in split.train:
-                hilbert_map.integrate_scan(scan)
-            build = time.perf_counter() - start
+            run = MappingPipeline(split.train, ehm.HilbertMap(**overrides)).run()
+            hilbert_map, build = run.hilbert_map, run.seconds
             start = time.perf_counter()
             probability = hilbert_map.occupancy(split.points)
             query = time.perf_counter() - start

@@ -24,8 +24,8 @@ from common import (
 )
 
 import ehm
-from ehm.datasets.real import DataMissingError, octomap_scan
-from ehm.evaluation import held_out_rays
+from ehm.eval.datasets.real import DataMissingError, octomap_scan
+from ehm.eval.protocol import held_out_rays
 
 
 def main() -> None:

@@ -22,11 +22,11 @@ from collections.abc import Sequence
 from datetime import date
 from pathlib import Path
 
-from ehm.baselines import METHODS, make_mapper
-from ehm.baselines.localized import LocalizedMapper
-from ehm.comparison import DEFAULT_FRACTIONS, EvalRecord, Summary, evaluate_scans, summarise
-from ehm.comparison_plots import scan_time_plot, sparsity_plot
-from ehm.datasets import DATASETS, DataMissingError, load_dataset
+from ehm.eval.baselines import METHODS, make_mapper
+from ehm.eval.baselines.localized import LocalizedMapper
+from ehm.eval.datasets import DATASETS, DataMissingError, load_dataset
+from ehm.eval.plots import scan_time_plot, sparsity_plot
+from ehm.eval.runner import DEFAULT_FRACTIONS, EvalRecord, Summary, evaluate_scans, summarise
 
 HERE = Path(__file__).resolve().parent
 BEGIN, END = "<!-- paper-evaluation:begin -->", "<!-- paper-evaluation:end -->"

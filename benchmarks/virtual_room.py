@@ -23,8 +23,9 @@ from common import (
     print_held_out_table,
 )
 
-from ehm.datasets import virtual_room
-from ehm.evaluation import exact_test_points, score
+from ehm.eval.datasets import virtual_room
+from ehm.eval.metrics import score
+from ehm.eval.protocol import exact_test_points
 
 
 def main() -> None:

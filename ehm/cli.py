@@ -48,7 +48,8 @@ def _parse_settings(settings: list[str]) -> dict:
 
 def _load_or_fail(path: Path):
     """The map at `path`, or a one-line error and exit status 1."""
-    from ehm.io.map_file import MapFileError, load
+    from ehm.hilbert_map import load
+    from ehm.io.map_file import MapFileError
 
     try:
         return load(path)
@@ -107,75 +108,28 @@ def demo(
 ) -> None:
     """Simulate the virtual room, map it, score the map against the exact occupancy, and write
     the map, occupancy slices, a mesh (PLY) and a picture of the mesh."""
-    import numpy as np
+    from ehm.eval.demo import run_demo
+    from ehm.pipeline import ProgressBar
 
-    from ehm.datasets import virtual_room
-    from ehm.evaluation import exact_test_points, score
-    from ehm.io.mesh_file import write_ply_mesh
-    from ehm.model import HilbertMap
-    from ehm.plots import mesh_picture, occupancy_slices
-    from ehm.render import Camera
-    from ehm.timing import StageTimer
-
-    out.mkdir(parents=True, exist_ok=True)
-    timer = StageTimer()
-    with timer("simulate LiDAR"):
-        data = virtual_room(seed=seed)
-    hilbert_map = HilbertMap(seed=seed)
-    with _progress() as progress:
-        task = progress.add_task("mapping", total=len(data.scans))
-        for scan in data.scans:
-            hilbert_map.integrate_scan(scan)
-            progress.advance(task)
-    stages = dict(hilbert_map.timings_)
-
-    rng = np.random.default_rng(seed + 1)
-    low, high = data.scene.box_min.min(axis=0), data.scene.box_max.max(axis=0)
-    near, uniform = exact_test_points(
-        data.scans, low, high, 0.5, 200_000, hilbert_map.config.surface_margin, rng
-    )
+    result = run_demo(out, seed, [ProgressBar(console)])
     table = Table(title="Accuracy against the exact occupancy of the virtual room")
     for column in ("test points", "n", "occupied", "accuracy", "F1", "ROC-AUC"):
         table.add_column(column, justify="right" if column != "test points" else "left")
-    for name, points in (("near surfaces", near), ("uniform, observed region", uniform)):
-        with timer(f"query {name}"):
-            probability = hilbert_map.occupancy(points)
-        labels = data.scene.occupied(points)
-        s = score(labels, probability)
+    for name, exact in result.exact.items():
+        s = exact.scores
         table.add_row(
-            name,
-            f"{len(points)}",
-            f"{labels.mean():.1%}",
-            f"{s.accuracy:.3f}",
-            f"{s.f1:.3f}",
+            name, f"{exact.n}", f"{exact.occupied:.1%}", f"{s.accuracy:.3f}", f"{s.f1:.3f}",
             f"{s.auc:.3f}",
-        )
-    map_path = out / "virtual_room.ehm"
-    with timer("save map"):
-        hilbert_map.save(map_path)
-    slices_path = out / "virtual_room_slices.png"
-    with timer("draw slices"):
-        occupancy_slices(hilbert_map, low, high, slices_path, data.scene, (0.3, 0.75, 1.2, 2.0))
-    with timer("grid (0.05 m)"):
-        occupancy_grid = hilbert_map.grid(resolution=0.05)
-    with timer("mesh"):
-        vertices, faces = occupancy_grid.mesh()
-    mesh_path, picture_path = out / "virtual_room.ply", out / "virtual_room_mesh.png"
-    with timer("save mesh"):
-        write_ply_mesh(mesh_path, vertices, faces, _height_colors(vertices))
-    with timer("render mesh"):
-        camera = Camera(azimuth=-60.0, elevation=55.0)
-        title = "virtual room, mesh at p = 0.5 cut at 2.2 m"
-        mesh_picture(vertices, faces, picture_path, camera, cut_above=2.2, title=title)
-
+        )  # fmt: skip
+    hilbert_map = result.run.hilbert_map
     console.print(table)
-    console.print(_timings_table("Integrate, per stage (Table 2)", stages))
-    console.print(_timings_table("Demo, per step", timer.seconds))
+    console.print(_timings_table("Integrate, per stage (Table 2)", result.run.stage_seconds))
+    console.print(_timings_table("Demo, per step", result.steps))
     console.print(
         f"{hilbert_map!r}: {hilbert_map.memory_bytes() / 1e6:.2f} MB from "
-        f"{len(data.scans[0])} rays; {occupancy_grid!r}; mesh of {len(faces)} faces"
+        f"{result.run.n_rays} rays; {result.grid!r}; mesh of {result.n_faces} faces"
     )
-    for path in (map_path, slices_path, mesh_path, picture_path):
+    for path in result.written:
         console.print(f"wrote {path}")
 
 
@@ -197,39 +151,23 @@ def map_command(
     ] = None,
 ) -> None:
     """Build a map from scans of any supported format and save it."""
+    from ehm.hilbert_map import HilbertMap
     from ehm.io.readers import read_scans
-    from ehm.model import HilbertMap
-    from ehm.timing import StageTimer
+    from ehm.pipeline import MappingPipeline, ProgressBar
 
-    timer = StageTimer()
     sensor = [float(v) for v in origin.split(",")] if origin else None
     try:
-        with timer("read"):
-            scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
+        scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
         hilbert_map = HilbertMap(**_parse_settings(setting or []))
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
-    stages: dict[str, float] = {}
-    with timer("map"), _progress() as progress:
-        task = progress.add_task("mapping", total=len(scans))
-        if batch:
-            hilbert_map.fit(scans)
-            progress.advance(task, len(scans))
-            stages = dict(hilbert_map.timings_)
-        else:
-            for scan in scans:
-                hilbert_map.integrate_scan(scan)
-                for stage, value in hilbert_map.timings_.items():
-                    stages[stage] = stages.get(stage, 0.0) + value
-                progress.advance(task)
-    with timer("save"):
-        hilbert_map.save(output)
-    console.print(_timings_table("Integrate, per stage", stages))
-    n_rays = sum(len(s) for s in scans)
-    dropped = sum(s.n_dropped for s in scans)
+    run = MappingPipeline(scans, hilbert_map, batch, [ProgressBar(console)]).run()
+    hilbert_map.save(output)
+    console.print(_timings_table("Mapping, per stage", run.stage_seconds))
     console.print(
-        f"{len(scans)} scans, {n_rays} rays ({dropped} non-finite dropped) -> {hilbert_map!r}, "
-        f"{hilbert_map.memory_bytes() / 1e6:.2f} MB; wrote {output} in {timer.total:.1f} s"
+        f"{run.n_scans} scans, {run.n_rays} rays ({run.n_dropped} non-finite dropped) -> "
+        f"{hilbert_map!r}, {hilbert_map.memory_bytes() / 1e6:.2f} MB, mapped in "
+        f"{run.seconds:.1f} s; wrote {output}"
     )
 
 
@@ -272,7 +210,7 @@ def grid(
 ) -> None:
     """Occupancy grid of a map (incremental grid reconstruction), saved as .npz with arrays
     probability, scores, origin, resolution and intercept."""
-    from ehm.grid import save_grid
+    from ehm.io.grid_file import save_grid
 
     hilbert_map = _load_or_fail(map_path)
     occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
@@ -290,7 +228,8 @@ def mesh(
     max_gib: MaxGiB = 1.0,
 ) -> None:
     """Surface mesh of a 3D map by marching cubes, as binary PLY coloured by height."""
-    from ehm.io.mesh_file import write_ply_mesh
+    from ehm.io.ply import write_ply_mesh
+    from ehm.viz.colors import vertex_colors
 
     hilbert_map = _load_or_fail(map_path)
     if hilbert_map.dim != 3:
@@ -303,20 +242,8 @@ def mesh(
         vertices, faces = occupancy_grid.mesh(level)
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
-    write_ply_mesh(output, vertices, faces, _height_colors(vertices))
+    write_ply_mesh(output, vertices, faces, vertex_colors(vertices))
     console.print(f"{len(vertices)} vertices, {len(faces)} faces\nwrote {output}")
-
-
-def _height_colors(vertices):
-    """(V, 3) uint8 RGB of each vertex's height on the colour map of rendered pictures."""
-    import numpy as np
-
-    from ehm.render import height_colors
-
-    if len(vertices) == 0:
-        return np.zeros((0, 3), dtype=np.uint8)
-    z = vertices[:, 2]
-    return np.round(255 * height_colors(z, (z.min(), z.max()))).astype(np.uint8)
 
 
 @app.command()
@@ -337,8 +264,8 @@ def render(
     max_gib: MaxGiB = 1.0,
 ) -> None:
     """Picture of a map, off-screen: its mesh coloured by height (3D) or its grid (2D)."""
-    from ehm.plots import grid_picture, mesh_picture, occupancy_slices
-    from ehm.render import Camera
+    from ehm.viz.pictures import grid_picture, mesh_picture, occupancy_slices
+    from ehm.viz.render import Camera
 
     hilbert_map = _load_or_fail(map_path)
     occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
@@ -396,27 +323,6 @@ def _numbers(text: str, kind: type, what: str) -> list:
         raise typer.BadParameter(f"{what}: {error}") from error
 
 
-def _summary_table(dataset: str, summaries) -> Table:
-    from rich import box
-
-    n_seeds = max(s.n_seeds for s in summaries)
-    spread = f"mean±std over {n_seeds} seeds" if n_seeds > 1 else "one seed"
-    table = Table(title=f"{dataset}: held-out rays, {spread}", box=box.SIMPLE_HEAD)
-    columns = ("method", "train", "accuracy", "F1", "ROC-AUC", "unknown", "build s", "query s")
-    for column in (*columns, "memory MB"):
-        table.add_column(column, justify="left" if column == "method" else "right", no_wrap=True)
-    for s in summaries:
-        table.add_row(
-            s.method,
-            f"{s.fraction:.0%}",
-            *(s.format(m) for m in ("accuracy", "f1", "auc", "unknown")),
-            s.format("build_s", digits=2),
-            s.format("query_s", digits=2),
-            s.format("memory_bytes", 1e-6, 2),
-        )
-    return table
-
-
 @app.command("eval")
 def eval_command(
     methods: Annotated[
@@ -457,68 +363,55 @@ def eval_command(
     import json
     import os
 
-    from ehm.baselines import METHODS, make_mapper
-    from ehm.comparison import check_request, evaluate_scans, summarise
-    from ehm.datasets import DATASETS, DataMissingError, load_dataset
+    from ehm.eval.baselines import METHODS
+    from ehm.eval.datasets import DATASETS
+    from ehm.eval.report import summary_table
+    from ehm.eval.runner import evaluate_scans, plan_evaluation, summarise
 
     if data_dir is not None:
         os.environ["EHM_DATA_DIR"] = str(data_dir)
     try:
-        dataset_list = _names(datasets, list(DATASETS), "data sets")
         fraction_list = _numbers(fractions, float, "fractions")
         seed_list = _numbers(seeds, int, "seeds")
-        method_list = check_request(
-            _names(methods, list(METHODS), "methods"), dataset_list, fraction_list
+        plan = plan_evaluation(
+            _names(methods, list(METHODS), "methods"),
+            _names(datasets, list(DATASETS), "data sets"),
+            fraction_list,
+            resolution,
+            skip_missing=True,
         )
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
-
-    descriptions = {}
-    for method in list(method_list):
-        try:
-            descriptions[method] = make_mapper(method, resolution, 0).description
-        except ImportError as error:
-            console.print(f"[yellow]skipped {method}:[/yellow] {error}")
-            method_list.remove(method)
-    loaded = {}
-    for dataset in dataset_list:
-        try:
-            loaded[dataset] = load_dataset(dataset)
-        except DataMissingError as error:
-            console.print(f"[yellow]skipped {dataset}:[/yellow] {error}")
-    if not method_list or not loaded:
+    for message in plan.skipped:
+        console.print(f"[yellow]{message}[/yellow]")
+    if not plan.methods or not plan.datasets:
         console.print("[red]error:[/red] nothing to evaluate")
         raise typer.Exit(1)
 
     records = []
-    runs = len(loaded) * len(fraction_list) * len(seed_list) * len(method_list)
+    runs = len(plan.datasets) * len(fraction_list) * len(seed_list) * len(plan.methods)
     with _progress() as progress:
         task = progress.add_task("evaluating", total=runs)
-        for dataset, scans in loaded.items():
+        for dataset, scans in plan.datasets.items():
             for record in evaluate_scans(
-                dataset, scans, method_list, fraction_list, seed_list, resolution
+                dataset, scans, list(plan.methods), fraction_list, seed_list, resolution
             ):
                 records.append(record)
-                progress.update(
-                    task,
-                    advance=1,
-                    description=f"{dataset} {record.fraction:.0%} seed {record.seed}: "
-                    f"{record.method}",
-                )
+                description = f"{dataset} {record.fraction:.0%} seed {record.seed}: {record.method}"
+                progress.update(task, advance=1, description=description)
 
     summaries = summarise(records)
-    for dataset in loaded:
-        table = _summary_table(dataset, [s for s in summaries if s.dataset == dataset])
+    for dataset in plan.datasets:
+        table = summary_table(dataset, [s for s in summaries if s.dataset == dataset])
         # Piped or logged output is 80 columns by default: too narrow for the table.
         (console if console.is_terminal else Console(width=140)).print(table)
-    for method, description in descriptions.items():
-        if method in method_list:
-            console.print(f"[bold]{method}[/bold]: {description}")
+    for method, description in plan.methods.items():
+        console.print(f"[bold]{method}[/bold]: {description}")
     if json_path is not None:
         json_path.write_text(json.dumps([r.to_dict() for r in records], indent=1) + "\n")
         console.print(f"wrote {json_path} ({len(records)} records)")
     if plots is not None:
-        from ehm.comparison_plots import write_comparison_plots
+        from ehm.eval.plots import write_comparison_plots
 
         for path in write_comparison_plots(summaries, plots):
             console.print(f"wrote {path}")

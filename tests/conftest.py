@@ -1,8 +1,13 @@
+"""Fixtures shared by every test: the synthetic scenes, maps of them, and the real data sets."""
+
 import numpy as np
 import pytest
 
-from ehm.datasets import floor_plan_2d, virtual_room
-from ehm.datasets.real import DataMissingError
+import ehm
+from ehm.config import MapConfig
+from ehm.core.clusters import ClusterSet
+from ehm.eval.datasets import floor_plan_2d, virtual_room
+from ehm.eval.datasets.real import DataMissingError
 
 
 @pytest.fixture(scope="session")
@@ -15,14 +20,46 @@ def plan():
     return floor_plan_2d(seed=0)
 
 
+@pytest.fixture(scope="session")
+def room_map(room):
+    """The virtual room in one fit, default settings (tests must not change it)."""
+    return ehm.HilbertMap().fit(room.scans)
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(42)
 
 
-def load_or_skip(loader):
-    """Run a real-data loader, skipping the test with its message when the data is absent."""
-    try:
-        return loader()
-    except DataMissingError as missing:
-        pytest.skip(str(missing))
+@pytest.fixture
+def real_data():
+    """Runs a real-data loader, skipping the test with its message when the data is absent."""
+
+    def load(loader):
+        try:
+            return loader()
+        except DataMissingError as missing:
+            pytest.skip(str(missing))
+
+    return load
+
+
+@pytest.fixture
+def random_clusters():
+    """Makes n random 3D clusters in a cube of side `extent` metres: a fifth coarse, half
+    occupied, some planar (planar kernels on)."""
+
+    def make(rng, n=400, extent=6.0):
+        clusters = ClusterSet.empty(3)
+        spread = rng.normal(size=(n, 3, 3)) * rng.uniform(0.02, 0.15, (n, 1, 1))
+        clusters.append(
+            rng.uniform(0, extent, (n, 3)),
+            spread @ np.swapaxes(spread, 1, 2),
+            np.full(n, 10),
+            rng.random(n) < 0.2,
+            rng.random(n) < 0.5,
+        )
+        clusters.refresh(np.arange(n), MapConfig(planar_kernel=True, planar_ratio=0.3))
+        return clusters
+
+    return make

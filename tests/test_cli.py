@@ -1,11 +1,14 @@
+"""The command line, as a user runs it."""
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 import ehm
 from ehm.cli import app
-from ehm.grid import load_grid
-from ehm.io.pointcloud import read_ply
+from ehm.eval.runner import RECORD_KEYS
+from ehm.io.grid_file import load_grid
+from ehm.io.ply import read_ply
 
 runner = CliRunner(env={"COLUMNS": "240"})
 
@@ -41,14 +44,29 @@ def room_map_file(tmp_path_factory, room):
     return path
 
 
+def table_row(output: str, name: str) -> list[str]:
+    """The cells of the Rich table row that starts with `name`."""
+    for line in output.splitlines():
+        cells = [c.strip() for c in line.strip("│┃| ").split("│")]
+        if cells and cells[0] == name:
+            return cells[1:]
+    raise AssertionError(f"no row {name!r} in:\n{output}")
+
+
 def test_map_then_info_and_query(map_file, tmp_path):
+    hilbert_map = ehm.load(map_file)
     info = runner.invoke(app, ["info", str(map_file)])
     assert info.exit_code == 0, info.output
-    assert "config.neighbours" in info.output and "6" in info.output
+    assert table_row(info.output, "config.neighbours") == ["6"]
+    assert table_row(info.output, "config.coarse_neighbours") == ["4"]
+    assert table_row(info.output, "dimensions") == ["2"]
+    assert table_row(info.output, "scans") == ["5"]
+    assert table_row(info.output, "clusters") == [str(hilbert_map.n_clusters)]
+    assert table_row(info.output, "memory") == [f"{hilbert_map.memory_bytes() / 1e6:.3f} MB"]
     points = np.array([[-3.0, -1.5], [6.0, -0.2]])
     np.save(tmp_path / "q.npy", points)
     np.savetxt(tmp_path / "q.csv", points, delimiter=",")
-    expected = ehm.load(map_file).occupancy(points)
+    expected = hilbert_map.occupancy(points)
     out = runner.invoke(app, ["query", str(map_file), str(tmp_path / "q.csv")])
     assert out.exit_code == 0, out.output
     np.testing.assert_allclose(np.array(out.output.split(), float), expected, atol=1e-6)
@@ -61,16 +79,22 @@ def test_map_then_info_and_query(map_file, tmp_path):
 
 
 def test_bad_inputs_give_clear_errors(map_file, tmp_path):
+    def fails(args: list[str], code: int, message: str) -> None:
+        result = runner.invoke(app, args)
+        assert result.exit_code == code, result.output
+        assert message in " ".join(result.output.split()), result.output
+
     (tmp_path / "junk.ehm").write_bytes(b"junk")
-    result = runner.invoke(app, ["info", str(tmp_path / "junk.ehm")])
-    assert result.exit_code == 1 and "not an ehm map file" in result.output
+    fails(["info", str(tmp_path / "junk.ehm")], 1, "not an ehm map file (unknown magic bytes)")
     np.save(tmp_path / "q3.npy", np.zeros((2, 3)))
-    result = runner.invoke(app, ["query", str(map_file), str(tmp_path / "q3.npy")])
-    assert result.exit_code != 0 and "shape (n, 2)" in result.output
-    result = runner.invoke(app, ["map", str(tmp_path / "nothing.ply"), "-o", "x.ehm"])
-    assert result.exit_code != 0 and "no such file" in result.output
-    result = runner.invoke(app, ["map", str(tmp_path / "q3.npy"), "-o", "x.ehm", "--set", "k=1"])
-    assert result.exit_code != 0
+    fails(["query", str(map_file), str(tmp_path / "q3.npy")], 2, "shape (n, 2), got (2, 3)")
+    output = str(tmp_path / "x.ehm")
+    fails(["map", str(tmp_path / "nothing.ply"), "-o", output], 2, "nothing.ply: no such file")
+    log = str(map_file.with_suffix(".log"))
+    fails(["map", log, "-o", output, "--set", "k=1"], 2, "'k=1': expected name=value with a")
+    fails(["map", log, "-o", output, "--set", "neighbours"], 2, "expected name=value")
+    fails(["map", log, "-o", output, "--set", "neighbours=0"], 2, "must be an integer >= 1")
+    assert not (tmp_path / "x.ehm").exists()
 
 
 def test_demo_writes_map_mesh_and_pictures(tmp_path):
@@ -145,8 +169,6 @@ def test_bad_grid_options_give_clear_errors(room_map_file, tmp_path, options, me
 
 def test_eval_writes_records_with_the_protocol_keys_and_plots(tmp_path, room):
     import json
-
-    from ehm.comparison import RECORD_KEYS
 
     out, plots = tmp_path / "records.json", tmp_path / "plots"
     args = ["eval", "--methods", "ehm,ehm-batch", "--fractions", "0.8,0.5", "--seeds", "0,1"]

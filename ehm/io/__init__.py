@@ -1,1 +1,2 @@
-"""Readers of range data and the map file format."""
+"""File formats, one module per format: scans in (readers and one module per scan format),
+maps, grids and meshes out and back."""

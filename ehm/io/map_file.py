@@ -4,9 +4,9 @@ Layout (little-endian):
     8 bytes   magic b"EHMMAP\\r\\n"
     4 bytes   uint32 format version
     8 bytes   uint64 length of the JSON header
-    header    UTF-8 JSON: config, dim, n_scans, bias state, and for each array (the
-              clusters', then the anchor layers') its name, dtype, shape and byte offset
-              into the payload
+    header    UTF-8 JSON: config, dim, n_scans, bias state, random generator state (from
+              version 4 on), and for each array (the clusters', then the anchor layers') its
+              name, dtype, shape and byte offset into the payload
     payload   the arrays' raw bytes, one after another
     4 bytes   uint32 CRC-32 of everything before it
 """
@@ -20,21 +20,21 @@ import tempfile
 import zlib
 from os import PathLike
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ehm.anchors import AnchorLayers
-from ehm.clusters import ClusterSet
 from ehm.config import MapConfig
-
-if TYPE_CHECKING:
-    from ehm.model import HilbertMap
+from ehm.core.anchors import AnchorLayers
+from ehm.core.clusters import ClusterSet
+from ehm.core.state import MapState
 
 MAGIC = b"EHMMAP\r\n"
 # Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
 ANCHOR_PREFIX = "anchor_"
-FORMAT_VERSION = 3
+# Version 4 stores the random generator's state; version 3 files load with a generator
+# started afresh from the map's seed.
+FORMAT_VERSION = 4
+OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
 
@@ -43,13 +43,11 @@ class MapFileError(ValueError):
     """A file that is not a readable ehm map: foreign, truncated, corrupt or too new."""
 
 
-def save_map(hilbert_map: HilbertMap, path: str | PathLike[str]) -> None:
-    """Write `hilbert_map` to `path`: a temporary file in the same folder, then a rename, so an
+def write_map(state: MapState, path: str | PathLike[str]) -> None:
+    """Write a map's state to `path`: a temporary file in the same folder, then a rename, so an
     existing map survives a crash half-way."""
-    if hilbert_map.clusters_ is None:
-        raise ValueError("the map is empty: integrate a scan before saving")
-    arrays = {name: np.ascontiguousarray(a) for name, a in hilbert_map.clusters_.arrays().items()}
-    anchors = hilbert_map.anchors_
+    arrays = {name: np.ascontiguousarray(a) for name, a in state.clusters.arrays().items()}
+    anchors = state.anchors
     for layer, (parents, coarse) in enumerate(zip(anchors.parents, anchors.coarse, strict=True)):
         arrays[f"{ANCHOR_PREFIX}parents_{layer}"] = parents
         arrays[f"{ANCHOR_PREFIX}coarse_{layer}"] = coarse
@@ -62,10 +60,11 @@ def save_map(hilbert_map: HilbertMap, path: str | PathLike[str]) -> None:
         offset += array.nbytes
     header = json.dumps(
         {
-            "config": hilbert_map.config.to_dict(),
-            "dim": hilbert_map.dim,
-            "n_scans": hilbert_map.n_scans_,
-            "bias_state": hilbert_map.bias_state_.tolist(),
+            "config": state.config.to_dict(),
+            "dim": state.clusters.dim,
+            "n_scans": state.n_scans,
+            "bias_state": state.bias_state.tolist(),
+            "rng_state": state.rng_state,
             "arrays": entries,
         }
     ).encode()
@@ -87,20 +86,19 @@ def save_map(hilbert_map: HilbertMap, path: str | PathLike[str]) -> None:
         raise
 
 
-def load(path: str | PathLike[str]) -> HilbertMap:
-    """Read a map written by HilbertMap.save; MapFileError names what is wrong otherwise."""
-    from ehm.model import HilbertMap
-
+def read_map(path: str | PathLike[str]) -> MapState:
+    """Read the state of a map written by `write_map` (format versions 3 and 4); MapFileError
+    names what is wrong otherwise."""
     data = Path(path).read_bytes()
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
         raise MapFileError(f"{path}: not an ehm map file (unknown magic bytes)")
     if len(data) < _PREAMBLE.size + _CRC.size:
         raise MapFileError(f"{path}: truncated ({len(data)} bytes)")
     _, version, header_length = _PREAMBLE.unpack_from(data)
-    if version < FORMAT_VERSION:
+    if version < OLDEST_READABLE_VERSION:
         raise MapFileError(
             f"{path}: format version {version} is older than this ehm reads "
-            f"({FORMAT_VERSION}); rebuild the map from its scans"
+            f"({OLDEST_READABLE_VERSION} to {FORMAT_VERSION}); rebuild the map from its scans"
         )
     if version > FORMAT_VERSION:
         raise MapFileError(
@@ -131,8 +129,11 @@ def load(path: str | PathLike[str]) -> HilbertMap:
         [arrays.pop(f"{ANCHOR_PREFIX}parents_{layer}") for layer in range(n_layers)],
         [arrays.pop(f"{ANCHOR_PREFIX}coarse_{layer}") for layer in range(n_layers)],
     )
-    hilbert_map = HilbertMap(MapConfig.from_dict(header["config"]))
-    hilbert_map._restore(
-        ClusterSet(**arrays), np.array(header["bias_state"]), header["n_scans"], anchors
+    return MapState(
+        MapConfig.from_dict(header["config"]),
+        ClusterSet(**arrays),
+        anchors,
+        np.array(header["bias_state"], dtype=np.float64),
+        header["n_scans"],
+        header.get("rng_state"),
     )
-    return hilbert_map

@@ -13,9 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.io.pointcloud import read_pcd, read_ply, read_xyz
-from ehm.io.sequences import read_carmen, read_kitti, read_octomap_graph, read_tum
-from ehm.scan import Scan
+from ehm.core.scan import Scan
+from ehm.io.carmen import read_carmen
+from ehm.io.kitti import read_kitti
+from ehm.io.octomap_graph import read_octomap_graph
+from ehm.io.pcd import read_pcd
+from ehm.io.ply import read_ply
+from ehm.io.tum import read_tum
+from ehm.io.xyz import read_xyz
 
 FORMATS = ("xyz", "ply", "pcd", "kitti", "graph", "tum", "carmen")
 _EXTENSIONS = {

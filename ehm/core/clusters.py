@@ -1,0 +1,152 @@
+"""The map's clusters: the inducing points of its features, one row per cluster (Eq. 10-12)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.kernels import kernel_reach, kernel_transforms, planar_clusters
+
+
+@dataclass
+class ClusterSet:
+    """Inducing points of the map, one row per cluster.
+
+    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2.
+    counts: (M,) float64, samples the statistics summarise. weights: (M,) float64, classifier
+    weights. grad_sq: (M,) float64, AdaGrad accumulators. transforms: (M, d, d) float64, 1/m,
+    kernel transforms derived from the covariances (see ehm.core.kernels). coarse: (M,) bool, True
+    for clusters of open free space (see ehm.core.index). occupied: (M,) bool, True for clusters
+    of occupied samples. planar: (M,) bool, the covariance is flat (see
+    ehm.core.kernels.planar_clusters). planar_kernel: (M,) bool, the cluster uses the
+    planar-surface kernel. Transforms and both planar flags follow from the covariances and
+    the map's settings (`refresh`).
+    """
+
+    means: np.ndarray
+    covariances: np.ndarray
+    counts: np.ndarray
+    weights: np.ndarray
+    grad_sq: np.ndarray
+    transforms: np.ndarray
+    coarse: np.ndarray
+    occupied: np.ndarray
+    planar: np.ndarray
+    planar_kernel: np.ndarray
+
+    @classmethod
+    def empty(cls, dim: int) -> ClusterSet:
+        flags = [np.zeros(0, dtype=bool) for _ in range(4)]
+        return cls(
+            np.zeros((0, dim)),
+            np.zeros((0, dim, dim)),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros((0, dim, dim)),
+            *flags,
+        )
+
+    def __len__(self) -> int:
+        return len(self.means)
+
+    @property
+    def dim(self) -> int:
+        return self.means.shape[1]
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in self.arrays().values())
+
+    def append(
+        self,
+        means: np.ndarray,
+        covariances: np.ndarray,
+        counts: np.ndarray,
+        coarse: np.ndarray,
+        occupied: np.ndarray,
+    ) -> None:
+        """Add clusters with weight 0 (no prior knowledge of their occupancy); `refresh` them
+        before use."""
+        n = len(means)
+        self.means = np.concatenate([self.means, means])
+        self.covariances = np.concatenate([self.covariances, covariances])
+        self.counts = np.concatenate([self.counts, counts.astype(np.float64)])
+        self.weights = np.concatenate([self.weights, np.zeros(n)])
+        self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n)])
+        self.transforms = np.concatenate([self.transforms, np.zeros((n,) + means.shape[1:] * 2)])
+        self.coarse = np.concatenate([self.coarse, np.asarray(coarse, dtype=bool)])
+        self.occupied = np.concatenate([self.occupied, np.asarray(occupied, dtype=bool)])
+        self.planar = np.concatenate([self.planar, np.zeros(n, dtype=bool)])
+        self.planar_kernel = np.concatenate([self.planar_kernel, np.zeros(n, dtype=bool)])
+
+    def remove(self, rows: np.ndarray) -> np.ndarray:
+        """Drop clusters `rows` ((R,) int64, distinct). The last clusters move into the holes,
+        so every other cluster keeps its row. Returns (M - R,) int64: the old row of each."""
+        dropped = np.zeros(len(self), dtype=bool)
+        dropped[rows] = True
+        n_after = len(self) - len(rows)
+        source = np.arange(n_after)
+        holes = np.flatnonzero(dropped[:n_after])
+        source[holes] = np.flatnonzero(~dropped[n_after:]) + n_after
+        for name, array in self.arrays().items():
+            setattr(self, name, array[source])
+        return source
+
+    def reach(self) -> np.ndarray:
+        """(M,) metres: how far from its mean each cluster's kernel is non-zero."""
+        return kernel_reach(self.transforms, self.planar_kernel)
+
+    def refresh(self, rows: np.ndarray, config: MapConfig) -> None:
+        """Recompute what follows from the statistics of clusters `rows` after they changed:
+        planar flags and kernel transforms."""
+        if len(rows) == 0:
+            return
+        self.planar[rows] = planar_clusters(self.covariances[rows], config.planar_ratio)
+        self.planar_kernel[rows] = self.planar[rows] & config.planar_kernel
+        self.transforms[rows] = kernel_transforms(
+            self.covariances[rows], config.length_scale, config.min_std, self.planar_kernel[rows]
+        )
+
+
+@dataclass(frozen=True)
+class ClusterView:
+    """A copy of a map's clusters for users, one row per cluster.
+
+    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2.
+    weights: (M,) float64, log-odds each kernel adds at its peak. counts: (M,) float64,
+    samples behind each cluster. kind: (M,) str, 'planar' (walls, floors: flat clusters) or
+    'volumetric'. kernel: (M,) str, 'planar' (Eq. 13) or 'local' (k_SP with localized
+    length-scales). scale: (M,) str, 'fine' or 'coarse' (open free space along rays).
+    occupied: (M,) bool, built from occupied samples (else free ones).
+    """
+
+    means: np.ndarray
+    covariances: np.ndarray
+    weights: np.ndarray
+    counts: np.ndarray
+    kind: np.ndarray
+    kernel: np.ndarray
+    scale: np.ndarray
+    occupied: np.ndarray
+
+    @classmethod
+    def of(cls, clusters: ClusterSet) -> ClusterView:
+        return cls(
+            clusters.means.copy(),
+            clusters.covariances.copy(),
+            clusters.weights.copy(),
+            clusters.counts.copy(),
+            np.where(clusters.planar, "planar", "volumetric"),
+            np.where(clusters.planar_kernel, "planar", "local"),
+            np.where(clusters.coarse, "coarse", "fine"),
+            clusters.occupied.copy(),
+        )
+
+    def __len__(self) -> int:
+        return len(self.means)

@@ -1,0 +1,173 @@
+"""Batch feature construction (Alg. 2 lines 22-25, Alg. 3): sparse localized length-scale
+features of many points, with the nearest clusters searched once per group of points.
+
+Point i belongs to group g = group_of_point[i]; its feature vector has non-zeros only at the
+clusters group_neighbours[g] (k of them, -1 where the map has fewer than k clusters). Cluster
+m's kernel is the planar-surface one where planar[m], else k_SP (see ehm.core.kernels).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.cells import cell_keys
+from ehm.core.clusters import ClusterSet
+from ehm.core.index import ClusterIndex
+from ehm.core.kernels import cluster_kernel, cluster_kernel_reference, projected_radii
+
+
+@dataclass(frozen=True)
+class PointGroups:
+    """Points that share one neighbour search. group_of_point: (n,) int64, the group of each
+    point; centres: (G, d) float64, metres, where each group's search is made."""
+
+    group_of_point: np.ndarray
+    centres: np.ndarray
+
+    @classmethod
+    def singletons(cls, points: np.ndarray) -> PointGroups:
+        """One group per point: a search at every point (exact)."""
+        return cls(np.arange(len(points), dtype=np.int64), points)
+
+    def spread(self, points: np.ndarray) -> float:
+        """Largest distance, metres, from one of `points` (n, d) to the centre of its group
+        (0 for no points)."""
+        if len(points) == 0:
+            return 0.0
+        offsets = points - self.centres[self.group_of_point]
+        return float(np.sqrt(np.max(np.sum(offsets**2, axis=1))))
+
+
+def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
+    """Group (n, d) points, metres, by the cubic cell of side `cell` they fall in (Alg. 3
+    line 1); each group's centre is the mean of its points."""
+    n, d = points.shape
+    if n == 0:
+        return PointGroups(np.zeros(0, dtype=np.int64), np.zeros((0, d)))
+    _, group_of_point = np.unique(cell_keys(points, cell).keys, return_inverse=True)
+    group_of_point = group_of_point.ravel().astype(np.int64)
+    sizes = np.bincount(group_of_point)
+    sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)
+    return PointGroups(group_of_point, sums / sizes[:, None])
+
+
+def group_neighbours(
+    index: ClusterIndex, points: np.ndarray, groups: PointGroups, k_fine: int, k_coarse: int
+) -> np.ndarray:
+    """(G, k_fine + k_coarse) int64: for each group of `points` (n, d), metres, the nearest
+    fine and nearest coarse clusters of its centre whose kernels can reach any of its points;
+    -1 where there are fewer (see ClusterIndex.nearest)."""
+    return index.nearest(groups.centres, k_fine, k_coarse, groups.spread(points))
+
+
+@dataclass(frozen=True)
+class SparseFeatures:
+    """Feature vectors of n points: point i's non-zeros sit at the clusters
+    neighbours[group_of_point[i]] ((G, k) int64, -1 for none) with values[i] ((n, k) float64)."""
+
+    group_of_point: np.ndarray
+    neighbours: np.ndarray
+    values: np.ndarray
+
+
+def training_features(
+    points: np.ndarray,
+    groups: PointGroups,
+    index: ClusterIndex,
+    clusters: ClusterSet,
+    config: MapConfig,
+) -> SparseFeatures:
+    """Features of training points (n, d), metres (Alg. 2 lines 22-25): one neighbour search
+    per group, `neighbours` fine and `coarse_neighbours` coarse clusters."""
+    neighbours = group_neighbours(
+        index, points, groups, config.neighbours, config.coarse_neighbours
+    )
+    values = kernel_values(
+        points,
+        groups.group_of_point,
+        neighbours,
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+    )
+    return SparseFeatures(groups.group_of_point, neighbours, values)
+
+
+@numba.njit(cache=True, inline="always")
+def _kernel_at(points, i, cluster, means, transforms, planar):  # pragma: no cover - compiled
+    r2, r_max = projected_radii(points, i, cluster, means, transforms)
+    return cluster_kernel(r2, r_max, planar[cluster])
+
+
+@numba.njit(cache=True, parallel=True)
+def kernel_values(
+    points, group_of_point, group_neighbours, means, transforms, planar
+):  # pragma: no cover - compiled
+    """(n, k) float64 kernel values of each point at its group's k clusters."""
+    n = points.shape[0]
+    k = group_neighbours.shape[1]
+    values = np.zeros((n, k))
+    for i in numba.prange(n):
+        g = group_of_point[i]
+        for j in range(k):
+            cluster = group_neighbours[g, j]
+            if cluster >= 0:
+                values[i, j] = _kernel_at(points, i, cluster, means, transforms, planar)
+    return values
+
+
+@numba.njit(cache=True, parallel=True)
+def decision_values(
+    points, group_of_point, group_neighbours, means, transforms, planar, weights, bias
+):  # pragma: no cover - compiled
+    """(n,) float64 w^T phi(x) + bias of each point, without storing the features."""
+    n = points.shape[0]
+    k = group_neighbours.shape[1]
+    scores = np.full(n, bias)
+    for i in numba.prange(n):
+        g = group_of_point[i]
+        for j in range(k):
+            cluster = group_neighbours[g, j]
+            if cluster >= 0:
+                value = _kernel_at(points, i, cluster, means, transforms, planar)
+                scores[i] += weights[cluster] * value
+    return scores
+
+
+def kernel_values_reference(
+    points: np.ndarray,
+    group_of_point: np.ndarray,
+    group_neighbours: np.ndarray,
+    means: np.ndarray,
+    transforms: np.ndarray,
+    planar: np.ndarray,
+) -> np.ndarray:
+    """Plain NumPy twin of `kernel_values`."""
+    neighbours = group_neighbours[group_of_point]
+    safe = np.maximum(neighbours, 0)
+    offsets = points[:, None, :] - means[safe]
+    projected = np.einsum("nkab,nkb->nka", transforms[safe], offsets)
+    values = cluster_kernel_reference(projected, planar[safe])
+    return np.where(neighbours >= 0, values, 0.0)
+
+
+def decision_values_reference(
+    points: np.ndarray,
+    group_of_point: np.ndarray,
+    group_neighbours: np.ndarray,
+    means: np.ndarray,
+    transforms: np.ndarray,
+    planar: np.ndarray,
+    weights: np.ndarray,
+    bias: float,
+) -> np.ndarray:
+    """Plain NumPy twin of `decision_values`."""
+    values = kernel_values_reference(
+        points, group_of_point, group_neighbours, means, transforms, planar
+    )
+    neighbours = group_neighbours[group_of_point]
+    return bias + np.sum(values * weights[np.maximum(neighbours, 0)], axis=1)

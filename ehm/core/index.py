@@ -1,0 +1,197 @@
+"""Spatial index over cluster centres: the nearest clusters of many points at once.
+
+Clusters come in two scales: fine ones (surfaces, and the free space just in front of them,
+a few centimetres across) and coarse ones (open free space along rays, about a metre across).
+Fine clusters crowd around surfaces, so the k nearest centres of a point a few decimetres in
+front of a wall are all fine ones whose kernels do not reach it. Each scale therefore has its
+own kd-tree, and a point's neighbours are its nearest fine and its nearest coarse clusters.
+
+Searches stop at the largest kernel reach of the scale (plus how far the points sharing a
+search lie from its centre): clusters farther away add zero to every feature, so leaving them
+out changes no result and prunes most of the tree.
+
+Two settings change the search: anisotropic search ranks a point's clusters by the radius
+their kernel gives it instead of by the distance to their centres (candidates from the
+Euclidean search, re-ranked), and anchor layers replace the kd-trees by a top-down search
+through clusters of clusters (ehm.anchors).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ehm.config import MapConfig
+from ehm.core.anchors import AnchorLayers, AnchorTree
+from ehm.core.clusters import ClusterSet
+from ehm.core.kernels import projected_radii
+
+# cKDTree keeps a copy of the data, a permutation and about this many bytes per node.
+_KDTREE_NODE_BYTES = 80
+_KDTREE_LEAF_SIZE = 16
+
+
+@dataclass(frozen=True)
+class KernelRanking:
+    """Anisotropic search: `factor` times k nearest centres are re-ranked by the radius each
+    cluster's kernel gives the point (see `kernel_radii`). means (M, d) metres, transforms
+    (M, d, d) 1/m, planar (M,) bool: the clusters' kernels."""
+
+    means: np.ndarray
+    transforms: np.ndarray
+    planar: np.ndarray
+    factor: int
+
+    def best(self, points: np.ndarray, candidates: np.ndarray, k: int) -> np.ndarray:
+        """(n, k) int64: the k of each row of `candidates` with the smallest kernel radius at
+        the row's point, smallest first; -1 past the last."""
+        radii = kernel_radii(points, candidates, self.means, self.transforms, self.planar)
+        order = np.argsort(radii, axis=1, kind="stable")[:, :k]
+        best = np.take_along_axis(candidates, order, axis=1)
+        return np.where(np.isfinite(np.take_along_axis(radii, order, axis=1)), best, -1)
+
+
+@numba.njit(cache=True, parallel=True)
+def kernel_radii(points, candidates, means, transforms, planar):  # pragma: no cover - compiled
+    """(n, c) radius |T_m (x - mu_m)| (max_a |.| for planar kernels) of each point at its
+    candidate clusters; inf where the candidate is -1. The kernel is 0 from radius 1 on."""
+    n, c = candidates.shape
+    radii = np.full((n, c), np.inf)
+    for i in numba.prange(n):
+        for j in range(c):
+            m = candidates[i, j]
+            if m >= 0:
+                r2, r_max = projected_radii(points, i, m, means, transforms)
+                radii[i, j] = r_max if planar[m] else np.sqrt(r2)
+    return radii
+
+
+def kernel_radii_reference(
+    points: np.ndarray,
+    candidates: np.ndarray,
+    means: np.ndarray,
+    transforms: np.ndarray,
+    planar: np.ndarray,
+) -> np.ndarray:
+    """Plain NumPy twin of `kernel_radii`."""
+    safe = np.maximum(candidates, 0)
+    projected = np.einsum("nkab,nkb->nka", transforms[safe], points[:, None, :] - means[safe])
+    radii = np.where(planar[safe], np.abs(projected).max(axis=2), np.linalg.norm(projected, axis=2))
+    return np.where(candidates >= 0, radii, np.inf)
+
+
+class ClusterIndex:
+    """Search structures over (M, d) cluster centres, metres, world frame: per scale a kd-tree
+    or, with anchor layers, an AnchorTree.
+
+    coarse: (M,) bool scale of each cluster. reach: (M,) metres, distance beyond which each
+    cluster's kernel is zero (None: unbounded searches). ranking: re-rank candidates by kernel
+    radius (None: by distance between centres). anchors: search top-down through these anchor
+    layers (None or no layers: kd-trees).
+    """
+
+    def __init__(
+        self,
+        centres: np.ndarray,
+        coarse: np.ndarray,
+        reach: np.ndarray | None = None,
+        ranking: KernelRanking | None = None,
+        anchors: AnchorLayers | None = None,
+    ) -> None:
+        self._rows = [np.flatnonzero(~coarse), np.flatnonzero(coarse)]
+        self._ranking = ranking
+        if anchors is not None and anchors.n_layers > 0:
+            self._trees = [
+                AnchorTree.build(anchors, centres, coarse, bool(scale)) if len(rows) else None
+                for scale, rows in enumerate(self._rows)
+            ]
+        else:
+            self._trees = [
+                cKDTree(centres[rows], leafsize=_KDTREE_LEAF_SIZE) if len(rows) else None
+                for rows in self._rows
+            ]
+        self._reach = [
+            np.inf if reach is None or len(rows) == 0 else float(reach[rows].max())
+            for rows in self._rows
+        ]
+
+    @classmethod
+    def of(
+        cls,
+        clusters: ClusterSet,
+        anchors: AnchorLayers | None = None,
+        config: MapConfig | None = None,
+    ) -> ClusterIndex:
+        """The search over `clusters` that `config` (default: MapConfig()) asks for: kd-trees
+        bounded by the kernels' reach or, when `anchor_layers` > 1, the `anchors` (every
+        cluster placed); candidates re-ranked by kernel radius when `anisotropic_search`."""
+        config = config if config is not None else MapConfig()
+        ranking = None
+        if config.anisotropic_search:
+            ranking = KernelRanking(
+                clusters.means,
+                clusters.transforms,
+                clusters.planar_kernel,
+                config.anisotropic_candidates,
+            )
+        layers = anchors if config.anchor_layers > 1 else None
+        return cls(clusters.means, clusters.coarse, clusters.reach(), ranking, layers)
+
+    def nearest_of_scale(
+        self, points: np.ndarray, coarse: bool, k: int, spread: float = np.inf
+    ) -> np.ndarray:
+        """(n, k) int64 cluster rows of the k nearest clusters of one scale, -1 past the last.
+
+        spread: metres; the search serves points up to this far from each of `points`, and
+        skips clusters whose kernels reach none of them (inf: no pruning).
+        """
+        n = len(points)
+        found = np.full((n, k), -1, dtype=np.int64)
+        rows, tree = self._rows[int(coarse)], self._trees[int(coarse)]
+        if tree is None or n == 0 or k == 0:
+            return found
+        wanted = k * (self._ranking.factor if self._ranking is not None else 1)
+        bound = (self._reach[int(coarse)] + spread) * (1.0 + 1e-9)
+        if isinstance(tree, AnchorTree):
+            candidates = tree.nearest(points, wanted, bound)
+        else:
+            kk = min(wanted, len(rows))
+            _, idx = tree.query(points, k=kk, workers=-1, distance_upper_bound=bound)
+            idx = np.asarray(idx).reshape(n, kk)
+            missing = idx >= len(rows)
+            candidates = np.where(missing, -1, rows[np.where(missing, 0, idx)])
+        if self._ranking is not None:
+            candidates = self._ranking.best(points, candidates, k)
+        kk = min(k, candidates.shape[1])
+        found[:, :kk] = candidates[:, :kk]
+        return found
+
+    def nearest(
+        self, points: np.ndarray, k_fine: int, k_coarse: int, spread: float = np.inf
+    ) -> np.ndarray:
+        """(n, k_fine + k_coarse) int64: each point's nearest fine, then nearest coarse
+        clusters whose kernels can reach within `spread` metres of it; -1 where there are
+        fewer. The coarse columns are left out when the map has no coarse clusters."""
+        if self._trees[1] is None:
+            k_coarse = 0
+        return np.hstack(
+            [
+                self.nearest_of_scale(points, False, k_fine, spread),
+                self.nearest_of_scale(points, True, k_coarse, spread),
+            ]
+        )
+
+    @property
+    def nbytes(self) -> int:
+        """Approximate memory of the search structures, bytes."""
+        total = sum(rows.nbytes for rows in self._rows)
+        for rows, tree in zip(self._rows, self._trees, strict=True):
+            if isinstance(tree, AnchorTree):
+                total += tree.nbytes
+            elif tree is not None:
+                n_nodes = 2 * max(1, len(rows) // _KDTREE_LEAF_SIZE)
+                total += tree.data.nbytes + tree.indices.nbytes + n_nodes * _KDTREE_NODE_BYTES
+        return int(total)

@@ -1,0 +1,80 @@
+"""Training data from scans: occupied samples around each hit and free samples along each ray
+(the first step of Alg. 2; the paper assumes free space along beams, as Hilbert maps do)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.scan import Scan
+
+
+@dataclass(frozen=True)
+class TrainingSamples:
+    """Labelled points for the classifier.
+
+    points: (n, d) float64, metres, world frame. occupied: (n,) bool. at_surface: (n,) bool,
+    True for the samples drawn around hits (both classes), False for free samples along rays.
+    """
+
+    points: np.ndarray
+    occupied: np.ndarray
+    at_surface: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @staticmethod
+    def concatenate(parts: list[TrainingSamples]) -> TrainingSamples:
+        return TrainingSamples(
+            np.concatenate([p.points for p in parts]),
+            np.concatenate([p.occupied for p in parts]),
+            np.concatenate([p.at_surface for p in parts]),
+        )
+
+
+def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
+    """Occupied and free samples along every ray of `scan`.
+
+    Around each hit: the hit and one point up to `occupied_depth` behind it are occupied; one
+    point in the band from `surface_margin` / 4 to `surface_margin` in front of it is free.
+    Along each ray, free points are drawn uniformly, `free_spacing` apart on average, up to
+    `surface_margin` before the hit, or over the whole length of a ray without return.
+    """
+    offsets = scan.points_world - scan.origin
+    lengths = np.linalg.norm(offsets, axis=1)
+    usable = lengths > 0
+    offsets, lengths, hits = offsets[usable], lengths[usable], scan.hit_mask[usable]
+    directions = offsets / lengths[:, None]
+    margin = config.surface_margin
+
+    hit_points = scan.points_world[usable][hits]
+    hit_dirs = directions[hits]
+    behind_depth = config.occupied_depth * rng.random(len(hit_points))
+    behind = hit_points + hit_dirs * behind_depth[:, None]
+    front_depth = np.minimum(margin * (0.25 + 0.75 * rng.random(len(hit_points))), lengths[hits])
+    in_front = hit_points - hit_dirs * front_depth[:, None]
+
+    free_length = np.where(hits, np.maximum(lengths - margin, 0.0), lengths)
+    expected = free_length / config.free_spacing
+    counts = np.floor(expected + rng.random(len(expected))).astype(np.int64)
+    ray_of_sample = np.repeat(np.arange(len(counts)), counts)
+    depth = free_length[ray_of_sample] * rng.random(len(ray_of_sample))
+    along = scan.origin + directions[ray_of_sample] * depth[:, None]
+
+    points = np.concatenate([hit_points, behind, in_front, along])
+    n_occupied = 2 * len(hit_points)
+    occupied = np.zeros(len(points), dtype=bool)
+    occupied[:n_occupied] = True
+    at_surface = np.zeros(len(points), dtype=bool)
+    at_surface[: n_occupied + len(in_front)] = True
+    return TrainingSamples(points, occupied, at_surface)
+
+
+def samples_of_scans(
+    scans: list[Scan], config: MapConfig, rng: np.random.Generator
+) -> TrainingSamples:
+    """The training samples of several scans, one after the other (single-batch mode)."""
+    return TrainingSamples.concatenate([training_samples(s, config, rng) for s in scans])

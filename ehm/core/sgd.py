@@ -1,0 +1,124 @@
+"""Stochastic gradient descent on the regularised logistic loss (Eq. 2-3), with a bias term.
+
+Each weight has its own AdaGrad step size lr / sqrt(sum of its squared gradients), so a cluster
+added with weight 0 learns quickly while well-observed clusters settle. Labels are 1 (occupied)
+and 0 (free); p(occupied | x) = sigmoid(w^T phi(x) + b).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.clusters import ClusterSet
+from ehm.core.features import SparseFeatures
+
+EPSILON = 1e-8
+
+
+def class_weights(occupied: np.ndarray, balance: bool) -> np.ndarray:
+    """Loss weights [free, occupied] of samples with labels `occupied` (n,) bool: ones, or, when
+    balancing, equal total weight per class, so the density of free samples does not move the
+    0.5 boundary."""
+    n_occupied = int(occupied.sum())
+    n_free = len(occupied) - n_occupied
+    if not balance or n_occupied == 0 or n_free == 0:
+        return np.ones(2)
+    return len(occupied) / (2.0 * np.array([n_free, n_occupied], dtype=np.float64))
+
+
+def train_weights(
+    features: SparseFeatures,
+    occupied: np.ndarray,
+    clusters: ClusterSet,
+    bias_state: np.ndarray,
+    config: MapConfig,
+    rng: np.random.Generator,
+) -> None:
+    """`config.epochs` passes of SGD over samples with `features` and labels `occupied` (n,)
+    bool, each in a fresh random order (Alg. 2 lines 26-28); updates the clusters' weights and
+    AdaGrad state and bias_state in place."""
+    labels = occupied.astype(np.float64)
+    weights_per_class = class_weights(occupied, config.balance_classes)
+    for _ in range(config.epochs):
+        sgd_pass(
+            features.values,
+            features.group_of_point,
+            features.neighbours,
+            labels,
+            weights_per_class,
+            rng.permutation(len(labels)),
+            clusters.weights,
+            clusters.grad_sq,
+            bias_state,
+            config.learning_rate,
+            config.l2,
+        )
+
+
+@numba.njit(cache=True)
+def sgd_pass(
+    values,
+    group_of_point,
+    group_neighbours,
+    labels,
+    class_weights,
+    order,
+    weights,
+    grad_sq,
+    bias_state,
+    learning_rate,
+    l2,
+):  # pragma: no cover - compiled
+    """One pass over the samples in `order`, updating weights, grad_sq and bias_state in place.
+
+    values: (n, k) kernel values; labels: (n,) 0 or 1; class_weights: (2,) loss weight of a
+    free and of an occupied sample; bias_state: [bias, its accumulated squared gradient].
+    """
+    k = group_neighbours.shape[1]
+    for i in order:
+        g = group_of_point[i]
+        score = bias_state[0]
+        for j in range(k):
+            cluster = group_neighbours[g, j]
+            if cluster >= 0:
+                score += weights[cluster] * values[i, j]
+        label = labels[i]
+        error = (1.0 / (1.0 + np.exp(-score)) - label) * class_weights[np.int64(label)]
+        for j in range(k):
+            cluster = group_neighbours[g, j]
+            if cluster < 0 or values[i, j] == 0.0:
+                continue
+            grad = error * values[i, j] + l2 * weights[cluster]
+            grad_sq[cluster] += grad * grad
+            weights[cluster] -= learning_rate * grad / np.sqrt(grad_sq[cluster] + EPSILON)
+        bias_state[1] += error * error
+        bias_state[0] -= learning_rate * error / np.sqrt(bias_state[1] + EPSILON)
+
+
+def sgd_pass_reference(
+    values: np.ndarray,
+    group_of_point: np.ndarray,
+    group_neighbours: np.ndarray,
+    labels: np.ndarray,
+    class_weights: np.ndarray,
+    order: np.ndarray,
+    weights: np.ndarray,
+    grad_sq: np.ndarray,
+    bias_state: np.ndarray,
+    learning_rate: float,
+    l2: float,
+) -> None:
+    """Plain NumPy twin of `sgd_pass`, one sample at a time."""
+    for i in order:
+        clusters = group_neighbours[group_of_point[i]]
+        active = (clusters >= 0) & (values[i] != 0.0)
+        touched, phi = clusters[active], values[i][active]
+        score = bias_state[0] + np.dot(weights[touched], phi)
+        error = (1.0 / (1.0 + np.exp(-score)) - labels[i]) * class_weights[int(labels[i])]
+        grad = error * phi + l2 * weights[touched]
+        grad_sq[touched] += grad * grad
+        weights[touched] -= learning_rate * grad / np.sqrt(grad_sq[touched] + EPSILON)
+        bias_state[1] += error * error
+        bias_state[0] -= learning_rate * error / np.sqrt(bias_state[1] + EPSILON)

@@ -1,0 +1,27 @@
+"""Everything a map has learned, as plain data: what a map file stores and restores."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.anchors import AnchorLayers
+from ehm.core.clusters import ClusterSet
+
+
+@dataclass(frozen=True)
+class MapState:
+    """config; clusters; anchors (no layers unless config.anchor_layers > 1); bias_state:
+    (2,) float64, [bias, its AdaGrad accumulator]; n_scans: scans learned; rng_state: the
+    state of the map's random generator (numpy's bit_generator.state), so that a restored map
+    continues exactly as the saved one would; None starts it afresh from config.seed."""
+
+    config: MapConfig
+    clusters: ClusterSet
+    anchors: AnchorLayers
+    bias_state: np.ndarray
+    n_scans: int
+    rng_state: dict[str, Any] | None

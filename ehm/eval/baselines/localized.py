@@ -1,0 +1,44 @@
+"""Hilbert maps with localized length-scales as Mappers: EHM, scan by scan or in one batch,
+and LLS-HM (Guizilini & Ramos 2016), the same clusters and kernels without batching."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ehm.core.scan import Scan
+from ehm.hilbert_map import HilbertMap
+from ehm.pipeline import MappingPipeline
+
+KINDS = {
+    "ehm": ("EHM, incremental: one integrate per scan (Alg. 2, 3)", {}),
+    "ehm-batch": ("EHM, single batch: every scan in one fit (Alg. 2, 3)", {}),
+    "lls-hm": (
+        "LLS-HM (Guizilini & Ramos 2016): EHM's clusters and kernels, one kd-tree search per "
+        "training sample and per query point, all scans in one fit",
+        {"train_search": "point", "query_mode": "exact"},
+    ),
+}
+
+
+class LocalizedMapper:
+    """A HilbertMap with default settings, learned as `kind` (see KINDS) says."""
+
+    def __init__(self, kind: str, seed: int = 0) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
+        self.kind = kind
+        self.description, overrides = KINDS[kind]
+        self.map = HilbertMap(seed=seed, **overrides)
+        self.scan_seconds: list[float] = []
+        """Wall-clock seconds of each integrate ('ehm' only)."""
+
+    def build(self, scans: list[Scan]) -> None:
+        run = MappingPipeline(scans, self.map, batch=self.kind != "ehm").run()
+        if self.kind == "ehm":
+            self.scan_seconds = run.scan_seconds
+
+    def occupancy(self, points: np.ndarray) -> np.ndarray:
+        return self.map.occupancy(points)
+
+    def memory_bytes(self) -> int:
+        return self.map.memory_bytes()

@@ -1,0 +1,34 @@
+"""Embedded synthetic scenes, loaders for the real data sets, and all of them by name."""
+
+from collections.abc import Callable
+
+from ehm.core.scan import Scan
+from ehm.eval.datasets.real import REAL_DATASETS, DataMissingError
+from ehm.eval.datasets.scene import Scene
+from ehm.eval.datasets.simulated import SimulatedDataset, floor_plan_2d, virtual_room, warehouse
+
+DATASETS: dict[str, Callable[[], list[Scan]]] = {
+    "virtual_room": lambda: virtual_room().scans,
+    **REAL_DATASETS,
+}
+"""The evaluation's data sets by name, each a loader of its scans in order."""
+
+
+def load_dataset(name: str) -> list[Scan]:
+    """The scans of data set `name` (see DATASETS). ValueError for an unknown name;
+    DataMissingError when a real data set's files are absent."""
+    if name not in DATASETS:
+        raise ValueError(f"unknown data set {name!r}; known: {', '.join(DATASETS)}")
+    return DATASETS[name]()
+
+
+__all__ = [
+    "DATASETS",
+    "DataMissingError",
+    "Scene",
+    "SimulatedDataset",
+    "floor_plan_2d",
+    "load_dataset",
+    "virtual_room",
+    "warehouse",
+]

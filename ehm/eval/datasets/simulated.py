@@ -1,0 +1,152 @@
+"""Embedded synthetic scenes with exact occupancy: the virtual room and a warehouse (3D), and a
+floor plan (2D).
+
+Both are deterministic for a seed; the seed only draws the range noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ehm.core.scan import Scan
+from ehm.eval.datasets.scene import Scene, room_shell
+
+
+@dataclass(frozen=True)
+class SimulatedDataset:
+    """Scans simulated in a scene whose exact occupancy is known."""
+
+    name: str
+    scans: list[Scan]
+    scene: Scene
+
+
+def simulate_scan(
+    scene: Scene,
+    origin: np.ndarray,
+    directions: np.ndarray,
+    max_range: float,
+    noise_std: float,
+    rng: np.random.Generator,
+) -> Scan:
+    """One scan from `origin` along unit `directions` (n, d): ranges with Gaussian noise of
+    `noise_std` metres; rays that hit nothing within `max_range` are kept as no-return rays
+    ending at max_range."""
+    ranges = scene.raycast(origin, directions)
+    hit = ranges <= max_range
+    ranges = np.where(hit, ranges + rng.normal(0.0, noise_std, len(ranges)), max_range)
+    return Scan(origin + directions * ranges[:, None], origin, hit)
+
+
+def lidar_directions(rings: int, azimuths: int, max_elevation_deg: float) -> np.ndarray:
+    """(rings * azimuths, 3) unit ray directions of a spinning LiDAR: rings evenly spaced
+    from -max_elevation_deg to +max_elevation_deg, azimuths evenly spaced round."""
+    elevation = np.deg2rad(np.linspace(-max_elevation_deg, max_elevation_deg, rings))
+    azimuth = np.linspace(0.0, 2.0 * np.pi, azimuths, endpoint=False)
+    el, az = np.meshgrid(elevation, azimuth, indexing="ij")
+    return np.column_stack(
+        [(np.cos(el) * np.cos(az)).ravel(), (np.cos(el) * np.sin(az)).ravel(), np.sin(el).ravel()]
+    )
+
+
+def virtual_room_scene() -> Scene:
+    """An 8 x 6 x 3 m room with a table, a sofa, a cabinet, a crate and two balls."""
+    walls_min, walls_max = room_shell([-4.0, -3.0, 0.0], [4.0, 3.0, 3.0], thickness=0.2)
+    furniture = [
+        ([0.8, 0.6, 0.72], [2.4, 1.5, 0.77]),  # table top
+        ([0.8, 0.6, 0.0], [0.86, 0.66, 0.72]),  # table legs
+        ([2.34, 0.6, 0.0], [2.4, 0.66, 0.72]),
+        ([0.8, 1.44, 0.0], [0.86, 1.5, 0.72]),
+        ([2.34, 1.44, 0.0], [2.4, 1.5, 0.72]),
+        ([-1.5, -3.0, 0.0], [0.5, -2.1, 0.45]),  # sofa seat
+        ([-1.5, -3.0, 0.0], [0.5, -2.75, 0.9]),  # sofa back
+        ([-4.0, 1.2, 0.0], [-3.5, 2.8, 2.0]),  # cabinet
+        ([2.5, -2.0, 0.0], [3.2, -1.3, 0.6]),  # crate
+    ]
+    box_min = np.vstack([walls_min, [f[0] for f in furniture]])
+    box_max = np.vstack([walls_max, [f[1] for f in furniture]])
+    balls = np.array([[-2.0, 0.5, 0.35], [2.85, -1.65, 0.85]])
+    return Scene(box_min, box_max, balls, np.array([0.35, 0.25]))
+
+
+def virtual_room(
+    seed: int = 0, rings: int = 64, azimuths: int = 1406, noise_std: float = 0.01
+) -> SimulatedDataset:
+    """One simulated 3D LiDAR scan (rings x azimuths rays, about 90,000 by default) from
+    (0, 0, 1.2) m in the virtual room, elevations -55 to +55 degrees."""
+    directions = lidar_directions(rings, azimuths, 55.0)
+    scene = virtual_room_scene()
+    rng = np.random.default_rng(seed)
+    scan = simulate_scan(scene, np.array([0.0, 0.0, 1.2]), directions, 30.0, noise_std, rng)
+    return SimulatedDataset("virtual_room", [scan], scene)
+
+
+def warehouse_scene() -> Scene:
+    """A 40 x 24 x 8 m hall: six rows of 2 m shelving, a mezzanine deck, pillars, crates."""
+    walls_min, walls_max = room_shell([-20.0, -12.0, 0.0], [20.0, 12.0, 8.0], thickness=0.3)
+    solids = []
+    for row in range(6):  # shelving rows along x, each broken by an aisle in the middle
+        y = -9.0 + 3.2 * row
+        solids += [([-16.0, y, 0.0], [-2.0, y + 1.0, 2.0]), ([2.0, y, 0.0], [16.0, y + 1.0, 2.0])]
+    for x in (-12.0, -4.0, 4.0, 12.0):  # pillars between rows and walls
+        for y in (-11.0, 10.6):
+            solids.append(([x, y, 0.0], [x + 0.4, y + 0.4, 8.0]))
+    solids += [
+        ([-20.0, -12.0, 4.0], [-17.0, 12.0, 4.2]),  # mezzanine deck along the west wall
+        ([17.5, -6.0, 0.0], [19.0, -4.5, 1.2]),  # crates by the east wall
+        ([17.5, 3.0, 0.0], [18.7, 4.2, 0.9]),
+    ]
+    box_min = np.vstack([walls_min, [b[0] for b in solids]])
+    box_max = np.vstack([walls_max, [b[1] for b in solids]])
+    balls = np.array([[0.0, 0.0, 0.6], [-18.0, 0.0, 4.8]])
+    return Scene(box_min, box_max, balls, np.array([0.6, 0.5]))
+
+
+def warehouse(
+    seed: int = 0, rings: int = 64, azimuths: int = 1406, noise_std: float = 0.01
+) -> SimulatedDataset:
+    """Six simulated LiDAR scans (rings x azimuths rays each, elevations -30 to +30 degrees,
+    50 m range) from 1.5 m up along the aisles of the warehouse: several times the virtual
+    room's extent, for measuring search and memory in large maps."""
+    directions = lidar_directions(rings, azimuths, 30.0)
+    scene = warehouse_scene()
+    rng = np.random.default_rng(seed)
+    poses = np.array(
+        [[-17.5, -10.0], [-8.0, -6.6], [0.0, -1.7], [8.0, 2.7], [17.0, 4.7], [0.0, 10.5]]
+    )
+    scans = [
+        simulate_scan(scene, np.array([x, y, 1.5]), directions, 50.0, noise_std, rng)
+        for x, y in poses
+    ]
+    return SimulatedDataset("warehouse", scans, scene)
+
+
+def floor_plan_scene() -> Scene:
+    """A 12 x 8 m 2D floor plan: two rooms joined by a door, pillars and a table."""
+    walls_min, walls_max = room_shell([-6.0, -4.0], [6.0, 4.0], thickness=0.2)
+    inner = [
+        ([-0.1, -4.0], [0.1, -1.0]),  # dividing wall, door between y = -1 and 0.5
+        ([-0.1, 0.5], [0.1, 4.0]),
+        ([2.0, 1.5], [3.5, 2.5]),  # table
+        ([-5.0, -3.5], [-3.5, -3.0]),  # shelf
+    ]
+    box_min = np.vstack([walls_min, [b[0] for b in inner]])
+    box_max = np.vstack([walls_max, [b[1] for b in inner]])
+    balls = np.array([[-3.0, 1.5], [3.5, -2.0]])
+    return Scene(box_min, box_max, balls, np.array([0.4, 0.3]))
+
+
+def floor_plan_2d(
+    seed: int = 0, beams: int = 360, max_range: float = 8.0, noise_std: float = 0.01
+) -> SimulatedDataset:
+    """Five 2D laser scans of `beams` rays along a path through the floor plan; rays longer
+    than `max_range` metres are no-return rays."""
+    angles = np.linspace(0.0, 2.0 * np.pi, beams, endpoint=False)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+    poses = np.array([[-3.0, -1.5], [-1.5, -0.2], [1.5, -0.2], [4.0, 0.5], [4.5, -2.8]])
+    scene = floor_plan_scene()
+    rng = np.random.default_rng(seed)
+    scans = [simulate_scan(scene, p, directions, max_range, noise_std, rng) for p in poses]
+    return SimulatedDataset("floor_plan_2d", scans, scene)

@@ -1,0 +1,69 @@
+"""Where a grid lies: checked bounds and voxel counts, and the box a map's kernels cover."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ehm.core.snapshot import MapSnapshot
+
+# Bytes a grid holds per voxel: float64 scores and float64 probabilities.
+BYTES_PER_VOXEL = 16
+# Grids that would take more than this are refused before anything is allocated.
+DEFAULT_MAX_BYTES = 2**30
+
+
+def grid_shape(
+    bounds: np.ndarray, resolution: float, dim: int, max_bytes: int = DEFAULT_MAX_BYTES
+) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Check grid bounds (2, dim) [low corner, high corner], metres, and a resolution, metres;
+    return the float64 low corner and the voxels per axis. ValueError for a resolution <= 0,
+    bounds of the wrong shape, not finite, inverted or empty, and for grids that would take more
+    than `max_bytes` (BYTES_PER_VOXEL per voxel), before anything is allocated."""
+    resolution = float(resolution)
+    if not np.isfinite(resolution) or resolution <= 0.0:
+        raise ValueError(f"grid resolution must be a positive number of metres, got {resolution}")
+    expected = f"grid bounds must have shape (2, {dim}), [low corner, high corner]"
+    try:
+        bounds = np.asarray(bounds, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{expected}, got {bounds!r}") from error
+    if bounds.shape != (2, dim):
+        raise ValueError(f"{expected}, got shape {bounds.shape}")
+    if not np.all(np.isfinite(bounds)):
+        raise ValueError(f"grid bounds must be finite, got {bounds.tolist()}")
+    low, high = bounds
+    if np.any(high < low):
+        raise ValueError(
+            f"grid bounds are inverted: high corner {high.tolist()} lies below low corner "
+            f"{low.tolist()} on axis {int(np.argmax(high < low))}"
+        )
+    if np.any(high == low):
+        axis = int(np.argmax(high == low))
+        raise ValueError(f"grid bounds are empty: zero extent on axis {axis}")
+    counts = np.maximum(np.ceil((high - low) / resolution - 1e-9), 1.0)
+    n_bytes = float(np.prod(counts)) * BYTES_PER_VOXEL
+    if n_bytes > max_bytes:
+        shape = " x ".join(f"{c:.0f}" for c in counts)
+        raise ValueError(
+            f"a grid of {shape} voxels at {resolution} m would take {n_bytes / 2**30:.2f} GiB, "
+            f"more than the limit of {max_bytes / 2**30:.2f} GiB: coarsen the resolution, "
+            "shrink the bounds or raise max_bytes"
+        )
+    return low.copy(), tuple(int(c) for c in counts)
+
+
+def support_bounds(snapshot: MapSnapshot) -> np.ndarray:
+    """(2, d) metres: the smallest box holding every kernel's support (all of the map where
+    any kernel is non-zero); the map has at least one cluster."""
+    half = support_half_widths(snapshot.transforms, snapshot.planar_kernel)
+    means = snapshot.means
+    return np.stack([(means - half).min(axis=0), (means + half).max(axis=0)])
+
+
+def support_half_widths(transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
+    """(M, d) metres: half-widths of the axis-aligned box around each kernel's support.
+
+    The support {mu + T^-1 u} with |u| < 1 (ball) reaches |row a of T^-1| along world axis a;
+    with max_b |u_b| < 1 (box, where `planar`) it reaches the sum of |row a of T^-1|."""
+    inverse = np.linalg.inv(transforms)
+    return np.where(planar[:, None], np.abs(inverse).sum(axis=2), np.linalg.norm(inverse, axis=2))

@@ -1,0 +1,328 @@
+"""HilbertMap: an Efficient Hilbert Map, learned scan by scan or in one batch, and queried.
+
+m = HilbertMap(neighbours=8)
+m.integrate(points_world, origin)      # one scan, Alg. 2
+p = m.occupancy(query_points)          # (n,) probability of occupied, Alg. 3
+g = m.grid(resolution=0.05)            # OccupancyGrid over the mapped region (Sec. 3.5)
+m.save("room.ehm"); m2 = ehm.load("room.ehm")
+
+Each method calls one function per step of the paper's algorithms (ehm.core); the map holds
+the learned state and hands grids a snapshot of it.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Iterable
+from os import PathLike
+from typing import Any
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.anchors import AnchorLayers
+from ehm.core.clusters import ClusterSet, ClusterView
+from ehm.core.coplanar import merge_coplanar
+from ehm.core.features import (
+    PointGroups,
+    decision_values,
+    group_by_cell,
+    group_neighbours,
+    training_features,
+)
+from ehm.core.grouping import group_samples
+from ehm.core.index import ClusterIndex
+from ehm.core.logistic import sigmoid
+from ehm.core.merging import absorb_clusters
+from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
+from ehm.core.scan import Scan
+from ehm.core.sgd import train_weights
+from ehm.core.snapshot import MapSnapshot
+from ehm.core.state import MapState
+from ehm.core.timing import StageTimer
+from ehm.grid.bounds import DEFAULT_MAX_BYTES
+from ehm.grid.occupancy_grid import OccupancyGrid
+from ehm.io.map_file import read_map, write_map
+
+
+class HilbertMap:
+    """Continuous occupancy map learned from range scans (Guizilini & Ramos, IJRR 2018).
+
+    config: a MapConfig; keyword overrides replace single settings, for example
+    HilbertMap(cluster_radius=0.2). Learned state ends in an underscore: clusters_ (a
+    ClusterSet), anchors_ (AnchorLayers, empty unless config.anchor_layers > 1), bias_,
+    n_scans_, timings_ (seconds per stage of the last update) and last_update_ (clusters
+    added and merged by it).
+    """
+
+    def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
+        base = config if config is not None else MapConfig()
+        self.config = base.replace(**overrides) if overrides else base
+        self._reset()
+        self._followers: weakref.WeakSet[OccupancyGrid] = weakref.WeakSet()
+
+    def _reset(self) -> None:
+        """Forget everything learned."""
+        self.clusters_: ClusterSet | None = None
+        self.bias_state_ = np.zeros(2)
+        self.n_scans_ = 0
+        self.timings_: dict[str, float] = {}
+        self.last_update_: dict[str, int] = {}
+        self.anchors_ = AnchorLayers()
+        self._index = ClusterIndex(np.zeros((0, 1)), np.zeros(0, dtype=bool))
+        self._rng = np.random.default_rng(self.config.seed)
+        # Snapshots carry this token, so grids tell a map that was refitted from one that grew.
+        self._lineage = object()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def dim(self) -> int | None:
+        return None if self.clusters_ is None else self.clusters_.dim
+
+    @property
+    def bias_(self) -> float:
+        return float(self.bias_state_[0])
+
+    @property
+    def n_clusters(self) -> int:
+        return 0 if self.clusters_ is None else len(self.clusters_)
+
+    def __repr__(self) -> str:
+        changed = {k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v}
+        settings = ", ".join(f"{k}={v!r}" for k, v in changed.items())
+        return f"HilbertMap(dim={self.dim}, clusters={self.n_clusters}, scans={self.n_scans_}" + (
+            f", {settings})" if settings else ")"
+        )
+
+    def clusters(self) -> ClusterView:
+        """A copy of the clusters: centres, covariances, weights, kind ('planar' or
+        'volumetric'), kernel, scale and label, one row per cluster (see ClusterView)."""
+        return ClusterView.of(self._learned("look at its clusters"))
+
+    def memory_bytes(self) -> int:
+        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, anchor
+        layers and the search structure over cluster centres."""
+        clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
+        return clusters + self.bias_state_.nbytes + self._index.nbytes + self.anchors_.nbytes
+
+    def state(self) -> MapState:
+        """Everything the map has learned, as plain data (shared, not copied)."""
+        clusters = self._learned("take its state")
+        return MapState(
+            self.config,
+            clusters,
+            self.anchors_,
+            self.bias_state_,
+            self.n_scans_,
+            self._rng.bit_generator.state,
+        )
+
+    @classmethod
+    def from_state(cls, state: MapState) -> HilbertMap:
+        """The map whose learned state is `state`: it answers and goes on learning exactly as
+        the map the state was taken from (when the state has its rng_state)."""
+        hilbert_map = cls(state.config)
+        hilbert_map.clusters_ = state.clusters
+        hilbert_map.bias_state_ = np.array(state.bias_state, dtype=np.float64)
+        hilbert_map.n_scans_ = state.n_scans
+        hilbert_map.anchors_ = state.anchors
+        if state.rng_state is not None:
+            hilbert_map._rng.bit_generator.state = state.rng_state
+        hilbert_map._index = ClusterIndex.of(state.clusters, state.anchors, state.config)
+        return hilbert_map
+
+    def snapshot(self) -> MapSnapshot:
+        """A read-only copy of the map's kernels and weights, for grids and pictures."""
+        clusters = self._learned("take a snapshot")
+        return MapSnapshot(
+            clusters.means.copy(),
+            clusters.transforms.copy(),
+            clusters.weights.copy(),
+            clusters.planar_kernel.copy(),
+            self._query_intercept(),
+            self._lineage,
+        )
+
+    def _learned(self, action: str) -> ClusterSet:
+        if self.clusters_ is None:
+            raise RuntimeError(f"the map is empty: integrate a scan or fit before you {action}")
+        return self.clusters_
+
+    def _query_intercept(self) -> float:
+        """The log-odds every query adds: the bias when config.query_intercept, else 0."""
+        return self.bias_ if self.config.query_intercept else 0.0
+
+    # --------------------------------------------------------------- training
+    def integrate(
+        self,
+        points_world: np.ndarray,
+        origin: np.ndarray,
+        hit_mask: np.ndarray | None = None,
+    ) -> HilbertMap:
+        """Learn one scan (Alg. 2); returns self.
+
+        points_world: (N, d) float, metres, world frame; origin: (d,) sensor centre, world
+        frame; hit_mask: (N,) bool, False for rays without return (None: all returned).
+        """
+        return self.integrate_scan(Scan(points_world, origin, hit_mask))
+
+    def integrate_scan(self, scan: Scan) -> HilbertMap:
+        """Learn one Scan (Alg. 2); returns self."""
+        if self.dim is not None and scan.dim != self.dim:
+            raise ValueError(f"scan points are {scan.dim}D, the map is {self.dim}D")
+        timer = StageTimer()
+        with timer("samples"):
+            samples = training_samples(scan, self.config, self._rng)
+        self._learn(samples, timer)
+        self.n_scans_ += 1
+        self._update_followers()
+        return self
+
+    def fit(self, scans: Iterable[Scan]) -> HilbertMap:
+        """Single-batch mode (Table 5): forget what was learned and learn all scans at once."""
+        scans = list(scans)
+        if not scans:
+            raise ValueError("fit needs at least one scan, got none")
+        for i, scan in enumerate(scans):
+            if not isinstance(scan, Scan):
+                raise ValueError(f"scan {i}: expected ehm.Scan, got {type(scan).__name__}")
+            if scan.dim != scans[0].dim:
+                raise ValueError(f"scan {i}: points are {scan.dim}D, scan 0 is {scans[0].dim}D")
+        self._reset()
+        timer = StageTimer()
+        with timer("samples"):
+            samples = samples_of_scans(scans, self.config, self._rng)
+        self._learn(samples, timer)
+        self.n_scans_ = len(scans)
+        self._update_followers()
+        return self
+
+    def _learn(self, samples: TrainingSamples, timer: StageTimer) -> None:
+        """Alg. 2 from the samples on, one step per stage of the paper's Table 2."""
+        cfg = self.config
+        if self.clusters_ is None:
+            self.clusters_ = ClusterSet.empty(samples.points.shape[1])
+        clusters = self.clusters_
+        with timer("clustering"):
+            grouped = group_samples(samples, cfg, self._rng)
+        with timer("length_scales"):
+            absorbed = absorb_clusters(clusters, self._index, grouped.clusters, cfg)
+        self.last_update_ = {"new_clusters": absorbed.n_new, "merged_clusters": absorbed.n_merged}
+        if cfg.merge_coplanar:
+            with timer("coplanar"):
+                merge = merge_coplanar(clusters, absorbed.changed, cfg)
+            self.anchors_.drop_clusters(merge.source)
+            self.last_update_["coplanar_merged"] = merge.merged
+        with timer("index"):
+            if cfg.anchor_layers > 1:
+                self.anchors_.extend(
+                    clusters.means,
+                    clusters.coarse,
+                    (cfg.cluster_radius, cfg.free_cluster_radius),
+                    cfg.anchor_radius_factor,
+                    cfg.anchor_layers - 1,
+                )
+            self._index = ClusterIndex.of(clusters, self.anchors_, cfg)
+        with timer("features"):
+            if cfg.train_search == "point":
+                groups = PointGroups.singletons(samples.points)
+            else:
+                groups = grouped.groups
+            features = training_features(samples.points, groups, self._index, clusters, cfg)
+        with timer("sgd"):
+            train_weights(features, samples.occupied, clusters, self.bias_state_, cfg, self._rng)
+        self.timings_ = dict(timer.seconds)
+
+    # ---------------------------------------------------------------- queries
+    def occupancy(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n,) float64 probability that each point is occupied.
+
+        points: (n, d) float, metres, world frame. mode: 'batch' (Alg. 3: one neighbour search
+        per group of nearby points) or 'exact' (one per point); default config.query_mode.
+        Rows with NaN or infinite coordinates give NaN.
+        """
+        return sigmoid(self.decision_function(points, mode))
+
+    def predict_proba(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n, 2) float64 [p(free), p(occupied)] per point, scikit-learn style."""
+        occupied = self.occupancy(points, mode)
+        return np.column_stack([1.0 - occupied, occupied])
+
+    def decision_function(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n,) float64 log-odds of occupancy: w^T phi(x), plus the intercept b when
+        config.query_intercept is set (Alg. 3)."""
+        clusters = self._learned("query it")
+        mode = mode or self.config.query_mode
+        if mode not in ("batch", "exact"):
+            raise ValueError(f"query mode must be 'batch' or 'exact', got {mode!r}")
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != self.dim:
+            raise ValueError(
+                f"query points must have shape (n, {self.dim}), got {tuple(points.shape)}"
+            )
+        finite = np.all(np.isfinite(points), axis=1)
+        scores = np.full(len(points), np.nan)
+        query = np.ascontiguousarray(points[finite])
+        if mode == "batch":
+            groups = group_by_cell(query, self.config.query_cell)
+        else:
+            groups = PointGroups.singletons(query)
+        neighbours = group_neighbours(
+            self._index, query, groups, self.config.neighbours, self.config.coarse_neighbours
+        )
+        scores[finite] = decision_values(
+            query,
+            groups.group_of_point,
+            neighbours,
+            clusters.means,
+            clusters.transforms,
+            clusters.planar_kernel,
+            clusters.weights,
+            self._query_intercept(),
+        )
+        return scores
+
+    # ------------------------------------------------------------------ grids
+    def grid(
+        self,
+        bounds: np.ndarray | None = None,
+        resolution: float = 0.05,
+        follow: bool = False,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+    ) -> OccupancyGrid:
+        """Occupancy grid by incremental grid reconstruction (Sec. 3.5).
+
+        bounds: (2, d) metres, world frame, [low corner, high corner]; None: the box holding
+        every kernel's support. resolution: voxel side, metres. follow: keep the grid up to
+        date after every integrate or fit, for as long as it is referenced (several grids,
+        at any resolutions, can follow one map); its bounds stay as they were made. max_bytes:
+        refuse larger grids (ValueError) before allocating.
+        """
+        self._learned("build a grid")
+        grid = OccupancyGrid.of(self.snapshot(), bounds, resolution, max_bytes)
+        if follow:
+            self._followers.add(grid)
+        return grid
+
+    def _update_followers(self) -> None:
+        """Bring every following grid up to date, timed as the stage 'grids'."""
+        if len(self._followers) == 0:
+            return
+        timer = StageTimer()
+        with timer("grids"):
+            snapshot = self.snapshot()
+            for grid in self._followers:
+                grid.update(snapshot)
+        self.timings_.update(timer.seconds)
+
+    # ------------------------------------------------------------ persistence
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write the map to `path` atomically (see ehm.io.map_file)."""
+        self._learned("save it")
+        write_map(self.state(), path)
+
+
+def load(path: str | PathLike[str]) -> HilbertMap:
+    """Read a map written by HilbertMap.save; it answers and goes on learning exactly as the
+    saved map would. ehm.io.map_file.MapFileError names what is wrong with a bad file."""
+    return HilbertMap.from_state(read_map(path))

@@ -1,0 +1,179 @@
+"""The one scan loop: read scans, learn each one (or all at once), add up the time of every
+stage, and tell observers how it goes. The command line, the demo, the evaluation and the
+benchmarks all map through it.
+
+    run = MappingPipeline(read_scans("scans/"), HilbertMap()).run()
+    run.hilbert_map.save("map.ehm")
+    run.stage_seconds, run.scan_seconds, run.n_rays
+
+Scans may come from any iterable, read lazily: the time spent waiting for the next scan is
+the stage 'read'. Observers (a progress bar, a viewer) see each scan; the loop never asks
+whether any are there.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from ehm.core.scan import Scan
+from ehm.hilbert_map import HilbertMap
+
+
+@dataclass
+class MappingRun:
+    """What a pipeline run did. hilbert_map: the map it learned. n_scans, n_rays: scans and
+    rays learned; n_dropped: non-finite points the scans dropped. stage_seconds: wall-clock
+    seconds per stage ('read', then the map's stages, Table 2), summed over every update.
+    scan_seconds: wall-clock seconds of each integrate (incremental), or of the one fit."""
+
+    hilbert_map: HilbertMap
+    n_scans: int = 0
+    n_rays: int = 0
+    n_dropped: int = 0
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+    scan_seconds: list[float] = field(default_factory=list)
+
+    @property
+    def seconds(self) -> float:
+        """Wall-clock seconds of reading and learning."""
+        return self.stage_seconds.get("read", 0.0) + sum(self.scan_seconds)
+
+    def add_stages(self, seconds: dict[str, float]) -> None:
+        """Add seconds per stage to the totals."""
+        for stage, value in seconds.items():
+            self.stage_seconds[stage] = self.stage_seconds.get(stage, 0.0) + value
+
+
+class MappingObserver(Protocol):
+    """Told what a pipeline does, as it does it."""
+
+    def started(self, total: int | None) -> None:
+        """Mapping begins; `total` scans will come (None: unknown)."""
+
+    def scan_read(self, index: int, scan: Scan) -> None:
+        """Scan `index` (0-based) was read."""
+
+    def scan_learned(self, index: int, scan: Scan, hilbert_map: HilbertMap) -> None:
+        """Scan `index` is in the map (incremental mode; in batch mode all are learned at the
+        end, and only `finished` follows)."""
+
+    def finished(self, run: MappingRun) -> None:
+        """Mapping is over: done, or stopped by an error."""
+
+
+class NullObserver:
+    """An observer that does nothing."""
+
+    def started(self, total: int | None) -> None:
+        pass
+
+    def scan_read(self, index: int, scan: Scan) -> None:
+        pass
+
+    def scan_learned(self, index: int, scan: Scan, hilbert_map: HilbertMap) -> None:
+        pass
+
+    def finished(self, run: MappingRun) -> None:
+        pass
+
+
+class MappingPipeline:
+    """Learn `scans` into `hilbert_map` (a new HilbertMap() when None): one integrate per
+    scan, in order, or with `batch` all of them in one fit (single-batch mode, Table 5).
+    `observers` see each scan."""
+
+    def __init__(
+        self,
+        scans: Iterable[Scan],
+        hilbert_map: HilbertMap | None = None,
+        batch: bool = False,
+        observers: Sequence[MappingObserver] = (),
+    ) -> None:
+        self.scans = scans
+        self.hilbert_map = hilbert_map if hilbert_map is not None else HilbertMap()
+        self.batch = batch
+        self.observers = list(observers) or [NullObserver()]
+
+    def run(self) -> MappingRun:
+        """Map every scan; returns what was done."""
+        run = MappingRun(self.hilbert_map)
+        total = len(self.scans) if hasattr(self.scans, "__len__") else None
+        for observer in self.observers:
+            observer.started(total)
+        try:
+            if self.batch:
+                scans = list(self._read(run))
+                start = time.perf_counter()
+                self.hilbert_map.fit(scans)
+                self._learned(run, start)
+            else:
+                for index, scan in enumerate(self._read(run)):
+                    start = time.perf_counter()
+                    self.hilbert_map.integrate_scan(scan)
+                    self._learned(run, start)
+                    for observer in self.observers:
+                        observer.scan_learned(index, scan, self.hilbert_map)
+        finally:
+            for observer in self.observers:
+                observer.finished(run)
+        return run
+
+    def _read(self, run: MappingRun) -> Iterator[Scan]:
+        """The scans, counted and passed to observers, with the wait for each timed as 'read'."""
+        scans = iter(self.scans)
+        index = 0
+        while True:
+            start = time.perf_counter()
+            scan = next(scans, None)
+            run.add_stages({"read": time.perf_counter() - start})
+            if scan is None:
+                return
+            if not isinstance(scan, Scan):
+                raise ValueError(f"scan {index}: expected ehm.Scan, got {type(scan).__name__}")
+            run.n_scans += 1
+            run.n_rays += len(scan)
+            run.n_dropped += scan.n_dropped
+            for observer in self.observers:
+                observer.scan_read(index, scan)
+            yield scan
+            index += 1
+
+    def _learned(self, run: MappingRun, start: float) -> None:
+        """Record an update that began at perf_counter() `start`."""
+        run.scan_seconds.append(time.perf_counter() - start)
+        run.add_stages(self.hilbert_map.timings_)
+
+
+class ProgressBar(NullObserver):
+    """A Rich progress bar over the scans: scans learned, their rate and the time elapsed."""
+
+    def __init__(self, console=None, description: str = "mapping") -> None:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+        self._progress = Progress(
+            "[progress.description]{task.description}",
+            BarColumn(),
+            MofNCompleteColumn(),
+            "{task.fields[rate]}",
+            TimeElapsedColumn(),
+            console=console,
+        )
+        self._description = description
+        self._task = None
+        self._start = 0.0
+
+    def started(self, total: int | None) -> None:
+        self._start = time.perf_counter()
+        self._task = self._progress.add_task(self._description, total=total, rate="")
+        self._progress.start()
+
+    def scan_learned(self, index: int, scan: Scan, hilbert_map: HilbertMap) -> None:
+        rate = (index + 1) / max(time.perf_counter() - self._start, 1e-9)
+        self._progress.update(self._task, completed=index + 1, rate=f"{rate:.1f} scans/s")
+
+    def finished(self, run: MappingRun) -> None:
+        self._progress.update(self._task, total=run.n_scans, completed=run.n_scans)
+        self._progress.stop()

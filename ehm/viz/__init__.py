@@ -1,0 +1,1 @@
+"""Pictures of maps, off-screen: colours, a mesh rasterizer and PNG figures."""

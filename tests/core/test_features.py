@@ -1,0 +1,89 @@
+"""Sparse features, one neighbour search per group of points (Alg. 2, 3)."""
+
+import numpy as np
+import pytest
+
+from ehm.config import MapConfig
+from ehm.core.clusters import ClusterSet
+from ehm.core.features import (
+    PointGroups,
+    decision_values,
+    decision_values_reference,
+    group_by_cell,
+    kernel_values,
+    kernel_values_reference,
+)
+from ehm.core.index import ClusterIndex
+from ehm.core.kernels import kernel_transforms
+
+
+def _random_problem(rng, dim):
+    n_clusters, n_points, n_groups, k = 40, 500, 30, 6
+    means = rng.uniform(0, 2, (n_clusters, dim))
+    a = rng.normal(size=(n_clusters, dim, dim)) * 0.2
+    covariances = a @ np.swapaxes(a, 1, 2)
+    planar = rng.random(n_clusters) < 0.5
+    transforms = kernel_transforms(covariances, 3.0, 0.05, planar)
+    points = rng.uniform(0, 2, (n_points, dim))
+    group_of_point = rng.integers(0, n_groups, n_points)
+    neighbours = rng.integers(0, n_clusters, (n_groups, k))
+    neighbours[0, 3:] = -1  # fewer clusters than k
+    return points, group_of_point, neighbours, means, transforms, planar
+
+
+def test_kernel_values_match_reference(rng):
+    for dim in (2, 3):
+        problem = _random_problem(rng, dim)
+        compiled = kernel_values(*problem)
+        np.testing.assert_allclose(compiled, kernel_values_reference(*problem), atol=1e-12)
+        assert np.count_nonzero(compiled) > 0.05 * compiled.size
+        assert np.any(compiled == 1.0) and np.any((compiled > 0) & (compiled < 1))
+
+
+def test_decision_values_match_reference(rng):
+    problem = _random_problem(rng, 3)
+    weights = rng.normal(size=len(problem[3]))
+    compiled = decision_values(*problem, weights, 0.3)
+    np.testing.assert_allclose(
+        compiled, decision_values_reference(*problem, weights, 0.3), atol=1e-12
+    )
+
+
+def test_searches_bounded_by_kernel_reach_give_the_same_features(rng):
+    means = rng.uniform(-3, 3, (300, 3))
+    covariances = np.array([np.diag(rng.uniform(0.01, 0.3, 3) ** 2) for _ in range(300)])
+    clusters = ClusterSet.empty(3)
+    clusters.append(means, covariances, np.full(300, 10), rng.random(300) < 0.3, np.ones(300))
+    clusters.refresh(np.arange(300), MapConfig(planar_kernel=True))
+    assert 0 < clusters.planar_kernel.sum() < 300
+    points = rng.uniform(-3, 3, (2000, 3))
+    groups = group_by_cell(points, 0.5)
+    group_of_point, centres, spread = groups.group_of_point, groups.centres, groups.spread(points)
+    args = (points, group_of_point)
+    cluster_arrays = (
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+        rng.normal(size=300),
+        0.0,
+    )
+    bounded = ClusterIndex.of(clusters).nearest(centres, 8, 2, spread)
+    unbounded = ClusterIndex(clusters.means, clusters.coarse).nearest(centres, 8, 2)
+    assert (bounded == -1).sum() > (unbounded == -1).sum()  # the bound did prune
+    np.testing.assert_allclose(
+        decision_values(*args, bounded, *cluster_arrays),
+        decision_values(*args, unbounded, *cluster_arrays),
+        atol=1e-12,
+    )
+
+
+def test_group_by_cell_groups_points_sharing_a_cell():
+    points = np.array([[0.01, 0.01], [0.09, 0.02], [0.15, 0.01], [0.02, 0.19], [0.12, 0.05]])
+    groups = group_by_cell(points, 0.1)
+    group_of_point, centres = groups.group_of_point, groups.centres
+    assert group_of_point[0] == group_of_point[1] != group_of_point[2] == group_of_point[4]
+    assert len(centres) == 3
+    np.testing.assert_allclose(centres[group_of_point[2]], [0.135, 0.03])
+    assert groups.spread(points) == pytest.approx(np.hypot(0.04, 0.005))
+    assert PointGroups.singletons(points).spread(points) == 0.0
+    assert group_by_cell(np.zeros((0, 2)), 0.1).centres.shape == (0, 2)

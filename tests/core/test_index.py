@@ -1,0 +1,56 @@
+"""Neighbour search over cluster centres: kd-trees per scale, anisotropic ranking (Sec. 3.1)."""
+
+import numpy as np
+
+from ehm.core.index import ClusterIndex, KernelRanking, kernel_radii, kernel_radii_reference
+
+
+def test_index_returns_nearest_fine_then_nearest_coarse_clusters(rng):
+    centres = rng.uniform(-5, 5, (200, 3))
+    coarse = rng.random(200) < 0.3
+    points = rng.uniform(-5, 5, (50, 3))
+    found = ClusterIndex(centres, coarse).nearest(points, 5, 2)
+    assert found.shape == (50, 7)
+    for point, row in zip(points, found, strict=True):
+        distance = np.linalg.norm(centres - point, axis=1)
+        for scale, columns in ((False, row[:5]), (True, row[5:])):
+            rows = np.flatnonzero(coarse == scale)
+            expected = rows[np.argsort(distance[rows])[: len(columns)]]
+            np.testing.assert_array_equal(np.sort(columns), np.sort(expected))
+
+
+def test_index_pads_missing_clusters_and_drops_an_absent_scale():
+    centres = np.array([[0.0, 0, 0], [1.0, 0, 0]])
+    found = ClusterIndex(centres, np.array([False, False])).nearest(np.zeros((1, 3)), 3, 2)
+    np.testing.assert_array_equal(found, [[0, 1, -1]])
+    found = ClusterIndex(centres, np.array([False, True])).nearest(np.zeros((1, 3)), 2, 2)
+    np.testing.assert_array_equal(found, [[0, -1, 1, -1]])
+
+
+def test_kernel_radii_match_reference(rng, random_clusters):
+    clusters = random_clusters(rng)
+    assert 0 < clusters.planar_kernel.sum() < len(clusters)
+    points = rng.uniform(0, 6, (300, 3))
+    candidates = rng.integers(-1, len(clusters), (300, 12))
+    args = (points, candidates, clusters.means, clusters.transforms, clusters.planar_kernel)
+    compiled, reference = kernel_radii(*args), kernel_radii_reference(*args)
+    np.testing.assert_allclose(compiled, reference, rtol=1e-12)
+    assert np.all(np.isinf(compiled[candidates < 0]))
+
+
+def test_anisotropic_search_ranks_by_kernel_radius(rng, random_clusters):
+    clusters = random_clusters(rng)
+    ranking = KernelRanking(clusters.means, clusters.transforms, clusters.planar_kernel, 3)
+    index = ClusterIndex(clusters.means, clusters.coarse, None, ranking)
+    points = rng.uniform(0, 6, (200, 3))
+    found = index.nearest_of_scale(points, False, 5)
+    candidates = ClusterIndex(clusters.means, clusters.coarse).nearest_of_scale(points, False, 15)
+    radii = kernel_radii_reference(
+        points, candidates, clusters.means, clusters.transforms, clusters.planar_kernel
+    )
+    expected = np.take_along_axis(candidates, np.argsort(radii, axis=1, kind="stable")[:, :5], 1)
+    np.testing.assert_array_equal(found, expected)
+    radii_found = kernel_radii_reference(
+        points, found, clusters.means, clusters.transforms, clusters.planar_kernel
+    )
+    assert np.all(np.diff(radii_found, axis=1) >= 0)

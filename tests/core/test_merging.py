@@ -1,0 +1,132 @@
+"""How new clusters join the map (Alg. 2 lines 4-21)."""
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.clusters import ClusterSet
+from ehm.core.grouping import NewClusters
+from ehm.core.index import ClusterIndex
+from ehm.core.merging import (
+    absorb_clusters,
+    anisotropic_distances,
+    match_new_clusters,
+    merge_average,
+    merge_pooled,
+)
+
+
+def _set_from(groups, coarse=None, occupied=None):
+    clusters = ClusterSet.empty(3)
+    clusters.append(
+        np.array([g.mean(axis=0) for g in groups]),
+        np.array([np.cov(g.T) for g in groups]),
+        np.array([len(g) for g in groups]),
+        np.zeros(len(groups), bool) if coarse is None else np.asarray(coarse),
+        np.ones(len(groups), bool) if occupied is None else np.asarray(occupied),
+    )
+    clusters.refresh(np.arange(len(groups)), MapConfig())
+    return clusters
+
+
+def _new(means, covariances, coarse, occupied):
+    return NewClusters(means, covariances, np.full(len(means), 10), coarse, occupied)
+
+
+def test_pooled_merge_equals_statistics_of_the_union(rng):
+    old = [rng.normal(c, 0.2, (30, 3)) for c in ([0, 0, 0], [5, 0, 0])]
+    new = [rng.normal(c, 0.3, (n, 3)) for c, n in (([0.1, 0, 0], 12), ([0.2, 0.1, 0], 20))]
+    clusters = _set_from(old)
+    merge_pooled(
+        clusters,
+        np.array([0, 0]),
+        np.array([g.mean(axis=0) for g in new]),
+        np.array([np.cov(g.T) for g in new]),
+        np.array([len(g) for g in new]),
+    )
+    union = np.concatenate([old[0], *new])
+    np.testing.assert_allclose(clusters.means[0], union.mean(axis=0), atol=1e-12)
+    np.testing.assert_allclose(clusters.covariances[0], np.cov(union.T), atol=1e-12)
+    assert clusters.counts[0] == len(union)
+    np.testing.assert_allclose(clusters.means[1], old[1].mean(axis=0))
+
+
+def test_average_merge_applies_the_papers_rule_in_order(rng):
+    clusters = _set_from([rng.normal(0, 0.2, (10, 3)), rng.normal(3, 0.2, (10, 3))])
+    mean0, cov0 = clusters.means[0].copy(), clusters.covariances[0].copy()
+    means = rng.normal(size=(3, 3))
+    covariances = np.array([np.eye(3) * s for s in (1.0, 2.0, 3.0)])
+    merge_average(clusters, np.array([0, 1, 0]), means, covariances, np.array([5, 5, 5]))
+    expected_mean = ((mean0 + means[0]) / 2 + means[2]) / 2
+    expected_cov = ((cov0 + covariances[0]) / 2 + covariances[2]) / 2
+    np.testing.assert_allclose(clusters.means[0], expected_mean)
+    np.testing.assert_allclose(clusters.covariances[0], expected_cov)
+    assert clusters.counts[0] == 20
+
+
+def test_anisotropic_distance_is_eq14():
+    # Sigma_a = Sigma_b = diag(1, 4, 9): (sqrt + sqrt)^2 = diag(4, 16, 36).
+    roots = np.diag([1.0, 2.0, 3.0])[None]
+    offset = np.array([[2.0, 4.0, 0.0]])
+    distance = anisotropic_distances(offset, roots, np.zeros((1, 3)), roots)
+    np.testing.assert_allclose(distance, [np.sqrt(4 / 4 + 16 / 16)])
+
+
+def test_match_merges_only_within_one_standard_deviation(rng):
+    clusters = _set_from([rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])])
+    covariances = np.repeat(clusters.covariances[:1], 3, axis=0)
+    means = np.array([[0.05, 0, 0], [1.0, 0, 0], [2.02, 0.01, 0]])
+    coarse, occupied = np.zeros(3, bool), np.ones(3, bool)
+    new = _new(means, covariances, coarse, occupied)
+    targets = match_new_clusters(clusters, ClusterIndex.of(clusters), new, 1.0, 1e-3)
+    np.testing.assert_array_equal(targets, [0, -1, 1])
+
+
+def test_match_merges_only_clusters_of_the_same_scale(rng):
+    clusters = _set_from(
+        [rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])], coarse=[False, True]
+    )
+    covariances = np.repeat(clusters.covariances[:1], 4, axis=0)
+    means = np.array([[0.05, 0, 0], [0.05, 0, 0], [2.02, 0, 0], [2.02, 0, 0]])
+    coarse = np.array([False, True, False, True])
+    targets = match_new_clusters(
+        clusters,
+        ClusterIndex.of(clusters),
+        _new(means, covariances, coarse, np.ones(4, bool)),
+        1.0,
+        1e-3,
+    )
+    np.testing.assert_array_equal(targets, [0, -1, -1, 1])
+
+
+def test_match_merges_only_clusters_of_the_same_label(rng):
+    clusters = _set_from(
+        [rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [0.1, 0, 0])], occupied=[True, False]
+    )
+    covariances = np.repeat(clusters.covariances[:1], 2, axis=0)
+    means = np.array([[0.08, 0, 0], [0.02, 0, 0]])
+    occupied = np.array([True, False])
+    targets = match_new_clusters(
+        clusters,
+        ClusterIndex.of(clusters),
+        _new(means, covariances, np.zeros(2, bool), occupied),
+        1.0,
+        1e-3,
+    )
+    np.testing.assert_array_equal(targets, [0, 1])
+
+
+def test_absorb_merges_close_clusters_and_adds_the_others(rng):
+    clusters = _set_from([rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])])
+    weights = np.array([1.5, -2.0])
+    clusters.weights[:] = weights
+    covariances = np.repeat(clusters.covariances[:1], 3, axis=0)
+    means = np.array([[0.05, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
+    new = _new(means, covariances, np.zeros(3, bool), np.ones(3, bool))
+    absorbed = absorb_clusters(clusters, ClusterIndex.of(clusters), new, MapConfig())
+    assert (absorbed.n_new, absorbed.n_merged) == (2, 1)
+    np.testing.assert_array_equal(absorbed.changed, [0, 2, 3])
+    assert len(clusters) == 4 and clusters.counts[0] == 50 + 10
+    # Merged clusters keep their weights; new ones start at 0 with their kernels ready.
+    np.testing.assert_array_equal(clusters.weights, [*weights, 0.0, 0.0])
+    np.testing.assert_allclose(clusters.means[2:], means[1:])
+    assert np.all(np.abs(clusters.transforms[2:]).sum(axis=(1, 2)) > 0)

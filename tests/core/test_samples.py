@@ -1,0 +1,48 @@
+"""Training samples drawn along rays."""
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.samples import training_samples
+from ehm.core.scan import Scan
+
+
+def test_training_samples_lie_on_rays_with_the_right_labels(rng):
+    origin = np.array([0.0, 0.0, 1.0])
+    directions = rng.normal(size=(500, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    lengths = rng.uniform(1.0, 5.0, 500)
+    hit = rng.random(500) < 0.8
+    scan = Scan(origin + directions * lengths[:, None], origin, hit)
+    config = MapConfig(free_spacing=0.25, surface_margin=0.05, occupied_depth=0.1)
+    samples = training_samples(scan, config, rng)
+    offsets = samples.points - origin
+    distance = np.linalg.norm(offsets, axis=1)
+    # Every sample is on one of the rays.
+    cosine = (offsets / distance[:, None]) @ directions.T
+    ray = np.argmax(cosine, axis=1)
+    np.testing.assert_allclose(cosine[np.arange(len(ray)), ray], 1.0, atol=1e-9)
+    depth = distance - lengths[ray]  # > 0 behind the ray's end
+    occupied = samples.occupied
+    assert np.all(hit[ray[occupied]])
+    assert np.all((depth[occupied] >= -1e-9) & (depth[occupied] <= 0.1 + 1e-9))
+    free_on_hits = ~occupied & hit[ray]
+    assert np.all(depth[free_on_hits] <= -0.05 / 4 + 1e-9)
+    # Samples around hits are flagged: all occupied ones, and one free one per hit in the band.
+    in_band = ~occupied & samples.at_surface
+    assert np.all(samples.at_surface[occupied])
+    assert in_band.sum() == hit.sum()
+    assert np.all((depth[in_band] >= -0.05 - 1e-9) & (depth[in_band] <= -0.05 / 4 + 1e-9))
+    assert not np.any(samples.at_surface & ~hit[ray])
+    assert np.all(depth[~occupied & ~hit[ray]] <= 1e-9)
+    # Free density follows the setting: about length / spacing samples per ray.
+    along = ~occupied & (depth < -0.05 - 1e-9)
+    expected = np.sum(np.maximum(lengths - 0.05 * hit, 0) / 0.25)
+    assert abs(along.sum() - expected) < 0.1 * expected
+
+
+def test_no_return_rays_give_free_samples_only(rng):
+    scan = Scan(np.array([[3.0, 0.0], [0.0, 2.0]]), np.zeros(2), np.array([False, False]))
+    samples = training_samples(scan, MapConfig(free_spacing=0.1), rng)
+    assert not samples.occupied.any()
+    assert len(samples) > 30

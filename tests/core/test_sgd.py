@@ -1,0 +1,50 @@
+"""Stochastic gradient descent on the logistic loss (Eq. 2-3)."""
+
+import numpy as np
+
+from ehm.core.sgd import sgd_pass, sgd_pass_reference
+
+
+def test_sgd_pass_matches_reference(rng):
+    n, k, n_groups, n_clusters = 400, 5, 20, 30
+    values = rng.uniform(0, 1, (n, k)) * (rng.random((n, k)) < 0.7)
+    group_of_point = rng.integers(0, n_groups, n)
+    neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
+    neighbours[3, 2:] = -1
+    labels = (rng.random(n) < 0.4).astype(float)
+    order = rng.permutation(n)
+    state = [rng.normal(size=n_clusters), rng.uniform(0, 1, n_clusters), np.array([0.1, 0.5])]
+    compiled = [a.copy() for a in state]
+    reference = [a.copy() for a in state]
+    class_weights = np.array([0.7, 1.9])
+    sgd_pass(values, group_of_point, neighbours, labels, class_weights, order, *compiled, 0.3, 1e-3)
+    sgd_pass_reference(
+        values, group_of_point, neighbours, labels, class_weights, order, *reference, 0.3, 1e-3
+    )
+    for got, want in zip(compiled, reference, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert not np.allclose(compiled[0], state[0])
+
+
+def test_sgd_separates_two_classes():
+    # One feature per class: weights must move towards the labels.
+    n = 2000
+    labels = np.tile([1.0, 0.0], n // 2)
+    values = np.where(labels[:, None] == 1.0, [[1.0, 0.0]], [[0.0, 1.0]])
+    neighbours = np.array([[0, 1]])
+    weights, grad_sq, bias = np.zeros(2), np.zeros(2), np.zeros(2)
+    sgd_pass(
+        values,
+        np.zeros(n, dtype=np.int64),
+        neighbours,
+        labels,
+        np.ones(2),
+        np.arange(n),
+        weights,
+        grad_sq,
+        bias,
+        0.3,
+        0.0,
+    )
+    assert weights[0] + bias[0] > 2.0
+    assert weights[1] + bias[0] < -2.0

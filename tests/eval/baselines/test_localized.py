@@ -1,0 +1,29 @@
+"""EHM and LLS-HM as Mappers."""
+
+import numpy as np
+import pytest
+
+from ehm.eval.baselines.localized import LocalizedMapper
+
+
+def test_incremental_ehm_times_every_scan_and_batch_learns_at_once(plan):
+    incremental, batch = LocalizedMapper("ehm"), LocalizedMapper("ehm-batch")
+    incremental.build(plan.scans)
+    batch.build(plan.scans)
+    assert len(incremental.scan_seconds) == len(plan.scans)
+    assert all(seconds > 0 for seconds in incremental.scan_seconds)
+    assert incremental.map.n_scans_ == batch.map.n_scans_ == len(plan.scans)
+    assert batch.scan_seconds == []
+    # Scan by scan and in one batch are different maps of the same plan.
+    assert incremental.map.n_clusters != batch.map.n_clusters
+    assert incremental.memory_bytes() == incremental.map.memory_bytes()
+    points = plan.scans[0].points_world
+    np.testing.assert_array_equal(incremental.occupancy(points), incremental.map.occupancy(points))
+
+
+def test_lls_hm_searches_per_point():
+    mapper = LocalizedMapper("lls-hm")
+    assert mapper.map.config.train_search == "point"
+    assert mapper.map.config.query_mode == "exact"
+    with pytest.raises(ValueError, match="kind must be one of ehm, ehm-batch, lls-hm"):
+        LocalizedMapper("ehm-fast")

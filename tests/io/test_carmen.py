@@ -1,0 +1,15 @@
+"""CARMEN 2D laser logs."""
+
+import numpy as np
+
+from ehm.io.readers import read_scans
+
+
+def test_carmen_log(tmp_path):
+    ranges = " ".join(["1.0", "81.83", "2.0", "1.5"])
+    (tmp_path / "a.log").write_text(f"ODOM 0 0 0\nFLASER 4 {ranges} 1.0 2.0 0.0 0 0 0 0 host 0\n")
+    (scan,) = read_scans(tmp_path / "a.log")
+    assert len(scan) == 3  # the 81.83 m dropout is gone
+    np.testing.assert_allclose(scan.origin, [1, 2])
+    np.testing.assert_allclose(scan.points_world[0], [1.0, 1.0], atol=1e-12)  # -90 degrees
+    np.testing.assert_allclose(scan.points_world[1], [3.0, 2.0], atol=1e-12)  # 0 degrees

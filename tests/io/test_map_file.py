@@ -1,0 +1,135 @@
+"""Map files: round trips, corruption, atomic saves."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ehm
+from ehm.eval.datasets import floor_plan_2d, virtual_room
+from ehm.io.map_file import MapFileError
+
+# Map files written by earlier versions of ehm, and what they answered.
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module")
+def small_map(plan):
+    return ehm.HilbertMap(neighbours=6).fit(plan.scans)
+
+
+def test_round_trip_answers_exactly_as_saved(small_map, tmp_path, rng):
+    path = tmp_path / "plan.ehm"
+    small_map.save(path)
+    loaded = ehm.load(path)
+    points = rng.uniform(-6, 6, (5000, 2))
+    np.testing.assert_array_equal(loaded.occupancy(points), small_map.occupancy(points))
+    np.testing.assert_array_equal(
+        loaded.occupancy(points, mode="exact"), small_map.occupancy(points, mode="exact")
+    )
+    assert loaded.config == small_map.config
+    assert loaded.n_scans_ == small_map.n_scans_
+    assert loaded.memory_bytes() == small_map.memory_bytes()
+    # Saving the loaded map again gives the same bytes.
+    loaded.save(tmp_path / "again.ehm")
+    assert (tmp_path / "again.ehm").read_bytes() == path.read_bytes()
+
+
+def test_memory_bytes_counts_every_array(small_map):
+    arrays = small_map.clusters_.arrays().values()
+    assert small_map.memory_bytes() > sum(a.nbytes for a in arrays)
+    assert small_map.memory_bytes() < 3 * sum(a.nbytes for a in arrays)
+
+
+@pytest.mark.parametrize("overrides", [{}, {"anchor_layers": 2, "merge_coplanar": True}])
+def test_loaded_map_goes_on_learning_exactly_as_the_saved_one(plan, tmp_path, overrides):
+    original = ehm.HilbertMap(**overrides)
+    for scan in plan.scans[:2]:
+        original.integrate_scan(scan)
+    original.save(tmp_path / "m.ehm")
+    loaded = ehm.load(tmp_path / "m.ehm")
+    for scan in plan.scans[2:]:
+        original.integrate_scan(scan)
+        loaded.integrate_scan(scan)
+    for name, array in original.clusters_.arrays().items():
+        np.testing.assert_array_equal(getattr(loaded.clusters_, name), array, err_msg=name)
+    np.testing.assert_array_equal(loaded.bias_state_, original.bias_state_)
+    for layer, parents in enumerate(original.anchors_.parents):
+        np.testing.assert_array_equal(loaded.anchors_.parents[layer], parents)
+    assert loaded.n_scans_ == original.n_scans_ == len(plan.scans)
+    points = np.random.default_rng(1).uniform(-6, 6, (2000, 2))
+    np.testing.assert_array_equal(loaded.occupancy(points), original.occupancy(points))
+
+
+def test_corrupt_truncated_and_foreign_files_are_refused(small_map, tmp_path):
+    path = tmp_path / "m.ehm"
+    small_map.save(path)
+    data = path.read_bytes()
+    flipped = bytearray(data)
+    flipped[len(data) // 2] ^= 0xFF
+    cases = {
+        "corrupt": bytes(flipped),
+        "truncated": data[: len(data) - 100],
+        "not an ehm map file": b"PK\x03\x04 a zip file, not a map",
+        "newer than this ehm reads": data[:8] + (99).to_bytes(4, "little") + data[12:],
+        "older than this ehm reads": data[:8] + (1).to_bytes(4, "little") + data[12:],
+    }
+    for message, content in cases.items():
+        bad = tmp_path / "bad.ehm"
+        bad.write_bytes(content)
+        with pytest.raises(MapFileError, match=message):
+            ehm.load(bad)
+
+
+def test_save_is_atomic(small_map, tmp_path, monkeypatch):
+    path = tmp_path / "m.ehm"
+    small_map.save(path)
+    before = path.read_bytes()
+
+    def crash(*args):
+        raise OSError("disk full")
+
+    monkeypatch.setattr("os.replace", crash)
+    with pytest.raises(OSError, match="disk full"):
+        small_map.save(path)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["m.ehm"]
+
+
+def test_empty_map_cannot_be_saved(tmp_path):
+    with pytest.raises(RuntimeError, match="the map is empty: integrate a scan or fit before"):
+        ehm.HilbertMap().save(tmp_path / "x.ehm")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", ["plan", "room"])
+def test_maps_of_format_3_load_and_answer_as_they_did(name):
+    """Files written in format 3, before the random generator's state was stored: a 2D plan
+    (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
+    They answer as when they were written, and a map built now from the same scans with the
+    same settings answers the same."""
+    recorded = np.load(DATA / "answers_v3.npz")
+    assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
+    loaded = ehm.load(DATA / f"{name}_v3.ehm")
+    points = recorded[f"{name}_points"]
+    rebuilt = rebuild_v3_map(name)
+    assert loaded.config == rebuilt.config
+    for mode in ("batch", "exact"):
+        np.testing.assert_array_equal(loaded.occupancy(points, mode), recorded[f"{name}_{mode}"])
+        np.testing.assert_array_equal(rebuilt.occupancy(points, mode), recorded[f"{name}_{mode}"])
+
+
+def rebuild_v3_map(name: str) -> ehm.HilbertMap:
+    """The map the format-3 file `name` holds, built again from its scans."""
+    if name == "plan":
+        hilbert_map = ehm.HilbertMap(neighbours=6, anchor_layers=2)
+        scans = floor_plan_2d(seed=0).scans
+    else:
+        hilbert_map = ehm.HilbertMap(
+            planar_kernel=True, merge_coplanar=True, anisotropic_search=True
+        )
+        (scan,) = virtual_room(seed=0, rings=16, azimuths=240).scans
+        scans = [scan.subset(np.arange(len(scan)) % 2 == part) for part in (0, 1)]
+    for scan in scans:
+        hilbert_map.integrate_scan(scan)
+    return hilbert_map

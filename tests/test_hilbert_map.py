@@ -1,0 +1,162 @@
+"""HilbertMap: learning, queries and the settings that change them."""
+
+import numpy as np
+import pytest
+
+import ehm
+from ehm.eval.metrics import roc_auc, score
+from ehm.eval.protocol import exact_test_points, held_out_rays, near_surface_points, observed_mask
+
+
+@pytest.fixture(scope="module")
+def room_tests(room):
+    low, high = room.scene.box_min.min(axis=0), room.scene.box_max.max(axis=0)
+    return exact_test_points(room.scans, low, high, 0.3, 60_000, 0.05, np.random.default_rng(5))
+
+
+def test_room_map_scores_well_against_exact_occupancy(room, room_map, room_tests):
+    near, uniform = room_tests
+    auc_uniform = roc_auc(room.scene.occupied(uniform), room_map.occupancy(uniform))
+    auc_near = roc_auc(room.scene.occupied(near), room_map.occupancy(near))
+    assert auc_uniform >= 0.97
+    assert auc_near >= 0.95
+
+
+def test_room_map_beats_chance_by_far_on_held_out_rays(room):
+    split = held_out_rays(room.scans, 0.4, 0.05, seed=1)
+    hilbert_map = ehm.HilbertMap().fit(split.train)
+    s = score(split.occupied, hilbert_map.occupancy(split.points))
+    assert s.auc >= 0.98
+    assert s.f1 >= 0.85
+
+
+def test_batch_and_exact_queries_agree(room_map, room_tests):
+    near, uniform = room_tests
+    points = np.concatenate([near, uniform[:20_000]])
+    batch = room_map.occupancy(points, mode="batch")
+    exact = room_map.occupancy(points, mode="exact")
+    difference = np.abs(batch - exact)
+    # Stated tolerance: mean difference below 0.005 and 98 % of points within 0.05. The modes
+    # differ only where a point's k nearest clusters of a scale are not those of its cell's
+    # centre (about 1 % of points, at cluster boundaries, where the difference can reach 0.5).
+    assert difference.mean() < 0.005
+    assert np.mean(difference < 0.05) > 0.98
+
+
+def test_predict_proba_columns(room_map):
+    points = np.array([[0.0, 0.0, 1.0], [4.02, 0.0, 1.0]])
+    proba = room_map.predict_proba(points)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0)
+    np.testing.assert_allclose(proba[:, 1], room_map.occupancy(points))
+    assert proba[0, 1] < 0.5 < proba[1, 1]  # room centre free, inside the wall occupied
+
+
+def test_non_finite_query_rows_give_nan(room_map):
+    p = room_map.occupancy(np.array([[0.0, 0.0, 1.0], [np.nan, 0.0, 0.0]]))
+    assert np.isfinite(p[0]) and np.isnan(p[1])
+
+
+def test_same_seed_same_map(room):
+    a = ehm.HilbertMap(seed=3).fit(room.scans)
+    b = ehm.HilbertMap(seed=3).fit(room.scans)
+    np.testing.assert_array_equal(a.clusters_.means, b.clusters_.means)
+    np.testing.assert_array_equal(a.clusters_.weights, b.clusters_.weights)
+    c = ehm.HilbertMap(seed=4).fit(room.scans)
+    assert len(c.clusters_) != len(a.clusters_) or not np.array_equal(
+        c.clusters_.weights, a.clusters_.weights
+    )
+
+
+def test_incremental_merges_reobserved_clusters(room):
+    scan = room.scans[0]
+    first, second = (
+        scan.subset(np.arange(len(scan)) % 2 == 0),
+        scan.subset(np.arange(len(scan)) % 2 == 1),
+    )
+    hilbert_map = ehm.HilbertMap().integrate_scan(first)
+    n_first = hilbert_map.n_clusters
+    hilbert_map.integrate_scan(second)
+    update = hilbert_map.last_update_
+    # The same surfaces seen again: most new clusters merge instead of being added.
+    assert update["merged_clusters"] > 3 * update["new_clusters"]
+    assert hilbert_map.n_clusters == n_first + update["new_clusters"]
+    assert hilbert_map.n_scans_ == 2
+    assert set(hilbert_map.timings_) == {
+        "samples",
+        "clustering",
+        "length_scales",
+        "index",
+        "features",
+        "sgd",
+    }
+
+
+def test_map_works_in_2d(plan):
+    hilbert_map = ehm.HilbertMap()
+    for scan in plan.scans:
+        hilbert_map.integrate_scan(scan)
+    assert hilbert_map.dim == 2
+    rng = np.random.default_rng(0)
+    points = near_surface_points(plan.scans, 0.15, 2.0, rng)
+    points = points[observed_mask(plan.scans, points, 0.05)]
+    assert roc_auc(plan.scene.occupied(points), hilbert_map.occupancy(points)) >= 0.85
+    with pytest.raises(ValueError, match="scan points are 3D, the map is 2D"):
+        hilbert_map.integrate(np.ones((4, 3)), np.zeros(3))
+    with pytest.raises(ValueError, match=r"shape \(n, 2\)"):
+        hilbert_map.occupancy(np.ones((4, 3)))
+
+
+def test_querying_an_empty_map_is_refused():
+    with pytest.raises(RuntimeError, match="the map is empty"):
+        ehm.HilbertMap().occupancy(np.zeros((1, 3)))
+
+
+def test_fit_rejects_bad_input():
+    with pytest.raises(ValueError, match="at least one scan"):
+        ehm.HilbertMap().fit([])
+    with pytest.raises(ValueError, match=r"scan 0: expected ehm\.Scan"):
+        ehm.HilbertMap().fit([np.zeros((3, 3))])
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"planar_kernel": True},
+        {"merge_coplanar": True},
+        {"anisotropic_search": True},
+        {"anchor_layers": 2},
+        {
+            "planar_kernel": True,
+            "merge_coplanar": True,
+            "anisotropic_search": True,
+            "anchor_layers": 2,
+        },
+    ],
+)
+def test_every_switch_maps_the_room_and_survives_a_round_trip(room, overrides, tmp_path):
+    low, high = room.scene.box_min.min(axis=0), room.scene.box_max.max(axis=0)
+    points = np.random.default_rng(2).uniform(low, high, (20_000, 3))
+    scan = room.scans[0]
+    hilbert_map = ehm.HilbertMap(**overrides)
+    for part in (0, 1):
+        hilbert_map.integrate_scan(scan.subset(np.arange(len(scan)) % 2 == part))
+    probability = hilbert_map.occupancy(points)
+    seen = np.abs(probability - 0.5) > 0.1
+    truth = room.scene.occupied(points[seen])
+    assert np.mean((probability[seen] > 0.5) == truth) > 0.9
+    hilbert_map.save(tmp_path / "room.ehm")
+    loaded = ehm.load(tmp_path / "room.ehm")
+    np.testing.assert_array_equal(loaded.occupancy(points), probability)
+
+
+def test_cluster_view_names_walls_and_floors_as_planar(room):
+    view = ehm.HilbertMap(planar_kernel=True).fit(room.scans).clusters()
+    assert len(view) == len(view.kind) == len(view.weights)
+    assert set(view.kind) == {"planar", "volumetric"}
+    np.testing.assert_array_equal(view.kernel == "planar", view.kind == "planar")
+    # Free-space clusters in front of the floor (z = 0) are flat with vertical normals.
+    floor = (view.kind == "planar") & (view.means[:, 2] < 0.05) & (view.scale == "fine")
+    normals = np.linalg.eigh(view.covariances[floor])[1][:, :, 0]
+    assert floor.sum() > 50 and np.median(np.abs(normals[:, 2])) > 0.95
+    with pytest.raises(RuntimeError, match="map is empty"):
+        ehm.HilbertMap().clusters()
