@@ -1,23 +1,41 @@
 """Efficient Hilbert Maps: continuous occupancy maps from range scans.
 
-The public API: HilbertMap, MapConfig, Scan, load and MapFileError. The paper's evaluation
-(ehm.eval) is not imported with the package; `ehm.evaluate` loads it on first use.
+The public API: HilbertMap, MapConfig, Scan, load, MapFileError and evaluate (the paper's
+comparison, ehm.eval). Each is imported on first use, so `import ehm` and the command line's
+help are instant, and the evaluation is never loaded by a program that does not ask for it.
 """
 
-from typing import Any
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
 
-from ehm.config import MapConfig
-from ehm.core.scan import Scan
-from ehm.hilbert_map import HilbertMap, load
-from ehm.io.map_file import MapFileError
+if TYPE_CHECKING:
+    from ehm.config import MapConfig
+    from ehm.core.scan import Scan
+    from ehm.eval.runner import evaluate
+    from ehm.hilbert_map import HilbertMap, load
+    from ehm.io.map_file import MapFileError
+
+# Each public name and the module that defines it.
+_HOMES = {
+    "HilbertMap": "ehm.hilbert_map",
+    "MapConfig": "ehm.config",
+    "MapFileError": "ehm.io.map_file",
+    "Scan": "ehm.core.scan",
+    "evaluate": "ehm.eval.runner",
+    "load": "ehm.hilbert_map",
+}
 
 __all__ = ["HilbertMap", "MapConfig", "MapFileError", "Scan", "evaluate", "load"]
 __version__ = "0.1.0"
 
 
 def __getattr__(name: str) -> Any:
-    if name == "evaluate":
-        from ehm.eval.runner import evaluate
+    if name not in _HOMES:
+        raise AttributeError(f"module 'ehm' has no attribute {name!r}")
+    value = getattr(import_module(_HOMES[name]), name)
+    globals()[name] = value
+    return value
 
-        return evaluate
-    raise AttributeError(f"module 'ehm' has no attribute {name!r}")
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

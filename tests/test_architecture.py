@@ -1,0 +1,147 @@
+"""The package's layers: imports only go down, with no cycles, and `import ehm` stays light."""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import ehm
+import ehm.hilbert_map
+
+PACKAGE = Path(ehm.__file__).parent
+
+# From the bottom up: a module may import its own layer and the layers below it.
+LAYERS = (
+    "ehm.config",
+    "ehm.core",
+    "ehm.grid",
+    "ehm.io",
+    "ehm.hilbert_map",
+    "ehm.pipeline",
+    "ehm.viz",
+    "ehm.eval",
+    "ehm.cli",
+    "ehm",
+)
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(path): path for path in sorted(PACKAGE.rglob("*.py"))}
+
+
+def imported_modules(name: str) -> set[str]:
+    """The ehm modules `name` imports anywhere: at the top, inside functions, for type
+    checking only. `from a import b` counts as importing a.b when that is a module, else a."""
+    found = set()
+    package = name if MODULES[name].name == "__init__.py" else name.rpartition(".")[0]
+    for node in ast.walk(ast.parse(MODULES[name].read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+                base = f"{anchor}.{base}" if base else anchor
+            for alias in node.names:
+                found.add(f"{base}.{alias.name}" if f"{base}.{alias.name}" in MODULES else base)
+    return {m for m in found if m == "ehm" or m.startswith("ehm.")}
+
+
+GRAPH = {name: imported_modules(name) for name in MODULES}
+
+
+def layer(name: str) -> int:
+    """Index in LAYERS of a module: the package root is the top, every other module belongs
+    to the layer its name starts with."""
+    if name == "ehm":
+        return len(LAYERS) - 1
+    return next(i for i, top in enumerate(LAYERS) if name == top or name.startswith(top + "."))
+
+
+def test_every_import_names_a_module_of_the_package():
+    for name, imports in GRAPH.items():
+        assert imports <= set(MODULES), f"{name} imports {imports - set(MODULES)}"
+
+
+def test_imports_only_go_down_the_layers():
+    upward = [
+        f"{name} ({LAYERS[layer(name)]}) imports {target} ({LAYERS[layer(target)]})"
+        for name, imports in GRAPH.items()
+        for target in imports
+        if layer(target) > layer(name)
+    ]
+    assert upward == []
+
+
+def test_there_are_no_import_cycles():
+    state: dict[str, str] = {}
+
+    def visit(name: str, path: list[str]) -> None:
+        state[name] = "open"
+        for target in sorted(GRAPH[name]):
+            assert state.get(target) != "open", " -> ".join([*path, name, target])
+            if target not in state:
+                visit(target, [*path, name])
+        state[name] = "done"
+
+    for name in MODULES:
+        if name not in state:
+            visit(name, [])
+
+
+def test_the_checker_sees_imports_inside_functions_and_for_type_checking():
+    assert "ehm.eval.runner" in GRAPH["ehm"]  # for type checking
+    assert "ehm.eval.baselines.octree" in GRAPH["ehm.eval.baselines"]  # inside factories
+    assert "ehm.hilbert_map" in GRAPH["ehm.cli"]  # inside commands
+
+
+def loaded_after(statement: str) -> set[str]:
+    """Modules a fresh interpreter has loaded after running `statement`."""
+    script = f"import sys; {statement}; print('\\n'.join(sorted(sys.modules)))"
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True
+    )
+    return set(result.stdout.split())
+
+
+def test_the_public_api_is_loaded_on_first_use():
+    assert loaded_after("import ehm") & {"ehm.hilbert_map", "numpy"} == set()
+    for name in ehm.__all__:
+        assert getattr(ehm, name).__name__ == name
+        assert name in dir(ehm)
+    assert ehm.load is ehm.hilbert_map.load
+    with pytest.raises(AttributeError, match="module 'ehm' has no attribute 'Map'"):
+        ehm.Map  # noqa: B018
+
+
+def test_the_library_loads_neither_evaluation_nor_pictures_nor_readers():
+    loaded = loaded_after("import ehm; ehm.HilbertMap().integrate; ehm.load")
+    assert "ehm.hilbert_map" in loaded
+    heavy = ("ehm.eval", "ehm.viz", "ehm.pipeline", "ehm.cli", "ehm.io.readers", "ehm.io.ply")
+    heavy += ("matplotlib", "skimage", "PIL", "typer", "rich", "octomap")
+    assert sorted(m for m in loaded if m.startswith(heavy)) == []
+
+
+def test_the_command_line_imports_no_numerics_until_a_command_runs():
+    loaded = loaded_after("import ehm.cli")
+    assert sorted(m for m in loaded if m.startswith(("numpy", "numba", "scipy", "ehm"))) == [
+        "ehm",
+        "ehm.cli",
+    ]
+
+
+def test_only_the_pipeline_loops_over_scans():
+    """HilbertMap.integrate_scan is called by the pipeline (and by HilbertMap.integrate), so the
+    loop that reads, learns and times scans is written once."""
+    callers = set()
+    for name, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Attribute) and node.attr == "integrate_scan":
+                callers.add(name)
+    assert callers == {"ehm.pipeline", "ehm.hilbert_map"}
