@@ -160,3 +160,21 @@ def test_cluster_view_names_walls_and_floors_as_planar(room):
     assert floor.sum() > 50 and np.median(np.abs(normals[:, 2])) > 0.95
     with pytest.raises(RuntimeError, match="map is empty"):
         ehm.HilbertMap().clusters()
+
+
+def test_state_restores_a_map_that_goes_on_exactly(plan):
+    original = ehm.HilbertMap(neighbours=5).integrate_scan(plan.scans[0])
+    state = original.state()
+    assert state.n_scans == 1 and state.config.neighbours == 5
+    restored = ehm.HilbertMap.from_state(state)
+    points = np.random.default_rng(3).uniform(-6, 6, (1000, 2))
+    np.testing.assert_array_equal(restored.occupancy(points), original.occupancy(points))
+    assert restored.memory_bytes() == original.memory_bytes()
+    # The restored map draws the same random numbers: its next scan is learned the same way.
+    a = ehm.HilbertMap.from_state(original.state())
+    b = ehm.HilbertMap.from_state(original.state())
+    for hilbert_map in (a, b):
+        hilbert_map.integrate_scan(plan.scans[1])
+    np.testing.assert_array_equal(a.clusters_.weights, b.clusters_.weights)
+    with pytest.raises(RuntimeError, match="the map is empty"):
+        ehm.HilbertMap().state()

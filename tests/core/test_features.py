@@ -12,6 +12,7 @@ from ehm.core.features import (
     group_by_cell,
     kernel_values,
     kernel_values_reference,
+    training_features,
 )
 from ehm.core.index import ClusterIndex
 from ehm.core.kernels import kernel_transforms
@@ -87,3 +88,38 @@ def test_group_by_cell_groups_points_sharing_a_cell():
     assert groups.spread(points) == pytest.approx(np.hypot(0.04, 0.005))
     assert PointGroups.singletons(points).spread(points) == 0.0
     assert group_by_cell(np.zeros((0, 2)), 0.1).centres.shape == (0, 2)
+
+
+def test_training_features_are_the_kernels_of_each_groups_neighbours(room_map, rng):
+    clusters = room_map.clusters_
+    index = ClusterIndex.of(clusters)
+    points = rng.uniform([-4, -3, 0], [4, 3, 3], (3000, 3))
+    groups = group_by_cell(points, 0.3)
+    config = MapConfig(neighbours=5, coarse_neighbours=2)
+    features = training_features(points, groups, index, clusters, config)
+    neighbours = features.neighbours
+    assert neighbours.shape == (len(groups.centres), 7)
+    # Each group's clusters: the nearest fine, then the nearest coarse ones of its centre, no
+    # farther than a kernel reaches plus how far the group's points spread.
+    spread = groups.spread(points)
+    for scale, columns in ((False, slice(0, 5)), (True, slice(5, 7))):
+        rows = np.flatnonzero(clusters.coarse == scale)
+        bound = clusters.reach()[rows].max() + spread
+        for g in range(0, len(groups.centres), 50):
+            distance = np.linalg.norm(clusters.means[rows] - groups.centres[g], axis=1)
+            nearest = rows[np.argsort(distance)[: columns.stop - columns.start]]
+            nearest = nearest[
+                np.linalg.norm(clusters.means[nearest] - groups.centres[g], axis=1) < bound
+            ]
+            found = neighbours[g, columns]
+            np.testing.assert_array_equal(np.sort(found[found >= 0]), np.sort(nearest))
+    expected = kernel_values_reference(
+        points,
+        groups.group_of_point,
+        neighbours,
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+    )
+    np.testing.assert_allclose(features.values, expected, atol=1e-12)
+    assert np.count_nonzero(features.values) > 0.2 * features.values.size

@@ -3,7 +3,7 @@
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.samples import training_samples
+from ehm.core.samples import samples_of_scans, training_samples
 from ehm.core.scan import Scan
 
 
@@ -46,3 +46,13 @@ def test_no_return_rays_give_free_samples_only(rng):
     samples = training_samples(scan, MapConfig(free_spacing=0.1), rng)
     assert not samples.occupied.any()
     assert len(samples) > 30
+
+
+def test_samples_of_scans_are_each_scans_samples_in_order(plan):
+    config = MapConfig()
+    together = samples_of_scans(plan.scans[:3], config, np.random.default_rng(4))
+    rng = np.random.default_rng(4)
+    parts = [training_samples(scan, config, rng) for scan in plan.scans[:3]]
+    np.testing.assert_array_equal(together.points, np.concatenate([p.points for p in parts]))
+    np.testing.assert_array_equal(together.occupied, np.concatenate([p.occupied for p in parts]))
+    assert len(together) == sum(len(p) for p in parts)

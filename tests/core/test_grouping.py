@@ -1,0 +1,45 @@
+"""The clustering step of Alg. 2: quick-means over each kind of sample."""
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.grouping import group_samples
+from ehm.core.samples import TrainingSamples, training_samples
+
+
+def test_samples_of_each_kind_are_clustered_apart(room):
+    scan = room.scans[0].subset(np.arange(len(room.scans[0])) % 8 == 0)
+    config = MapConfig()
+    samples = training_samples(scan, config, np.random.default_rng(0))
+    grouped = group_samples(samples, config, np.random.default_rng(0))
+    groups, clusters = grouped.groups, grouped.clusters
+    kind = 2 * samples.occupied + samples.at_surface  # occupied, free at surface, free on rays
+    # No group mixes kinds of sample, and coarse groups hold the free samples along rays.
+    for group in np.unique(groups.group_of_point):
+        assert len(np.unique(kind[groups.group_of_point == group])) == 1
+    # A sample lies within the inner radius of its group's seed, and the group's centre (the
+    # mean of the samples within the outer radius) within the outer radius of it.
+    distance = np.linalg.norm(samples.points - groups.centres[groups.group_of_point], axis=1)
+    along_rays = ~samples.at_surface
+    reach = 1.0 + config.outer_radius_factor
+    assert distance[~along_rays].max() < config.cluster_radius * reach
+    assert distance[along_rays].max() < config.free_cluster_radius * reach
+    # Clusters proper: fine ones for surfaces, coarse ones for free space, labelled by kind.
+    assert len(clusters) < len(groups.centres)
+    assert clusters.coarse.any() and (~clusters.coarse).any()
+    assert not clusters.occupied[clusters.coarse].any()
+    assert np.all(clusters.counts >= config.min_cluster_size)
+
+
+def test_samples_clustered_together_take_the_majority_label():
+    # Two occupied and one free sample at one spot, one free sample far away.
+    points = np.array([[0.0, 0.0], [0.01, 0.0], [0.0, 0.01], [5.0, 5.0]])
+    samples = TrainingSamples(points, np.array([True, True, False, False]), np.ones(4, bool))
+    config = MapConfig(cluster_free_apart=False, min_cluster_size=1)
+    grouped = group_samples(samples, config, np.random.default_rng(0))
+    near = np.linalg.norm(grouped.clusters.means, axis=1) < 1.0
+    np.testing.assert_array_equal(np.sort(near), [False, True])
+    assert grouped.clusters.occupied[near].all() and not grouped.clusters.occupied[~near].any()
+    group_of_point = grouped.groups.group_of_point
+    assert len(set(group_of_point[:3])) == 1 and group_of_point[3] != group_of_point[0]
+    assert not grouped.clusters.coarse.any()

@@ -1,0 +1,14 @@
+"""The logistic link."""
+
+import numpy as np
+
+from ehm.core.logistic import sigmoid
+
+
+def test_sigmoid_values_and_symmetry():
+    log_odds = np.array([-800.0, -2.0, 0.0, np.log(3.0), 800.0])
+    with np.errstate(over="ignore"):
+        probability = sigmoid(log_odds)
+    np.testing.assert_allclose(probability, [0.0, 1 / (1 + np.e**2), 0.5, 0.75, 1.0])
+    x = np.linspace(-30, 30, 101)
+    np.testing.assert_allclose(sigmoid(x) + sigmoid(-x), 1.0)

@@ -1,0 +1,82 @@
+"""MappingPipeline: the one scan loop."""
+
+import time
+
+import numpy as np
+import pytest
+
+import ehm
+from ehm.pipeline import MappingPipeline, NullObserver
+
+
+class Recorder(NullObserver):
+    """Writes down every event it is told of."""
+
+    def __init__(self) -> None:
+        self.events: list[tuple] = []
+
+    def started(self, total):
+        self.events.append(("started", total))
+
+    def scan_read(self, index, scan):
+        self.events.append(("read", index, len(scan)))
+
+    def scan_learned(self, index, scan, hilbert_map):
+        self.events.append(("learned", index, hilbert_map.n_scans_))
+
+    def finished(self, run):
+        self.events.append(("finished", run.n_scans))
+
+
+def test_incremental_run_equals_integrating_each_scan(plan):
+    recorder = Recorder()
+    run = MappingPipeline(plan.scans, ehm.HilbertMap(seed=2), observers=[recorder]).run()
+    expected = ehm.HilbertMap(seed=2)
+    for scan in plan.scans:
+        expected.integrate_scan(scan)
+    np.testing.assert_array_equal(run.hilbert_map.clusters_.weights, expected.clusters_.weights)
+    assert run.n_scans == run.hilbert_map.n_scans_ == len(plan.scans)
+    assert run.n_rays == sum(len(s) for s in plan.scans)
+    assert len(run.scan_seconds) == len(plan.scans)
+    # Each stage is the sum over the scans; reading a list costs next to nothing.
+    assert set(run.stage_seconds) == {"read", *expected.timings_}
+    assert run.stage_seconds["read"] < 0.01 * sum(run.scan_seconds)
+    assert sum(run.stage_seconds.values()) <= run.seconds
+    n = len(plan.scans)
+    assert recorder.events[0] == ("started", n)
+    assert recorder.events[1:3] == [("read", 0, len(plan.scans[0])), ("learned", 0, 1)]
+    assert recorder.events[-2:] == [("learned", n - 1, n), ("finished", n)]
+
+
+def test_batch_run_fits_once(plan):
+    recorder = Recorder()
+    run = MappingPipeline(iter(plan.scans), batch=True, observers=[recorder]).run()
+    expected = ehm.HilbertMap().fit(plan.scans)
+    np.testing.assert_array_equal(run.hilbert_map.clusters_.weights, expected.clusters_.weights)
+    assert len(run.scan_seconds) == 1
+    # Scans from an iterator: the total is not known in advance.
+    n = len(plan.scans)
+    assert recorder.events == [
+        ("started", None),
+        *[("read", i, len(s)) for i, s in enumerate(plan.scans)],
+        ("finished", n),
+    ]
+
+
+def test_scans_read_lazily_are_timed_as_reading(plan):
+    def slowly():
+        for scan in plan.scans:
+            time.sleep(0.02)
+            yield scan
+
+    run = MappingPipeline(slowly()).run()
+    assert run.stage_seconds["read"] >= 0.02 * len(plan.scans)
+    assert run.n_scans == len(plan.scans)
+
+
+def test_observers_hear_of_the_end_when_mapping_fails(plan):
+    recorder = Recorder()
+    pipeline = MappingPipeline([plan.scans[0], "not a scan"], observers=[recorder])
+    with pytest.raises(ValueError, match=r"scan 1: expected ehm\.Scan, got str"):
+        pipeline.run()
+    assert recorder.events[-1] == ("finished", 1)
