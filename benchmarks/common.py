@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import platform
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from datetime import date
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -16,6 +18,9 @@ from ehm.eval.baselines.octree import OctoMapMapper
 from ehm.eval.metrics import score
 from ehm.eval.protocol import held_out_rays
 from ehm.pipeline import MappingPipeline
+
+# The shared data folder beside the project's checkout, wherever the scripts run from.
+os.environ.setdefault("EHM_DATA_DIR", str(Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 RESOLUTION = 0.05
 
@@ -96,3 +101,13 @@ def print_held_out_table(scans: list[ehm.Scan]) -> None:
                 f"| {fraction} | {name} | {s.accuracy:.3f} | {s.f1:.3f} | {s.auc:.3f} | "
                 f"{s.unknown:.3f} | {build:.2f} | {hilbert_map.n_clusters} |"
             )
+
+
+def markdown_table(
+    header: Sequence[str], rows: Sequence[Sequence[str]], text_columns: int = 1
+) -> str:
+    """Markdown table, the first `text_columns` left-aligned and the others right."""
+    align = ["---" if i < text_columns else "---:" for i in range(len(header))]
+    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(align) + " |"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"

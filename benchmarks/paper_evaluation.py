@@ -22,6 +22,8 @@ from collections.abc import Sequence
 from datetime import date
 from pathlib import Path
 
+from common import markdown_table
+
 from ehm.eval.baselines import METHODS, make_mapper
 from ehm.eval.baselines.localized import LocalizedMapper
 from ehm.eval.datasets import DATASETS, DataMissingError, load_dataset
@@ -71,14 +73,6 @@ class Runs:
         return [self.records[(dataset, m, f, s)] for f in fractions for s in seeds for m in methods]
 
 
-def table(header: Sequence[str], rows: Sequence[Sequence[str]], text_columns: int = 1) -> str:
-    """Markdown table, the first `text_columns` left-aligned and the others right."""
-    align = ["---" if i < text_columns else "---:" for i in range(len(header))]
-    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(align) + " |"]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines) + "\n"
-
-
 def find(summaries: Sequence[Summary], method: str, fraction: float) -> Summary:
     return next(s for s in summaries if s.method == method and s.fraction == fraction)
 
@@ -106,7 +100,7 @@ def table_3(runs: Runs, seeds: Sequence[int], figures: Path) -> str:
         for s in summaries
         if s.fraction == 0.8
     ]
-    text += table(["method", "training ms", "query ms", "memory MB"], rows)
+    text += markdown_table(["method", "training ms", "query ms", "memory MB"], rows)
     text += (
         "\n### Figure 9: accuracy and F1 against sparsity, virtual room\n\n"
         "![accuracy and F1 against the share of rays held out](benchmarks/figures/"
@@ -119,7 +113,7 @@ def table_3(runs: Runs, seeds: Sequence[int], figures: Path) -> str:
             cells += [find(summaries, method, f).format(measure) for f in DEFAULT_FRACTIONS]
         rows.append(cells)
     header = ["method"] + [f"{m} {f:.0%}" for m in ("accuracy", "F1") for f in DEFAULT_FRACTIONS]
-    return text + table(header, rows)
+    return text + markdown_table(header, rows)
 
 
 def two_method_table(
@@ -153,7 +147,7 @@ def two_method_table(
         f"### {title}\n\n{len(scans)} scan{'s' if len(scans) > 1 else ''}, "
         f"{sum(len(s) for s in scans):,} rays; "
         f"mean ± standard deviation over seeds {list(seeds)}.\n\n"
-        + table(["measure", *methods], rows)
+        + markdown_table(["measure", *methods], rows)
     )
 
 
@@ -189,7 +183,7 @@ def scan_times(runs: Runs, figures: Path) -> str:
             ]
         )
     header = ["sequence", "scans", "median ms", "first 10 % mean ms", "last 10 % mean ms"]
-    return text + table([*header, "max ms"], rows)
+    return text + markdown_table([*header, "max ms"], rows)
 
 
 def every_dataset(runs: Runs) -> str:
@@ -212,7 +206,7 @@ def every_dataset(runs: Runs) -> str:
                 ]
             )
     header = ["data set", "method", "accuracy", "F1", "ROC-AUC", "unknown", "build s", "query s"]
-    text += table([*header, "memory MB"], rows, text_columns=2)
+    text += markdown_table([*header, "memory MB"], rows, text_columns=2)
     for dataset, reason in runs.missing.items():
         text += f"\nLeft out {dataset}: {reason}\n"
     return text

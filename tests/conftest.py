@@ -1,5 +1,8 @@
 """Fixtures shared by every test: the synthetic scenes, maps of them, and the real data sets."""
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -8,6 +11,9 @@ from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
 from ehm.eval.datasets import floor_plan_2d, virtual_room
 from ehm.eval.datasets.real import DataMissingError
+
+# The shared data folder beside the project's checkout, wherever pytest runs from.
+os.environ.setdefault("EHM_DATA_DIR", str(Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 
 @pytest.fixture(scope="session")
