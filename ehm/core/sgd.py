@@ -13,6 +13,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
 from ehm.core.features import SparseFeatures
+from ehm.core.logistic import sigmoid
 
 EPSILON = 1e-8
 
@@ -116,7 +117,7 @@ def sgd_pass_reference(
         active = (clusters >= 0) & (values[i] != 0.0)
         touched, phi = clusters[active], values[i][active]
         score = bias_state[0] + np.dot(weights[touched], phi)
-        error = (1.0 / (1.0 + np.exp(-score)) - labels[i]) * class_weights[int(labels[i])]
+        error = (sigmoid(score) - labels[i]) * class_weights[int(labels[i])]
         grad = error * phi + l2 * weights[touched]
         grad_sq[touched] += grad * grad
         weights[touched] -= learning_rate * grad / np.sqrt(grad_sq[touched] + EPSILON)

@@ -21,6 +21,7 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.kernels import sparse_kernel_reference
+from ehm.core.logistic import sigmoid
 from ehm.core.samples import samples_of_scans
 from ehm.core.scan import Scan
 from ehm.core.sgd import EPSILON
@@ -226,7 +227,7 @@ class HilbertMapsMapper:
                 for i in range(0, len(points), chunk)
             ]
         )
-        return 1.0 / (1.0 + np.exp(-scores))
+        return sigmoid(scores)
 
     def memory_bytes(self) -> int:
         features = 0 if self.features is None else self.features.nbytes
@@ -255,7 +256,7 @@ def logistic_sgd(
         for start in range(0, len(order), settings.batch_size):
             batch = order[start : start + settings.batch_size]
             phi = features(points[batch])
-            error = 1.0 / (1.0 + np.exp(-(phi @ weights))) - labels[batch]
+            error = sigmoid(phi @ weights) - labels[batch]
             touched, loss_grad = _gradient(phi, error)
             grad = loss_grad / len(batch) + l2 * weights[touched]
             grad_sq[touched] += grad * grad
