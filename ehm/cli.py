@@ -157,8 +157,8 @@ def map_command(
 
     sensor = [float(v) for v in origin.split(",")] if origin else None
     try:
-        scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
         hilbert_map = HilbertMap(**_parse_settings(setting or []))
+        scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
     run = MappingPipeline(scans, hilbert_map, batch, [ProgressBar(console)]).run()

@@ -1,8 +1,9 @@
 """Stochastic gradient descent on the logistic loss (Eq. 2-3)."""
 
 import numpy as np
+import pytest
 
-from ehm.core.sgd import sgd_pass, sgd_pass_reference
+from ehm.core.sgd import class_weights, sgd_pass, sgd_pass_reference
 
 
 def test_sgd_pass_matches_reference(rng):
@@ -48,3 +49,12 @@ def test_sgd_separates_two_classes():
     )
     assert weights[0] + bias[0] > 2.0
     assert weights[1] + bias[0] < -2.0
+
+
+def test_balanced_classes_carry_half_of_the_loss_each():
+    occupied = np.array([True, False, False, False])
+    np.testing.assert_allclose(class_weights(occupied, balance=True), [4 / 6, 4 / 2])
+    weights = class_weights(occupied, balance=True)
+    assert weights[0] * 3 == pytest.approx(weights[1] * 1)  # equal totals
+    np.testing.assert_array_equal(class_weights(occupied, balance=False), [1.0, 1.0])
+    np.testing.assert_array_equal(class_weights(np.ones(3, bool), balance=True), [1.0, 1.0])
