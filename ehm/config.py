@@ -9,6 +9,7 @@ from typing import Any, Literal
 MergeRule = Literal["pooled", "average"]
 QueryMode = Literal["batch", "exact"]
 TrainSearch = Literal["group", "point"]
+UpdateRule = Literal["sgd", "posterior"]
 
 
 @dataclass(frozen=True)
@@ -97,14 +98,21 @@ class MapConfig:
     paper's mean of means and mean of covariances (Alg. 2 lines 19-20)."""
     merge_threshold: float = 1.0
     """Anisotropic distance (Eq. 14) below which a new cluster merges into the map's."""
+    update_rule: UpdateRule = "sgd"
+    """How each scan's samples update the weights: 'sgd', AdaGrad stochastic gradient descent
+    on the regularised loss (Alg. 2); 'posterior', a Gaussian posterior per weight updated with
+    the previous one as prior (ehm.core.posterior)."""
     learning_rate: float = 0.3
-    """AdaGrad step size of the stochastic gradient steps."""
+    """AdaGrad step size of the stochastic gradient steps ('sgd')."""
     l2: float = 1e-3
-    """L2 regularisation of the weights (the R(w) of Eq. 2)."""
+    """L2 regularisation of the weights (the R(w) of Eq. 2; 'sgd')."""
+    prior_precision: float = 1.0
+    """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0 ('posterior')."""
     balance_classes: bool = False
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2
-    """Passes of stochastic gradient descent over each scan's samples."""
+    """Passes over each scan's samples: epochs of stochastic gradient descent, or sweeps of
+    coordinate descent ('posterior')."""
     train_search: TrainSearch = "group"
     """'group': one neighbour search per quick-means group of training samples (Alg. 2);
     'point': one per sample, as LLS-HM (Guizilini & Ramos 2016) does."""
@@ -138,6 +146,7 @@ class MapConfig:
             "coplanar_angle",
             "coplanar_distance",
             "anchor_radius_factor",
+            "prior_precision",
         )
         for name in positive:
             value = getattr(self, name)
@@ -175,6 +184,10 @@ class MapConfig:
         if self.merge_rule not in ("pooled", "average"):
             raise ValueError(
                 f"MapConfig.merge_rule must be 'pooled' or 'average', got {self.merge_rule!r}"
+            )
+        if self.update_rule not in ("sgd", "posterior"):
+            raise ValueError(
+                f"MapConfig.update_rule must be 'sgd' or 'posterior', got {self.update_rule!r}"
             )
         if self.train_search not in ("group", "point"):
             raise ValueError(

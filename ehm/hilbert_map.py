@@ -34,6 +34,7 @@ from ehm.core.grouping import group_samples
 from ehm.core.index import ClusterIndex
 from ehm.core.logistic import sigmoid
 from ehm.core.merging import absorb_clusters
+from ehm.core.posterior import update_posterior
 from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
 from ehm.core.scan import Scan
 from ehm.core.sgd import train_weights
@@ -229,8 +230,13 @@ class HilbertMap:
             else:
                 groups = grouped.groups
             features = training_features(samples.points, groups, self._index, clusters, cfg)
-        with timer("sgd"):
-            train_weights(features, samples.occupied, clusters, self.bias_state_, cfg, self._rng)
+        with timer(cfg.update_rule):
+            if cfg.update_rule == "posterior":
+                update_posterior(features, samples.occupied, clusters, self.bias_state_, cfg)
+            else:
+                train_weights(
+                    features, samples.occupied, clusters, self.bias_state_, cfg, self._rng
+                )
         self.timings_ = dict(timer.seconds)
 
     # ---------------------------------------------------------------- queries

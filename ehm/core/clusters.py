@@ -16,7 +16,8 @@ class ClusterSet:
 
     means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2.
     counts: (M,) float64, samples the statistics summarise. weights: (M,) float64, classifier
-    weights. grad_sq: (M,) float64, AdaGrad accumulators. transforms: (M, d, d) float64, 1/m,
+    weights. grad_sq: (M,) float64, AdaGrad accumulators. precision: (M,) float64, precision
+    of each weight's Gaussian posterior (ehm.core.posterior). transforms: (M, d, d) float64, 1/m,
     kernel transforms derived from the covariances (see ehm.core.kernels). coarse: (M,) bool, True
     for clusters of open free space (see ehm.core.index). occupied: (M,) bool, True for clusters
     of occupied samples. planar: (M,) bool, the covariance is flat (see
@@ -30,6 +31,7 @@ class ClusterSet:
     counts: np.ndarray
     weights: np.ndarray
     grad_sq: np.ndarray
+    precision: np.ndarray
     transforms: np.ndarray
     coarse: np.ndarray
     occupied: np.ndarray
@@ -42,6 +44,7 @@ class ClusterSet:
         return cls(
             np.zeros((0, dim)),
             np.zeros((0, dim, dim)),
+            np.zeros(0),
             np.zeros(0),
             np.zeros(0),
             np.zeros(0),
@@ -70,15 +73,17 @@ class ClusterSet:
         counts: np.ndarray,
         coarse: np.ndarray,
         occupied: np.ndarray,
+        precision: float = 0.0,
     ) -> None:
-        """Add clusters with weight 0 (no prior knowledge of their occupancy); `refresh` them
-        before use."""
+        """Add clusters with weight 0 (no prior knowledge of their occupancy) and posterior
+        `precision`; `refresh` them before use."""
         n = len(means)
         self.means = np.concatenate([self.means, means])
         self.covariances = np.concatenate([self.covariances, covariances])
         self.counts = np.concatenate([self.counts, counts.astype(np.float64)])
         self.weights = np.concatenate([self.weights, np.zeros(n)])
         self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n)])
+        self.precision = np.concatenate([self.precision, np.full(n, float(precision))])
         self.transforms = np.concatenate([self.transforms, np.zeros((n,) + means.shape[1:] * 2)])
         self.coarse = np.concatenate([self.coarse, np.asarray(coarse, dtype=bool)])
         self.occupied = np.concatenate([self.occupied, np.asarray(occupied, dtype=bool)])

@@ -93,7 +93,7 @@ def coplanar_pairs(
 def merge_coplanar(clusters: ClusterSet, touched: np.ndarray, config: MapConfig) -> CoplanarMerge:
     """Run orientation clustering from clusters `touched` ((T,) int64 rows) to a fixed point,
     in place. A merged cluster pools both clusters' samples (exact mean and covariance); its
-    weight and AdaGrad state are the sample-weighted means of the pair's."""
+    weight, AdaGrad state and posterior precision are the sample-weighted means of the pair's."""
     source = np.arange(len(clusters))
     rows, merged, passes = np.asarray(touched, dtype=np.int64), 0, 0
     while True:
@@ -105,7 +105,7 @@ def merge_coplanar(clusters: ClusterSet, touched: np.ndarray, config: MapConfig)
             break
         keep, absorb = pairs[:, 0], pairs[:, 1]
         share = clusters.counts[absorb] / (clusters.counts[keep] + clusters.counts[absorb])
-        for name in ("weights", "grad_sq"):
+        for name in ("weights", "grad_sq", "precision"):
             values = getattr(clusters, name)
             values[keep] += share * (values[absorb] - values[keep])
         merge_pooled(

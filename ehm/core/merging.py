@@ -29,8 +29,8 @@ def absorb_clusters(
     clusters: ClusterSet, index: ClusterIndex, new: NewClusters, config: MapConfig
 ) -> Absorbed:
     """Merge each new cluster into `clusters` (found through `index`, the map's search
-    structure before this batch) or append it with weight 0, with `config.merge_rule`; the
-    kernels of every changed cluster are refreshed. In place."""
+    structure before this batch) or append it with weight 0 and the prior precision, with
+    `config.merge_rule`; the kernels of every changed cluster are refreshed. In place."""
     targets = match_new_clusters(clusters, index, new, config.merge_threshold, config.min_std)
     merging = targets >= 0
     if merging.any():
@@ -39,7 +39,14 @@ def absorb_clusters(
         merge(clusters, targets[merging], joining.means, joining.covariances, joining.counts)
     start = len(clusters)
     added = new.subset(~merging)
-    clusters.append(added.means, added.covariances, added.counts, added.coarse, added.occupied)
+    clusters.append(
+        added.means,
+        added.covariances,
+        added.counts,
+        added.coarse,
+        added.occupied,
+        config.prior_precision,
+    )
     changed = np.concatenate([np.unique(targets[merging]), np.arange(start, len(clusters))])
     clusters.refresh(changed, config)
     return Absorbed(changed, len(added), int(merging.sum()))

@@ -31,8 +31,9 @@ from ehm.core.state import MapState
 MAGIC = b"EHMMAP\r\n"
 # Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
 ANCHOR_PREFIX = "anchor_"
-# Version 4 stores the random generator's state; version 3 files load with a generator
-# started afresh from the map's seed.
+# Version 4 stores the random generator's state and each weight's posterior precision;
+# version 3 files load with a generator started afresh from the map's seed, and learn on by
+# SGD as they did.
 FORMAT_VERSION = 4
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
@@ -129,8 +130,13 @@ def read_map(path: str | PathLike[str]) -> MapState:
         [arrays.pop(f"{ANCHOR_PREFIX}parents_{layer}") for layer in range(n_layers)],
         [arrays.pop(f"{ANCHOR_PREFIX}coarse_{layer}") for layer in range(n_layers)],
     )
+    settings = header["config"]
+    if version == 3:
+        # Format 3 maps learned by SGD and kept no posterior precisions.
+        settings = {**settings, "update_rule": "sgd"}
+        arrays["precision"] = np.full(len(arrays["weights"]), MapConfig().prior_precision)
     return MapState(
-        MapConfig.from_dict(header["config"]),
+        MapConfig.from_dict(settings),
         ClusterSet(**arrays),
         anchors,
         np.array(header["bias_state"], dtype=np.float64),

@@ -1,0 +1,178 @@
+"""Bayesian weight updates: a Gaussian posterior per weight, mean and diagonal precision (as
+Bayesian Hilbert maps keep, Senanayake & Ramos 2017), updated batch by batch with the previous
+posterior as the prior (Laplace approximation), so that weights seen many times move little.
+
+For one batch of samples the weights w and the bias b minimise
+    J = sum_i c_i loss(y_i, w^T phi_i + b) + 1/2 sum_m lambda_m (w_m - mu_m)^2
+        + 1/2 lambda_b (b - mu_b)^2,
+with loss the logistic loss of Eq. 2, c_i the weight of sample i's class, and mu, lambda the
+posterior so far (a new cluster: mean 0, precision `prior_precision`). Coordinate descent
+minimises J: each weight the batch touches takes, in turn, a Newton step along its own axis
+(clipped to MAX_STEP log-odds), with the scores of the samples it touches kept current; then
+the bias. Afterwards each precision grows by the curvature the batch adds at the new weights,
+lambda_m += sum_i c_i p_i (1 - p_i) phi_im^2.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.clusters import ClusterSet
+from ehm.core.features import SparseFeatures
+from ehm.core.logistic import sigmoid
+from ehm.core.sgd import class_weights
+
+# Largest change of one weight in one coordinate step, log-odds.
+MAX_STEP = 4.0
+
+
+def update_posterior(
+    features: SparseFeatures,
+    occupied: np.ndarray,
+    clusters: ClusterSet,
+    bias_state: np.ndarray,
+    config: MapConfig,
+) -> None:
+    """Update the clusters' weights and precisions and bias_state ([bias, its precision])
+    with one batch of samples with `features` and labels `occupied` (n,) bool, in place:
+    `config.epochs` sweeps of coordinate descent."""
+    posterior_update(
+        features.values,
+        features.group_of_point,
+        features.neighbours,
+        occupied.astype(np.float64),
+        class_weights(occupied, config.balance_classes),
+        clusters.weights,
+        clusters.precision,
+        bias_state,
+        config.epochs,
+    )
+
+
+@numba.njit(cache=True)
+def _sigmoid(score):  # pragma: no cover - compiled
+    return 1.0 / (1.0 + np.exp(-score))
+
+
+@numba.njit(cache=True)
+def posterior_update(
+    values,
+    group_of_point,
+    group_neighbours,
+    labels,
+    class_weights,
+    weights,
+    precision,
+    bias_state,
+    sweeps,
+):  # pragma: no cover - compiled
+    """One batch: `sweeps` rounds of coordinate descent on J, then the precisions' update;
+    weights, precision and bias_state ([bias, its precision]) change in place.
+
+    values: (n, k) kernel values of each sample at its group's clusters group_neighbours
+    (G, k) (-1: none); labels: (n,) 0 or 1; class_weights: (2,) loss weight of a free and of an
+    occupied sample. Clusters are visited in increasing order."""
+    n, k = values.shape
+    n_clusters = weights.shape[0]
+    # Entries (sample, value) of each cluster, in CSR form.
+    start = np.zeros(n_clusters + 1, dtype=np.int64)
+    for i in range(n):
+        g = group_of_point[i]
+        for j in range(k):
+            m = group_neighbours[g, j]
+            if m >= 0 and values[i, j] != 0.0:
+                start[m + 1] += 1
+    for m in range(n_clusters):
+        start[m + 1] += start[m]
+    fill = start[:-1].copy()
+    entry_sample = np.empty(start[n_clusters], dtype=np.int64)
+    entry_value = np.empty(start[n_clusters])
+    scores = np.full(n, bias_state[0])
+    for i in range(n):
+        g = group_of_point[i]
+        for j in range(k):
+            m = group_neighbours[g, j]
+            if m >= 0 and values[i, j] != 0.0:
+                entry_sample[fill[m]] = i
+                entry_value[fill[m]] = values[i, j]
+                fill[m] += 1
+                scores[i] += weights[m] * values[i, j]
+    sample_weight = np.empty(n)
+    for i in range(n):
+        sample_weight[i] = class_weights[np.int64(labels[i])]
+    prior_mean = weights.copy()
+    prior_bias = bias_state[0]
+    for _ in range(sweeps):
+        for m in range(n_clusters):
+            if start[m] == start[m + 1]:
+                continue
+            gradient = precision[m] * (weights[m] - prior_mean[m])
+            curvature = precision[m]
+            for e in range(start[m], start[m + 1]):
+                i = entry_sample[e]
+                v = entry_value[e]
+                p = _sigmoid(scores[i])
+                gradient += sample_weight[i] * (p - labels[i]) * v
+                curvature += sample_weight[i] * p * (1.0 - p) * v * v
+            step = min(max(-gradient / curvature, -MAX_STEP), MAX_STEP)
+            weights[m] += step
+            for e in range(start[m], start[m + 1]):
+                scores[entry_sample[e]] += step * entry_value[e]
+        gradient = bias_state[1] * (bias_state[0] - prior_bias)
+        curvature = bias_state[1]
+        for i in range(n):
+            p = _sigmoid(scores[i])
+            gradient += sample_weight[i] * (p - labels[i])
+            curvature += sample_weight[i] * p * (1.0 - p)
+        step = min(max(-gradient / curvature, -MAX_STEP), MAX_STEP)
+        bias_state[0] += step
+        for i in range(n):
+            scores[i] += step
+    for m in range(n_clusters):
+        for e in range(start[m], start[m + 1]):
+            p = _sigmoid(scores[entry_sample[e]])
+            v = entry_value[e]
+            precision[m] += sample_weight[entry_sample[e]] * p * (1.0 - p) * v * v
+    for i in range(n):
+        p = _sigmoid(scores[i])
+        bias_state[1] += sample_weight[i] * p * (1.0 - p)
+
+
+def posterior_update_reference(
+    values: np.ndarray,
+    group_of_point: np.ndarray,
+    group_neighbours: np.ndarray,
+    labels: np.ndarray,
+    class_weights: np.ndarray,
+    weights: np.ndarray,
+    precision: np.ndarray,
+    bias_state: np.ndarray,
+    sweeps: int,
+) -> None:
+    """Plain NumPy twin of `posterior_update`, one cluster at a time over dense columns."""
+    clusters = group_neighbours[group_of_point]  # (n, k)
+    active = (clusters >= 0) & (values != 0.0)
+    phi = np.zeros((len(values), len(weights)))
+    rows = np.nonzero(active)
+    np.add.at(phi, (rows[0], clusters[rows]), values[rows])
+    sample_weight = class_weights[labels.astype(np.int64)]
+    prior_mean, prior_bias = weights.copy(), bias_state[0]
+    touched = np.flatnonzero(np.any(phi != 0.0, axis=0))
+    for _ in range(sweeps):
+        for m in touched:
+            p = sigmoid(phi @ weights + bias_state[0])
+            gradient = precision[m] * (weights[m] - prior_mean[m])
+            gradient += np.sum(sample_weight * (p - labels) * phi[:, m])
+            curvature = precision[m] + np.sum(sample_weight * p * (1 - p) * phi[:, m] ** 2)
+            weights[m] += np.clip(-gradient / curvature, -MAX_STEP, MAX_STEP)
+        p = sigmoid(phi @ weights + bias_state[0])
+        gradient = bias_state[1] * (bias_state[0] - prior_bias) + np.sum(
+            sample_weight * (p - labels)
+        )
+        curvature = bias_state[1] + np.sum(sample_weight * p * (1 - p))
+        bias_state[0] += np.clip(-gradient / curvature, -MAX_STEP, MAX_STEP)
+    p = sigmoid(phi @ weights + bias_state[0])
+    precision += (sample_weight * p * (1 - p)) @ phi**2
+    bias_state[1] += np.sum(sample_weight * p * (1 - p))

@@ -1,0 +1,62 @@
+"""Bayesian weight updates: the compiled coordinate descent against its NumPy twin, and what
+the posterior does."""
+
+import numpy as np
+
+from ehm.core.posterior import posterior_update, posterior_update_reference
+
+
+def random_batch(rng, n=300, k=5, n_groups=25, n_clusters=40):
+    values = rng.uniform(0, 1, (n, k)) * (rng.random((n, k)) < 0.7)
+    group_of_point = rng.integers(0, n_groups, n)
+    neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
+    neighbours[3, 2:] = -1
+    labels = (rng.random(n) < 0.4).astype(float)
+    return values, group_of_point, neighbours, labels
+
+
+def test_compiled_update_matches_reference(rng):
+    batch = random_batch(rng)
+    state = [rng.normal(size=40), rng.uniform(0.5, 3.0, 40), np.array([0.2, 5.0])]
+    compiled = [a.copy() for a in state]
+    reference = [a.copy() for a in state]
+    class_weights = np.array([0.7, 1.9])
+    posterior_update(*batch, class_weights, *compiled, 3)
+    posterior_update_reference(*batch, class_weights, *reference, 3)
+    for got, want in zip(compiled, reference, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
+    assert not np.allclose(compiled[0], state[0])
+    assert np.all(compiled[1] >= state[1])  # data only adds precision
+
+
+def test_sweeps_reach_the_minimum_of_the_regularised_loss(rng):
+    values, group_of_point, neighbours, labels = random_batch(rng)
+    weights, precision, bias = np.zeros(40), np.ones(40), np.array([0.0, 1.0])
+    posterior_update(
+        values, group_of_point, neighbours, labels, np.ones(2), weights, precision.copy(), bias, 50
+    )
+    phi = np.zeros((len(values), 40))
+    active = np.nonzero(neighbours[group_of_point] >= 0)
+    np.add.at(phi, (active[0], neighbours[group_of_point][active]), values[active])
+    p = 1 / (1 + np.exp(-(phi @ weights + bias[0])))
+    gradient = phi.T @ (p - labels) + precision * weights
+    np.testing.assert_allclose(gradient, 0.0, atol=1e-6)
+
+
+def test_weights_seen_often_move_little():
+    # One feature, always 1. First 1,000 samples, 900 of them occupied; then a batch of 100
+    # free ones. With the first batch's posterior as prior, the weight lands near the log-odds
+    # of all 1,100 samples (900 against 200), not near the last batch's.
+    neighbours = np.array([[0]])
+    weights, precision, bias = np.zeros(1), np.ones(1), np.array([0.0, 1e12])
+    learned = []
+    for labels in (np.r_[np.ones(900), np.zeros(100)], np.zeros(100)):
+        n = len(labels)
+        posterior_update(np.ones((n, 1)), np.zeros(n, dtype=np.int64), neighbours, labels,
+                         np.ones(2), weights, precision, bias, 20)  # fmt: skip
+        learned.append(weights[0])
+    # The first is exact up to the prior; the second carries the Laplace approximation's error
+    # (the prior is quadratic, the loss it stands for is not): 1.32 against 1.50.
+    assert abs(learned[0] - np.log(900 / 100)) < 0.05
+    assert abs(learned[1] - np.log(900 / 200)) < 0.2
+    assert precision[0] > 1 + 0.9 * 0.1 * 1000  # 1 + sum of p (1 - p)
