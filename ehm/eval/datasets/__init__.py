@@ -5,10 +5,18 @@ from collections.abc import Callable
 from ehm.core.scan import Scan
 from ehm.eval.datasets.real import REAL_DATASETS, DataMissingError
 from ehm.eval.datasets.scene import Scene
-from ehm.eval.datasets.simulated import SimulatedDataset, floor_plan_2d, virtual_room, warehouse
+from ehm.eval.datasets.simulated import (
+    SimulatedDataset,
+    floor_plan_2d,
+    street,
+    virtual_room,
+    warehouse,
+)
 
 DATASETS: dict[str, Callable[[], list[Scan]]] = {
     "virtual_room": lambda: virtual_room().scans,
+    "warehouse": lambda: warehouse().scans,
+    "street": lambda: street().scans,
     **REAL_DATASETS,
 }
 """The evaluation's data sets by name, each a loader of its scans in order."""
@@ -29,6 +37,7 @@ __all__ = [
     "SimulatedDataset",
     "floor_plan_2d",
     "load_dataset",
+    "street",
     "virtual_room",
     "warehouse",
 ]

@@ -1,7 +1,7 @@
-"""Embedded synthetic scenes with exact occupancy: the virtual room and a warehouse (3D), and a
-floor plan (2D).
+"""Embedded synthetic scenes with exact occupancy: the virtual room, a warehouse and an outdoor
+street (3D), and a floor plan (2D).
 
-Both are deterministic for a seed; the seed only draws the range noise.
+All are deterministic for a seed; the seed only draws the range noise.
 """
 
 from __future__ import annotations
@@ -40,10 +40,14 @@ def simulate_scan(
     return Scan(origin + directions * ranges[:, None], origin, hit)
 
 
-def lidar_directions(rings: int, azimuths: int, max_elevation_deg: float) -> np.ndarray:
+def lidar_directions(
+    rings: int, azimuths: int, max_elevation_deg: float, min_elevation_deg: float | None = None
+) -> np.ndarray:
     """(rings * azimuths, 3) unit ray directions of a spinning LiDAR: rings evenly spaced
-    from -max_elevation_deg to +max_elevation_deg, azimuths evenly spaced round."""
-    elevation = np.deg2rad(np.linspace(-max_elevation_deg, max_elevation_deg, rings))
+    from min_elevation_deg (default -max_elevation_deg) to max_elevation_deg, azimuths evenly
+    spaced round."""
+    low = -max_elevation_deg if min_elevation_deg is None else min_elevation_deg
+    elevation = np.deg2rad(np.linspace(low, max_elevation_deg, rings))
     azimuth = np.linspace(0.0, 2.0 * np.pi, azimuths, endpoint=False)
     el, az = np.meshgrid(elevation, azimuth, indexing="ij")
     return np.column_stack(
@@ -121,6 +125,60 @@ def warehouse(
         for x, y in poses
     ]
     return SimulatedDataset("warehouse", scans, scene)
+
+
+# The street's buildings along each side: (x from, x to, height), metres; 10 m deep.
+NORTH_BUILDINGS = ((-60.0, -38.0, 12.0), (-35.0, -15.0, 9.0), (-12.0, 10.0, 15.0),
+                   (13.0, 35.0, 7.0), (38.0, 60.0, 11.0))  # fmt: skip
+SOUTH_BUILDINGS = ((-60.0, -42.0, 8.0), (-39.0, -20.0, 14.0), (-17.0, -2.0, 10.0),
+                   (1.0, 22.0, 12.0), (25.0, 60.0, 9.0))  # fmt: skip
+
+
+def street_scene() -> Scene:
+    """A 120 m street between two rows of buildings (facades 8 m either side of its axis,
+    7-15 m tall, with 3 m gaps), raised 15 cm sidewalks, lamp posts 8 cm thick and 6 m tall,
+    sign posts 5 cm thick and 2.5 m tall, trees (30 cm trunks, crowns of 2 m radius) and
+    parked cars, on flat ground (z = 0) that a LiDAR sees at grazing angles."""
+    solids = [([-80.0, -30.0, -0.5], [80.0, 30.0, 0.0])]  # ground
+    solids += [([-80.0, 6.0, 0.0], [80.0, 8.0, 0.15]), ([-80.0, -8.0, 0.0], [80.0, -6.0, 0.15])]
+    for side, buildings in ((1.0, NORTH_BUILDINGS), (-1.0, SOUTH_BUILDINGS)):
+        for x0, x1, height in buildings:
+            y0, y1 = sorted((side * 8.0, side * 18.0))
+            solids.append(([x0, y0, 0.0], [x1, y1, height]))
+    for x in np.arange(-54.0, 55.0, 12.0):  # lamp posts on both sidewalks
+        for y in (-6.6, 6.6):
+            solids.append(([x - 0.04, y - 0.04, 0.0], [x + 0.04, y + 0.04, 6.0]))
+    for x in (-45.0, -15.0, 15.0, 45.0):  # sign posts
+        solids.append(([x - 0.025, -6.3, 0.0], [x + 0.025, -6.25, 2.5]))
+    trees = [(x, y) for x in (-48.0, -24.0, 0.0, 24.0, 48.0) for y in (-7.0, 7.0)]
+    for x, y in trees:
+        solids.append(([x - 0.15, y - 0.15, 0.0], [x + 0.15, y + 0.15, 3.0]))
+    for x in (-36.0, -8.0, 5.0, 30.0):  # parked cars in the north lane
+        solids.append(([x, 4.0, 0.0], [x + 4.4, 5.8, 1.5]))
+    box_min = np.array([b[0] for b in solids])
+    box_max = np.array([b[1] for b in solids])
+    crowns = np.array([[x, y, 4.8] for x, y in trees])
+    return Scene(box_min, box_max, crowns, np.full(len(crowns), 2.0))
+
+
+def street(
+    seed: int = 0,
+    rings: int = 32,
+    azimuths: int = 1024,
+    noise_std: float = 0.02,
+    max_range: float = 40.0,
+) -> SimulatedDataset:
+    """Six scans of a 32-ring LiDAR (rings x azimuths rays, elevations -25 to +10 degrees, 1.8
+    m up, `max_range` metres) driven 50 m down the street's south lane, a scan every 10 m:
+    ground seen at grazing angles out to 30 m and more, facades, thin poles and tree crowns."""
+    directions = lidar_directions(rings, azimuths, 10.0, -25.0)
+    scene = street_scene()
+    rng = np.random.default_rng(seed)
+    scans = [
+        simulate_scan(scene, np.array([x, -2.0, 1.8]), directions, max_range, noise_std, rng)
+        for x in np.arange(-25.0, 26.0, 10.0)
+    ]
+    return SimulatedDataset("street", scans, scene)
 
 
 def floor_plan_scene() -> Scene:

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.eval.datasets import warehouse
+from ehm.eval.datasets import street, warehouse
 
 
 def test_warehouse_scans_start_in_free_space_and_end_on_surfaces():
@@ -13,3 +13,26 @@ def test_warehouse_scans_start_in_free_space_and_end_on_surfaces():
         hits = scan.points_world[scan.hit_mask]
         assert len(hits) > 0.9 * len(scan)
         np.testing.assert_allclose(data.scene.surface_distance(hits), 0.0, atol=1e-6)
+
+
+def test_street_scans_see_ground_far_away_thin_posts_and_sky():
+    data = street(azimuths=512, noise_std=0.0)
+    assert len(data.scans) == 6
+    np.testing.assert_allclose([s.origin[0] for s in data.scans], [-25, -15, -5, 5, 15, 25])
+    posts = (data.scene.box_max - data.scene.box_min)[:, 0] < 0.11
+    assert posts.sum() == 2 * 10 + 4  # lamp posts every 12 m on both sidewalks, sign posts
+    for scan in data.scans:
+        assert not data.scene.occupied(scan.origin[None])[0]
+        hits = scan.points_world[scan.hit_mask]
+        np.testing.assert_allclose(data.scene.surface_distance(hits), 0.0, atol=1e-6)
+        assert 0.02 < np.mean(~scan.hit_mask) < 0.3  # rays into the sky return nothing
+        ranges = np.linalg.norm(hits - scan.origin, axis=1)
+        assert np.any((hits[:, 2] < 1e-6) & (ranges > 25.0))  # ground at grazing angles
+    on_posts = np.zeros(0, dtype=bool)
+    for scan in data.scans:
+        hits = scan.points_world[scan.hit_mask]
+        inside = (hits[:, None] >= data.scene.box_min[posts] - 1e-6) & (
+            hits[:, None] <= data.scene.box_max[posts] + 1e-6
+        )
+        on_posts = np.concatenate([on_posts, np.all(inside, axis=2).any(axis=1)])
+    assert on_posts.sum() > 100
