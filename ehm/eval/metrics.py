@@ -39,6 +39,17 @@ def roc_auc(labels: np.ndarray, scores: np.ndarray) -> float:
     return float((ranks[labels].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
 
 
+def precision_recall(labels: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
+    """Precision and recall of the positive (occupied) class; 0 where undefined (nothing
+    predicted, or nothing present)."""
+    labels, predicted = np.asarray(labels, dtype=bool), np.asarray(predicted, dtype=bool)
+    true_pos = int(np.sum(labels & predicted))
+    n_predicted, n_present = int(predicted.sum()), int(labels.sum())
+    precision = true_pos / n_predicted if n_predicted else 0.0
+    recall = true_pos / n_present if n_present else 0.0
+    return precision, recall
+
+
 def f1_score(labels: np.ndarray, predicted: np.ndarray) -> float:
     """F1 of the positive (occupied) class; 0 when nothing is predicted or present."""
     labels, predicted = np.asarray(labels, dtype=bool), np.asarray(predicted, dtype=bool)

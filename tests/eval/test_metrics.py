@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.eval.metrics import average_ranks, f1_score, roc_auc, score
+from ehm.eval.metrics import average_ranks, f1_score, precision_recall, roc_auc, score
 
 
 def test_scores_against_hand_computed_values():
@@ -40,3 +40,12 @@ def test_average_ranks_share_ties():
 def test_f1_of_nothing_predicted_and_nothing_present_is_zero():
     assert f1_score(np.zeros(3, bool), np.zeros(3, bool)) == 0.0
     assert f1_score(np.array([1, 0, 1]), np.array([1, 1, 0])) == pytest.approx(0.5)
+
+
+def test_precision_and_recall_by_hand():
+    labels = np.array([1, 1, 0, 0, 1], dtype=bool)
+    predicted = np.array([1, 0, 1, 0, 1], dtype=bool)
+    # TP 2, FP 1, FN 1
+    assert precision_recall(labels, predicted) == pytest.approx((2 / 3, 2 / 3))
+    assert precision_recall(labels, np.zeros(5, bool)) == (0.0, 0.0)
+    assert precision_recall(np.zeros(2, bool), np.array([True, False])) == (0.0, 0.0)
