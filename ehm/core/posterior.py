@@ -21,7 +21,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
 from ehm.core.features import SparseFeatures
-from ehm.core.logistic import sigmoid
+from ehm.core.logistic import sigmoid, sigmoid_scalar
 from ehm.core.sgd import class_weights
 
 # Largest change of one weight in one coordinate step, log-odds.
@@ -49,11 +49,6 @@ def update_posterior(
         bias_state,
         config.epochs,
     )
-
-
-@numba.njit(cache=True)
-def _sigmoid(score):  # pragma: no cover - compiled
-    return 1.0 / (1.0 + np.exp(-score))
 
 
 @numba.njit(cache=True)
@@ -113,7 +108,7 @@ def posterior_update(
             for e in range(start[m], start[m + 1]):
                 i = entry_sample[e]
                 v = entry_value[e]
-                p = _sigmoid(scores[i])
+                p = sigmoid_scalar(scores[i])
                 gradient += sample_weight[i] * (p - labels[i]) * v
                 curvature += sample_weight[i] * p * (1.0 - p) * v * v
             step = min(max(-gradient / curvature, -MAX_STEP), MAX_STEP)
@@ -123,7 +118,7 @@ def posterior_update(
         gradient = bias_state[1] * (bias_state[0] - prior_bias)
         curvature = bias_state[1]
         for i in range(n):
-            p = _sigmoid(scores[i])
+            p = sigmoid_scalar(scores[i])
             gradient += sample_weight[i] * (p - labels[i])
             curvature += sample_weight[i] * p * (1.0 - p)
         step = min(max(-gradient / curvature, -MAX_STEP), MAX_STEP)
@@ -132,11 +127,11 @@ def posterior_update(
             scores[i] += step
     for m in range(n_clusters):
         for e in range(start[m], start[m + 1]):
-            p = _sigmoid(scores[entry_sample[e]])
+            p = sigmoid_scalar(scores[entry_sample[e]])
             v = entry_value[e]
             precision[m] += sample_weight[entry_sample[e]] * p * (1.0 - p) * v * v
     for i in range(n):
-        p = _sigmoid(scores[i])
+        p = sigmoid_scalar(scores[i])
         bias_state[1] += sample_weight[i] * p * (1.0 - p)
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
 from ehm.core.features import SparseFeatures
-from ehm.core.logistic import sigmoid
+from ehm.core.logistic import sigmoid, sigmoid_scalar
 
 EPSILON = 1e-8
 
@@ -86,7 +86,7 @@ def sgd_pass(
             if cluster >= 0:
                 score += weights[cluster] * values[i, j]
         label = labels[i]
-        error = (1.0 / (1.0 + np.exp(-score)) - label) * class_weights[np.int64(label)]
+        error = (sigmoid_scalar(score) - label) * class_weights[np.int64(label)]
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster < 0 or values[i, j] == 0.0:
