@@ -19,7 +19,7 @@ class MapConfig:
     Distances are in metres. Defaults suit indoor and outdoor LiDAR at about 5 cm detail.
     """
 
-    # Training samples drawn from each ray (Scan.training_samples).
+    # Training samples drawn from each ray (ehm.core.samples).
     free_spacing: float = 0.6
     """Mean distance between free samples along a ray, metres (density of free samples)."""
     surface_margin: float = 0.05

@@ -13,7 +13,7 @@ out changes no result and prunes most of the tree.
 Two settings change the search: anisotropic search ranks a point's clusters by the radius
 their kernel gives it instead of by the distance to their centres (candidates from the
 Euclidean search, re-ranked), and anchor layers replace the kd-trees by a top-down search
-through clusters of clusters (ehm.anchors).
+through clusters of clusters (ehm.core.anchors).
 """
 
 from __future__ import annotations
