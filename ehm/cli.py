@@ -297,6 +297,8 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     table.add_row("clusters", str(hilbert_map.n_clusters))
     table.add_row("scans", str(hilbert_map.n_scans_))
     table.add_row("memory", f"{hilbert_map.memory_bytes() / 1e6:.3f} MB")
+    samples = hilbert_map.memory_
+    table.add_row("past samples kept", f"{len(samples)} in {samples.n_cells} cells")
     table.add_row("file size", f"{map_path.stat().st_size / 1e6:.3f} MB")
     low = hilbert_map.clusters_.means.min(axis=0)
     high = hilbert_map.clusters_.means.max(axis=0)

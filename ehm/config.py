@@ -110,6 +110,15 @@ class MapConfig:
     """L2 regularisation of the weights (the R(w) of Eq. 2; 'sgd')."""
     prior_precision: float = 1.0
     """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0 ('posterior')."""
+    memory_per_cell: int = 8
+    """Past training samples a map keeps per cell of space (ehm.core.memory): a uniform random
+    subset of those that fell in the cell, `cluster_radius` on a side around hits,
+    `free_cluster_radius` along rays. They are replayed with later scans, and those that formed
+    no cluster yet are clustered again with a later scan's samples in their cell. 0 keeps
+    none: each scan is learned from its own samples alone, as Alg. 2 does."""
+    replay_ratio: float = 1.0
+    """Past samples replayed from the memory with each scan, per sample of the scan, drawn in
+    the proportions of every sample seen so far."""
     balance_classes: bool = False
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2
@@ -166,6 +175,7 @@ class MapConfig:
             ("kmeans_iterations", 0),
             ("anisotropic_candidates", 1),
             ("anchor_layers", 1),
+            ("memory_per_cell", 0),
         )
         for name, low in integers:
             value = getattr(self, name)
@@ -181,6 +191,8 @@ class MapConfig:
             raise ValueError(
                 f"MapConfig.anchor_radius_factor must be above 1, got {self.anchor_radius_factor!r}"
             )
+        if not isinstance(self.replay_ratio, int | float) or not self.replay_ratio >= 0:
+            raise ValueError(f"MapConfig.replay_ratio must be >= 0, got {self.replay_ratio!r}")
         if self.l2 < 0:
             raise ValueError(f"MapConfig.l2 must be >= 0, got {self.l2!r}")
         if self.merge_rule not in ("pooled", "average"):

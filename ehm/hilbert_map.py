@@ -33,6 +33,7 @@ from ehm.core.features import (
 from ehm.core.grouping import group_samples
 from ehm.core.index import ClusterIndex
 from ehm.core.logistic import sigmoid
+from ehm.core.memory import SampleMemory
 from ehm.core.merging import absorb_clusters
 from ehm.core.posterior import update_posterior
 from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
@@ -65,6 +66,7 @@ class HilbertMap:
     def _reset(self) -> None:
         """Forget everything learned."""
         self.clusters_: ClusterSet | None = None
+        self.memory_: SampleMemory | None = None
         self.bias_state_ = np.zeros(2)
         self.n_scans_ = 0
         self.timings_: dict[str, float] = {}
@@ -101,10 +103,12 @@ class HilbertMap:
         return ClusterView.of(self._learned("look at its clusters"))
 
     def memory_bytes(self) -> int:
-        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, anchor
-        layers and the search structure over cluster centres."""
+        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
+        sample memory, anchor layers and the search structure over cluster centres."""
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
-        return clusters + self.bias_state_.nbytes + self._index.nbytes + self.anchors_.nbytes
+        memory = 0 if self.memory_ is None else self.memory_.nbytes
+        learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
+        return learned + self._index.nbytes
 
     def state(self) -> MapState:
         """Everything the map has learned, as plain data (shared, not copied)."""
@@ -116,6 +120,9 @@ class HilbertMap:
             self.bias_state_,
             self.n_scans_,
             self._rng.bit_generator.state,
+            self.memory_
+            if self.memory_ is not None
+            else SampleMemory.of_config(clusters.dim, self.config),
         )
 
     @classmethod
@@ -127,6 +134,7 @@ class HilbertMap:
         hilbert_map.bias_state_ = np.array(state.bias_state, dtype=np.float64)
         hilbert_map.n_scans_ = state.n_scans
         hilbert_map.anchors_ = state.anchors
+        hilbert_map.memory_ = state.memory
         if state.rng_state is not None:
             hilbert_map._rng.bit_generator.state = state.rng_state
         hilbert_map._index = ClusterIndex.of(state.clusters, state.anchors, state.config)
@@ -199,13 +207,19 @@ class HilbertMap:
         return self
 
     def _learn(self, samples: TrainingSamples, timer: StageTimer) -> None:
-        """Alg. 2 from the samples on, one step per stage of the paper's Table 2."""
+        """Alg. 2 from the samples on, one step per stage of the paper's Table 2, with past
+        samples from the memory: those waiting for a cluster join the clustering, and some are
+        replayed with the new ones (ehm.core.memory)."""
         cfg = self.config
-        if self.clusters_ is None:
-            self.clusters_ = ClusterSet.empty(samples.points.shape[1])
-        clusters = self.clusters_
+        if self.clusters_ is None or self.memory_ is None:
+            dim = samples.points.shape[1]
+            self.clusters_ = ClusterSet.empty(dim)
+            self.memory_ = SampleMemory.of_config(dim, cfg)
+        clusters, memory = self.clusters_, self.memory_
+        n_new = len(samples)
         with timer("clustering"):
-            grouped = group_samples(samples, cfg, self._rng)
+            pending = memory.pending(samples)
+            grouped = group_samples(samples + pending.samples, cfg, self._rng)
         with timer("length_scales"):
             absorbed = absorb_clusters(clusters, self._index, grouped.clusters, cfg)
         self.last_update_ = {"new_clusters": absorbed.n_new, "merged_clusters": absorbed.n_merged}
@@ -224,19 +238,26 @@ class HilbertMap:
                     cfg.anchor_layers - 1,
                 )
             self._index = ClusterIndex.of(clusters, self.anchors_, cfg)
-        with timer("features"):
+        with timer("replay"):
+            replayed = memory.replay(round(cfg.replay_ratio * n_new), samples, self._rng)
+            train = samples + replayed
             if cfg.train_search == "point":
-                groups = PointGroups.singletons(samples.points)
+                groups = PointGroups.singletons(train.points)
             else:
-                groups = grouped.groups
-            features = training_features(samples.points, groups, self._index, clusters, cfg)
+                new_groups = PointGroups(
+                    grouped.groups.group_of_point[:n_new], grouped.groups.centres
+                )
+                groups = new_groups + group_samples(replayed, cfg, self._rng).groups
+        with timer("features"):
+            features = training_features(train.points, groups, self._index, clusters, cfg)
         with timer(cfg.update_rule):
             if cfg.update_rule == "posterior":
-                update_posterior(features, samples.occupied, clusters, self.bias_state_, cfg)
+                update_posterior(features, train.occupied, clusters, self.bias_state_, cfg)
             else:
-                train_weights(
-                    features, samples.occupied, clusters, self.bias_state_, cfg, self._rng
-                )
+                train_weights(features, train.occupied, clusters, self.bias_state_, cfg, self._rng)
+        with timer("memory"):
+            memory.mark_clustered(pending, grouped.in_cluster[n_new:])
+            memory.insert(samples, grouped.in_cluster[:n_new], self._rng)
         self.timings_ = dict(timer.seconds)
 
     # ---------------------------------------------------------------- queries

@@ -63,6 +63,9 @@ def test_map_then_info_and_query(map_file, tmp_path):
     assert table_row(info.output, "scans") == ["5"]
     assert table_row(info.output, "clusters") == [str(hilbert_map.n_clusters)]
     assert table_row(info.output, "memory") == [f"{hilbert_map.memory_bytes() / 1e6:.3f} MB"]
+    kept = hilbert_map.memory_
+    assert len(kept) > 0
+    assert table_row(info.output, "past samples kept") == [f"{len(kept)} in {kept.n_cells} cells"]
     points = np.array([[-3.0, -1.5], [6.0, -0.2]])
     np.save(tmp_path / "q.npy", points)
     np.savetxt(tmp_path / "q.csv", points, delimiter=",")

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import ehm
+from ehm.eval.datasets import warehouse
 from ehm.eval.metrics import roc_auc, score
 from ehm.eval.protocol import exact_test_points, held_out_rays, near_surface_points, observed_mask
 
@@ -86,8 +87,10 @@ def test_incremental_merges_reobserved_clusters(room):
         "clustering",
         "length_scales",
         "index",
+        "replay",
         "features",
         "sgd",
+        "memory",
     }
 
 
@@ -178,3 +181,20 @@ def test_state_restores_a_map_that_goes_on_exactly(plan):
     np.testing.assert_array_equal(a.clusters_.weights, b.clusters_.weights)
     with pytest.raises(RuntimeError, match="the map is empty"):
         ehm.HilbertMap().state()
+
+
+def test_scan_by_scan_with_the_memory_does_not_forget():
+    """Six sparse LiDAR scans along a warehouse's aisles: learned scan by scan with past samples
+    replayed, held-out F1 rises above learning each scan alone and reaches one batch's
+    (measured: 0.689 against 0.643 alone and 0.662 in one batch)."""
+    split = held_out_rays(warehouse(rings=16, azimuths=360).scans, 0.8, 0.05, 0)
+    f1 = {}
+    for per_cell in (0, 8):
+        hilbert_map = ehm.HilbertMap(memory_per_cell=per_cell)
+        for scan in split.train:
+            hilbert_map.integrate_scan(scan)
+        f1[per_cell] = score(split.occupied, hilbert_map.occupancy(split.points)).f1
+        assert (len(hilbert_map.memory_) > 0) == (per_cell > 0)
+    batch = ehm.HilbertMap().fit(split.train)
+    assert f1[8] > f1[0] + 0.03
+    assert f1[8] > score(split.occupied, batch.occupancy(split.points)).f1 - 0.01

@@ -33,6 +33,13 @@ class PointGroups:
         """One group per point: a search at every point (exact)."""
         return cls(np.arange(len(points), dtype=np.int64), points)
 
+    def __add__(self, other: PointGroups) -> PointGroups:
+        """The groups of this set's points followed by `other`'s."""
+        return PointGroups(
+            np.concatenate([self.group_of_point, other.group_of_point + len(self.centres)]),
+            np.concatenate([self.centres, other.centres]),
+        )
+
     def spread(self, points: np.ndarray) -> float:
         """Largest distance, metres, from one of `points` (n, d) to the centre of its group
         (0 for no points)."""

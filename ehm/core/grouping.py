@@ -44,11 +44,13 @@ class SampleGroups:
     """Samples grouped for neighbour search, and the new clusters found among them.
 
     groups: one group per quick-means seed, centred on its mean (also the seeds too small to
-    be clusters). clusters: the seeds kept as clusters proper.
+    be clusters). clusters: the seeds kept as clusters proper. in_cluster: (n,) bool, the
+    seed that took each sample is one of them.
     """
 
     groups: PointGroups
     clusters: NewClusters
+    in_cluster: np.ndarray
 
 
 def group_samples(
@@ -67,6 +69,7 @@ def group_samples(
     else:
         parts = [(np.arange(len(samples)), config.cluster_radius, False)]
     group_of_point = np.empty(len(samples), dtype=np.int64)
+    in_cluster = np.empty(len(samples), dtype=bool)
     centres, means, covariances, counts, coarse, occupied = [], [], [], [], [], []
     n_groups = 0
     for rows, radius, is_coarse in parts:
@@ -75,6 +78,7 @@ def group_samples(
         result = quick_means(points, radius, outer, config.min_cluster_size, rng)
         result = kmeans_refine(points, result, config.kmeans_iterations)
         group_of_point[rows] = result.owner + n_groups
+        in_cluster[rows] = result.kept[result.owner]
         n_groups += len(result.means)
         centres.append(result.means)
         means.append(result.means[result.kept])
@@ -95,4 +99,5 @@ def group_samples(
             np.concatenate(coarse),
             np.concatenate(occupied),
         ),
+        in_cluster,
     )

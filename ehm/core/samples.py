@@ -26,6 +26,10 @@ class TrainingSamples:
     def __len__(self) -> int:
         return len(self.points)
 
+    def __add__(self, other: TrainingSamples) -> TrainingSamples:
+        """This set's samples followed by `other`'s."""
+        return TrainingSamples.concatenate([self, other])
+
     @staticmethod
     def concatenate(parts: list[TrainingSamples]) -> TrainingSamples:
         return TrainingSamples(

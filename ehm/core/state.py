@@ -10,6 +10,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet
+from ehm.core.memory import SampleMemory
 
 
 @dataclass(frozen=True)
@@ -17,7 +18,8 @@ class MapState:
     """config; clusters; anchors (no layers unless config.anchor_layers > 1); bias_state:
     (2,) float64, [bias, its AdaGrad accumulator]; n_scans: scans learned; rng_state: the
     state of the map's random generator (numpy's bit_generator.state), so that a restored map
-    continues exactly as the saved one would; None starts it afresh from config.seed."""
+    continues exactly as the saved one would; None starts it afresh from config.seed. memory:
+    the past samples it replays."""
 
     config: MapConfig
     clusters: ClusterSet
@@ -25,3 +27,4 @@ class MapState:
     bias_state: np.ndarray
     n_scans: int
     rng_state: dict[str, Any] | None
+    memory: SampleMemory

@@ -5,8 +5,9 @@ Layout (little-endian):
     4 bytes   uint32 format version
     8 bytes   uint64 length of the JSON header
     header    UTF-8 JSON: config, dim, n_scans, bias state, random generator state (from
-              version 4 on), and for each array (the clusters', then the anchor layers') its
-              name, dtype, shape and byte offset into the payload
+              version 4 on), and for each array (the clusters', the anchor layers', then the
+              sample memory's from version 5 on) its name, dtype, shape and byte offset into
+              the payload
     payload   the arrays' raw bytes, one after another
     4 bytes   uint32 CRC-32 of everything before it
 """
@@ -26,15 +27,18 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet
+from ehm.core.memory import SampleMemory
 from ehm.core.state import MapState
 
 MAGIC = b"EHMMAP\r\n"
 # Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
 ANCHOR_PREFIX = "anchor_"
+MEMORY_PREFIX = "memory_"
+# Version 5 stores the sample memory; older files load with none (memory_per_cell 0).
 # Version 4 stores the random generator's state and each weight's posterior precision;
 # version 3 files load with a generator started afresh from the map's seed, and learn on by
 # SGD as they did.
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -52,6 +56,8 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
     for layer, (parents, coarse) in enumerate(zip(anchors.parents, anchors.coarse, strict=True)):
         arrays[f"{ANCHOR_PREFIX}parents_{layer}"] = parents
         arrays[f"{ANCHOR_PREFIX}coarse_{layer}"] = coarse
+    for name, array in state.memory.arrays().items():
+        arrays[f"{MEMORY_PREFIX}{name}"] = np.ascontiguousarray(array)
     entries, offset = [], 0
     for name, array in arrays.items():
         dtype = array.dtype.newbyteorder("<")
@@ -88,7 +94,7 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 and 4); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 5); MapFileError
     names what is wrong otherwise."""
     data = Path(path).read_bytes()
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
@@ -130,16 +136,31 @@ def read_map(path: str | PathLike[str]) -> MapState:
         [arrays.pop(f"{ANCHOR_PREFIX}parents_{layer}") for layer in range(n_layers)],
         [arrays.pop(f"{ANCHOR_PREFIX}coarse_{layer}") for layer in range(n_layers)],
     )
+    memory_arrays = {
+        name.removeprefix(MEMORY_PREFIX): arrays.pop(name)
+        for name in list(arrays)
+        if name.startswith(MEMORY_PREFIX)
+    }
     settings = header["config"]
+    if version < 5:
+        # Maps of formats 3 and 4 learned without a sample memory, and go on so.
+        settings = {**settings, "memory_per_cell": 0}
     if version == 3:
         # Format 3 maps learned by SGD and kept no posterior precisions.
         settings = {**settings, "update_rule": "sgd"}
         arrays["precision"] = np.full(len(arrays["weights"]), MapConfig().prior_precision)
+    config = MapConfig.from_dict(settings)
+    dim = header["dim"]
+    if memory_arrays:
+        memory = SampleMemory.from_arrays(dim, config, memory_arrays)
+    else:
+        memory = SampleMemory.of_config(dim, config)
     return MapState(
-        MapConfig.from_dict(settings),
+        config,
         ClusterSet(**arrays),
         anchors,
         np.array(header["bias_state"], dtype=np.float64),
         header["n_scans"],
         header.get("rng_state"),
+        memory,
     )

@@ -123,3 +123,11 @@ def test_training_features_are_the_kernels_of_each_groups_neighbours(room_map, r
     )
     np.testing.assert_allclose(features.values, expected, atol=1e-12)
     assert np.count_nonzero(features.values) > 0.2 * features.values.size
+
+
+def test_point_groups_add_up_with_their_groups_renumbered():
+    first = PointGroups(np.array([0, 1, 0]), np.array([[0.0, 0.0], [1.0, 1.0]]))
+    second = PointGroups(np.array([0, 0]), np.array([[5.0, 5.0]]))
+    both = first + second
+    np.testing.assert_array_equal(both.group_of_point, [0, 1, 0, 2, 2])
+    np.testing.assert_array_equal(both.centres, [[0, 0], [1, 1], [5, 5]])

@@ -43,3 +43,12 @@ def test_samples_clustered_together_take_the_majority_label():
     group_of_point = grouped.groups.group_of_point
     assert len(set(group_of_point[:3])) == 1 and group_of_point[3] != group_of_point[0]
     assert not grouped.clusters.coarse.any()
+
+
+def test_samples_know_whether_their_seed_made_a_cluster():
+    # Three samples together make a cluster of at least 3; a lone one far away does not.
+    points = np.array([[0.0, 0.0], [0.01, 0.0], [0.0, 0.01], [5.0, 5.0]])
+    samples = TrainingSamples(points, np.ones(4, bool), np.ones(4, bool))
+    grouped = group_samples(samples, MapConfig(min_cluster_size=3), np.random.default_rng(0))
+    np.testing.assert_array_equal(grouped.in_cluster, [True, True, True, False])
+    assert len(grouped.clusters) == 1 and len(grouped.groups.centres) == 2

@@ -3,7 +3,7 @@
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.samples import samples_of_scans, training_samples
+from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
 from ehm.core.scan import Scan
 
 
@@ -56,3 +56,12 @@ def test_samples_of_scans_are_each_scans_samples_in_order(plan):
     np.testing.assert_array_equal(together.points, np.concatenate([p.points for p in parts]))
     np.testing.assert_array_equal(together.occupied, np.concatenate([p.occupied for p in parts]))
     assert len(together) == sum(len(p) for p in parts)
+
+
+def test_sample_sets_add_up_in_order(rng):
+    first = TrainingSamples(rng.random((3, 2)), np.array([1, 0, 1], bool), np.ones(3, bool))
+    second = TrainingSamples(rng.random((2, 2)), np.array([0, 1], bool), np.zeros(2, bool))
+    both = first + second
+    np.testing.assert_array_equal(both.points, np.vstack([first.points, second.points]))
+    np.testing.assert_array_equal(both.occupied, [1, 0, 1, 0, 1])
+    np.testing.assert_array_equal(both.at_surface, [1, 1, 1, 0, 0])

@@ -36,9 +36,10 @@ def test_round_trip_answers_exactly_as_saved(small_map, tmp_path, rng):
 
 
 def test_memory_bytes_counts_every_array(small_map):
-    arrays = small_map.clusters_.arrays().values()
-    assert small_map.memory_bytes() > sum(a.nbytes for a in arrays)
-    assert small_map.memory_bytes() < 3 * sum(a.nbytes for a in arrays)
+    learned = sum(a.nbytes for a in small_map.clusters_.arrays().values())
+    learned += small_map.memory_.nbytes
+    assert small_map.memory_bytes() > learned
+    assert small_map.memory_bytes() < 2 * learned
 
 
 @pytest.mark.parametrize("overrides", [{}, {"anchor_layers": 2, "merge_coplanar": True}])
@@ -53,6 +54,9 @@ def test_loaded_map_goes_on_learning_exactly_as_the_saved_one(plan, tmp_path, ov
         loaded.integrate_scan(scan)
     for name, array in original.clusters_.arrays().items():
         np.testing.assert_array_equal(getattr(loaded.clusters_, name), array, err_msg=name)
+    for name, array in original.memory_.arrays().items():
+        np.testing.assert_array_equal(loaded.memory_.arrays()[name], array, err_msg=name)
+    assert len(original.memory_) > 0
     np.testing.assert_array_equal(loaded.bias_state_, original.bias_state_)
     for layer, parents in enumerate(original.anchors_.parents):
         np.testing.assert_array_equal(loaded.anchors_.parents[layer], parents)
@@ -107,7 +111,7 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     """Files written in format 3, before the random generator's state was stored: a 2D plan
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
     They answer as when they were written, and a map built now from the same scans with the
-    same settings answers the same."""
+    same settings (no sample memory then) answers the same."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
@@ -122,11 +126,11 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
     if name == "plan":
-        hilbert_map = ehm.HilbertMap(neighbours=6, anchor_layers=2)
+        hilbert_map = ehm.HilbertMap(neighbours=6, anchor_layers=2, memory_per_cell=0)
         scans = floor_plan_2d(seed=0).scans
     else:
         hilbert_map = ehm.HilbertMap(
-            planar_kernel=True, merge_coplanar=True, anisotropic_search=True
+            planar_kernel=True, merge_coplanar=True, anisotropic_search=True, memory_per_cell=0
         )
         (scan,) = virtual_room(seed=0, rings=16, azimuths=240).scans
         scans = [scan.subset(np.arange(len(scan)) % 2 == part) for part in (0, 1)]
