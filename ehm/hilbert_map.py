@@ -218,7 +218,8 @@ class HilbertMap:
         clusters, memory = self.clusters_, self.memory_
         n_new = len(samples)
         with timer("clustering"):
-            pending = memory.pending(samples)
+            visit = memory.visit(samples)
+            pending = memory.pending(visit)
             grouped = group_samples(samples + pending.samples, cfg, self._rng)
         with timer("length_scales"):
             absorbed = absorb_clusters(clusters, self._index, grouped.clusters, cfg)
@@ -239,15 +240,15 @@ class HilbertMap:
                 )
             self._index = ClusterIndex.of(clusters, self.anchors_, cfg)
         with timer("replay"):
-            replayed = memory.replay(round(cfg.replay_ratio * n_new), samples, self._rng)
-            train = samples + replayed
+            replay = memory.replay(round(cfg.replay_ratio * n_new), visit, self._rng)
+            train = samples + replay.samples
             if cfg.train_search == "point":
                 groups = PointGroups.singletons(train.points)
             else:
                 new_groups = PointGroups(
                     grouped.groups.group_of_point[:n_new], grouped.groups.centres
                 )
-                groups = new_groups + group_samples(replayed, cfg, self._rng).groups
+                groups = new_groups + replay.groups
         with timer("features"):
             features = training_features(train.points, groups, self._index, clusters, cfg)
         with timer(cfg.update_rule):
@@ -257,7 +258,7 @@ class HilbertMap:
                 train_weights(features, train.occupied, clusters, self.bias_state_, cfg, self._rng)
         with timer("memory"):
             memory.mark_clustered(pending, grouped.in_cluster[n_new:])
-            memory.insert(samples, grouped.in_cluster[:n_new], self._rng)
+            memory.insert(visit, grouped.in_cluster[:n_new], self._rng)
         self.timings_ = dict(timer.seconds)
 
     # ---------------------------------------------------------------- queries

@@ -32,7 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
+from ehm.core.features import PointGroups
 from ehm.core.samples import TrainingSamples
+
+# Priority of an empty slot; samples draw theirs below it.
+EMPTY = np.uint32(2**32 - 1)
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,28 @@ class PendingSamples:
     slots: np.ndarray
 
 
+@dataclass(frozen=True)
+class Visit:
+    """Where a batch of samples falls in a memory. keys: (u,) int64 sorted distinct keys of
+    their cells; key_of_sample: (n,) int64 index of each sample's key; cells: (u,) int64 row of
+    each key's cell, -1 where the memory has none yet; near: (c,) int64 rows of the cells, of
+    either kind, that hold any of the samples."""
+
+    samples: TrainingSamples
+    keys: np.ndarray
+    key_of_sample: np.ndarray
+    cells: np.ndarray
+    near: np.ndarray
+
+
+@dataclass(frozen=True)
+class Replay:
+    """Past samples drawn for replay, and their groups for neighbour search (one per cell)."""
+
+    samples: TrainingSamples
+    groups: PointGroups
+
+
 class SampleMemory:
     """Past training samples of a map, at most `per_cell` per cell of space (per_cell = 0 keeps
     none). `sides`: (side of the cells of samples around hits, side of the cells of free
@@ -53,7 +79,7 @@ class SampleMemory:
     Per cell, rows 0..n_cells-1: seen (float64, samples that fell in it), filled (int64, kept
     samples, slots 0..filled-1), at_surface (bool, its kind). Per kept sample, (cells,
     per_cell) arrays: points (float32, metres, world frame, one more axis), occupied and
-    clustered (bool), priority (float32, +inf in an empty slot). keys: (n_cells,) int64 sorted
+    clustered (bool), priority (uint32, EMPTY in an empty slot). keys: (n_cells,) int64 sorted
     cell keys, and cell_of_key the row of each.
     """
 
@@ -80,7 +106,7 @@ class SampleMemory:
         self.points = np.zeros((capacity, k, d), dtype=np.float32)
         self.occupied = np.zeros((capacity, k), dtype=bool)
         self.clustered = np.zeros((capacity, k), dtype=bool)
-        self.priority = np.full((capacity, k), np.inf, dtype=np.float32)
+        self.priority = np.full((capacity, k), EMPTY, dtype=np.uint32)
 
     def _reserve(self, n_cells: int) -> None:
         """Room for n_cells cells, growing by doubling so appends cost amortized O(1)."""
@@ -114,8 +140,8 @@ class SampleMemory:
         side = np.where(at_surface, self.sides[0], self.sides[1])
         cells = np.floor(points / side[:, None])
         half = 2.0 ** (self.bits - 1)
-        outside = np.any((cells < -half) | (cells >= half), axis=1)
-        if outside.any():
+        if len(cells) and not (cells.min() >= -half and cells.max() < half):
+            outside = np.any((cells < -half) | (cells >= half), axis=1)
             far = np.max(np.abs(points[outside]))
             raise ValueError(
                 f"a training sample lies {far:.0f} m from the world origin; the sample memory "
@@ -135,62 +161,23 @@ class SampleMemory:
         cells[found] = self.cell_of_key[position[found]]
         return cells
 
-    def _cells(self, unique_keys: np.ndarray) -> np.ndarray:
-        """(n,) int64 cell rows of sorted distinct `unique_keys`, adding the missing cells."""
-        cells = self._find(unique_keys)
-        missing = cells < 0
-        n_missing = int(missing.sum())
-        if n_missing:
-            self._reserve(self.n_cells + n_missing)
-            cells[missing] = np.arange(self.n_cells, self.n_cells + n_missing)
-            position = np.searchsorted(self.keys, unique_keys[missing])
-            self.keys = np.insert(self.keys, position, unique_keys[missing])
-            self.cell_of_key = np.insert(self.cell_of_key, position, cells[missing])
-            self.at_surface[cells[missing]] = (unique_keys[missing] & 1).astype(bool)
-            self.n_cells += n_missing
-        return cells
-
     # -------------------------------------------------------------- learning
-    def insert(
-        self, samples: TrainingSamples, clustered: np.ndarray, rng: np.random.Generator
-    ) -> None:
-        """Offer `samples` to the memory; clustered: (n,) bool, each formed part of a cluster.
-        Each cell keeps the per_cell lowest priorities among its samples and the new ones."""
-        if self.per_cell == 0 or len(samples) == 0:
-            return
-        unique, inverse = np.unique(
-            self.cell_keys(samples.points, samples.at_surface), return_inverse=True
-        )
-        cells = self._cells(unique)
-        self.seen[cells] += np.bincount(inverse.ravel(), minlength=len(unique))
-        k, d = self.per_cell, self.dim
-        # Candidates per touched cell: its kept slots (empty ones at +inf), then the new samples.
-        cell_of = np.concatenate([np.repeat(cells, k), cells[inverse.ravel()]])
-        priority = np.concatenate(
-            [self.priority[cells].ravel(), rng.random(len(samples), dtype=np.float32)]
-        )
-        points = np.concatenate(
-            [self.points[cells].reshape(-1, d), samples.points.astype(np.float32)]
-        )
-        occupied = np.concatenate([self.occupied[cells].ravel(), samples.occupied])
-        was_clustered = np.concatenate([self.clustered[cells].ravel(), clustered])
-        order = np.lexsort((priority, cell_of))
-        rank = _rank_in_runs(cell_of[order])
-        keep = order[rank < k]
-        target_cell, slot = cell_of[keep], rank[rank < k]
-        self.priority[target_cell, slot] = priority[keep]
-        self.points[target_cell, slot] = points[keep]
-        self.occupied[target_cell, slot] = occupied[keep]
-        self.clustered[target_cell, slot] = was_clustered[keep]
-        self.filled[cells] = np.isfinite(self.priority[cells]).sum(axis=1)
+    def visit(self, samples: TrainingSamples) -> Visit:
+        """Where `samples` fall in this memory: the start of every step below."""
+        if self.per_cell == 0:
+            none = np.zeros(0, dtype=np.int64)
+            return Visit(samples, none, np.zeros(len(samples), dtype=np.int64), none, none)
+        keys = self.cell_keys(samples.points, samples.at_surface)
+        unique, key_of_sample = np.unique(keys, return_inverse=True)
+        cells = self._find(unique)
+        other_kind = self._find(np.unique(self.cell_keys(samples.points, ~samples.at_surface)))
+        near = np.union1d(cells[cells >= 0], other_kind[other_kind >= 0])
+        return Visit(samples, unique, key_of_sample.ravel(), cells, near)
 
-    def pending(self, samples: TrainingSamples) -> PendingSamples:
-        """The kept samples not yet in any cluster, in the cells `samples` fall in."""
-        cells = np.zeros(0, dtype=np.int64)
-        if self.n_cells and len(samples):
-            cells = self._find(np.unique(self.cell_keys(samples.points, samples.at_surface)))
-            cells = cells[cells >= 0]
-        waiting = ~self.clustered[cells] & np.isfinite(self.priority[cells])
+    def pending(self, visit: Visit) -> PendingSamples:
+        """The kept samples not yet in any cluster, in the cells the visit's samples fall in."""
+        cells = visit.cells[visit.cells >= 0]
+        waiting = ~self.clustered[cells] & (self.priority[cells] != EMPTY)
         row, slots = np.nonzero(waiting)
         cells = cells[row]
         return PendingSamples(self._samples_at(cells, slots), cells, slots)
@@ -199,27 +186,73 @@ class SampleMemory:
         """Record which `pending` samples ((p,) bool `clustered`) have now formed clusters."""
         self.clustered[pending.cells[clustered], pending.slots[clustered]] = True
 
-    def replay(self, n: int, near: TrainingSamples, rng: np.random.Generator) -> TrainingSamples:
-        """n past samples from the cells, of either kind, that hold any of the samples `near`:
+    def replay(self, n: int, visit: Visit, rng: np.random.Generator) -> Replay:
+        """n past samples from the cells, of either kind, that hold any of the visit's samples:
         each cell drawn in proportion to the samples it has seen, then one of its kept samples
-        uniformly (none when those cells are empty)."""
-        cells = np.zeros(0, dtype=np.int64)
-        if self.n_cells and len(near):
-            keys = np.concatenate(
-                [
-                    self.cell_keys(near.points, near.at_surface),
-                    self.cell_keys(near.points, ~near.at_surface),
-                ]
+        uniformly (none when those cells are empty). They are grouped by cell for neighbour
+        search."""
+        cells = visit.near
+        if len(cells) == 0 or n == 0:
+            cells = np.zeros(0, dtype=np.int64)
+            return Replay(
+                self._samples_at(cells, cells), PointGroups.by_label(cells, np.zeros((0, self.dim)))
             )
-            cells = self._find(np.unique(keys))
-            cells = cells[cells >= 0]
-        if len(cells) == 0:
-            return self._samples_at(cells, cells)
         cumulative = np.cumsum(self.seen[cells])
         drawn = np.searchsorted(cumulative, rng.random(n) * cumulative[-1], side="right")
         chosen = cells[np.minimum(drawn, len(cells) - 1)]
         slots = (rng.random(n) * self.filled[chosen]).astype(np.int64)
-        return self._samples_at(chosen, slots)
+        samples = self._samples_at(chosen, slots)
+        return Replay(samples, PointGroups.by_label(chosen, samples.points))
+
+    def insert(self, visit: Visit, clustered: np.ndarray, rng: np.random.Generator) -> None:
+        """Offer the visit's samples to the memory; clustered: (n,) bool, each formed part of a
+        cluster. Each cell keeps the per_cell lowest priorities among its samples and the new
+        ones."""
+        samples = visit.samples
+        if self.per_cell == 0 or len(samples) == 0:
+            return
+        cells = self._add_cells(visit)
+        self.seen[cells] += np.bincount(visit.key_of_sample, minlength=len(cells))
+        k, d = self.per_cell, self.dim
+        # A new sample can stay only below the highest kept priority of a full cell.
+        cell_of_sample = cells[visit.key_of_sample]
+        priority = rng.integers(0, EMPTY, len(samples), dtype=np.uint32)
+        full = self.filled[cells] == k
+        ceiling = np.where(full, self.priority[cells].max(axis=1), EMPTY)
+        new = np.flatnonzero(priority < ceiling[visit.key_of_sample])
+        touched = np.unique(cell_of_sample[new])
+        # Candidates per touched cell: its kept slots (empty ones at EMPTY), then new samples.
+        cell_of = np.concatenate([np.repeat(touched, k), cell_of_sample[new]])
+        priority = np.concatenate([self.priority[touched].ravel(), priority[new]])
+        points = np.concatenate(
+            [self.points[touched].reshape(-1, d), samples.points[new].astype(np.float32)]
+        )
+        occupied = np.concatenate([self.occupied[touched].ravel(), samples.occupied[new]])
+        was_clustered = np.concatenate([self.clustered[touched].ravel(), clustered[new]])
+        order = np.argsort((cell_of << 32) | priority.astype(np.int64))
+        rank = _rank_in_runs(cell_of[order])
+        keep = order[rank < k]
+        target_cell, slot = cell_of[keep], rank[rank < k]
+        self.priority[target_cell, slot] = priority[keep]
+        self.points[target_cell, slot] = points[keep]
+        self.occupied[target_cell, slot] = occupied[keep]
+        self.clustered[target_cell, slot] = was_clustered[keep]
+        self.filled[touched] = np.sum(self.priority[touched] != EMPTY, axis=1)
+
+    def _add_cells(self, visit: Visit) -> np.ndarray:
+        """(u,) int64 rows of the visit's cells, adding the ones it found missing."""
+        cells = visit.cells.copy()
+        missing = cells < 0
+        n_missing = int(missing.sum())
+        if n_missing:
+            self._reserve(self.n_cells + n_missing)
+            cells[missing] = np.arange(self.n_cells, self.n_cells + n_missing)
+            position = np.searchsorted(self.keys, visit.keys[missing])
+            self.keys = np.insert(self.keys, position, visit.keys[missing])
+            self.cell_of_key = np.insert(self.cell_of_key, position, cells[missing])
+            self.at_surface[cells[missing]] = (visit.keys[missing] & 1).astype(bool)
+            self.n_cells += n_missing
+        return cells
 
     def _samples_at(self, cells: np.ndarray, slots: np.ndarray) -> TrainingSamples:
         return TrainingSamples(
