@@ -1,11 +1,12 @@
-"""Online mapping: EHM scan by scan (`ehm`) against EHM in one batch (`ehm-batch`) and OctoMap,
-on every data set with several scans, and near surfaces against the exact occupancy.
+"""Online mapping: EHM scan by scan (`ehm`; `ehm-alone` without the sample memory) against EHM
+in one batch (`ehm-batch`) and OctoMap, on every data set with several scans, and near surfaces
+against the exact occupancy.
 
     python benchmarks/online_mapping.py [--seeds 0,1,2] [--fractions 0.8,0.4]
                                         [--datasets warehouse,street,...]
 
 For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the
-three methods: held-out F1 of the occupied class at p = 0.5 (OctoMap at 0.05 m, on the street
+four methods: held-out F1 of the occupied class at p = 0.5 (OctoMap at 0.05 m, on the street
 at 0.2 m). On the simulated scenes the same
 maps are also scored against the exact occupancy at points near surfaces: uniform in balls of
 0.3 m around training hits (both sides of each surface), kept where some training ray
@@ -30,7 +31,7 @@ from ehm.eval.metrics import f1_score, precision_recall
 from ehm.eval.protocol import held_out_rays, observed_mask
 from ehm.eval.runner import run_method
 
-METHODS = ("ehm", "ehm-batch", "octomap")
+METHODS = ("ehm", "ehm-alone", "ehm-batch", "octomap")
 SIMULATED = {"virtual_room": virtual_room, "warehouse": warehouse, "street": street}
 DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab")
 # Test points near surfaces: uniform in balls of this radius around training hits, metres.

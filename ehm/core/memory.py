@@ -32,7 +32,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.features import PointGroups
 from ehm.core.samples import TrainingSamples
 
 # Priority of an empty slot; samples draw theirs below it.
@@ -61,14 +60,6 @@ class Visit:
     key_of_sample: np.ndarray
     cells: np.ndarray
     near: np.ndarray
-
-
-@dataclass(frozen=True)
-class Replay:
-    """Past samples drawn for replay, and their groups for neighbour search (one per cell)."""
-
-    samples: TrainingSamples
-    groups: PointGroups
 
 
 class SampleMemory:
@@ -186,23 +177,19 @@ class SampleMemory:
         """Record which `pending` samples ((p,) bool `clustered`) have now formed clusters."""
         self.clustered[pending.cells[clustered], pending.slots[clustered]] = True
 
-    def replay(self, n: int, visit: Visit, rng: np.random.Generator) -> Replay:
+    def replay(self, n: int, visit: Visit, rng: np.random.Generator) -> TrainingSamples:
         """n past samples from the cells, of either kind, that hold any of the visit's samples:
         each cell drawn in proportion to the samples it has seen, then one of its kept samples
-        uniformly (none when those cells are empty). They are grouped by cell for neighbour
-        search."""
+        uniformly (none when those cells are empty)."""
         cells = visit.near
         if len(cells) == 0 or n == 0:
             cells = np.zeros(0, dtype=np.int64)
-            return Replay(
-                self._samples_at(cells, cells), PointGroups.by_label(cells, np.zeros((0, self.dim)))
-            )
+            return self._samples_at(cells, cells)
         cumulative = np.cumsum(self.seen[cells])
         drawn = np.searchsorted(cumulative, rng.random(n) * cumulative[-1], side="right")
         chosen = cells[np.minimum(drawn, len(cells) - 1)]
         slots = (rng.random(n) * self.filled[chosen]).astype(np.int64)
-        samples = self._samples_at(chosen, slots)
-        return Replay(samples, PointGroups.by_label(chosen, samples.points))
+        return self._samples_at(chosen, slots)
 
     def insert(self, visit: Visit, clustered: np.ndarray, rng: np.random.Generator) -> None:
         """Offer the visit's samples to the memory; clustered: (n,) bool, each formed part of a

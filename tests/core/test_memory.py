@@ -69,8 +69,7 @@ def test_replay_draws_cells_in_proportion_to_what_they_saw(rng):
     insert(memory, uniform_in_cell(rng, 100, (1, 0)), np.ones(100, bool), rng)
     insert(memory, uniform_in_cell(rng, 50, (7, 7)), np.ones(50, bool), rng)
     near = samples_at([[0.5, 0.5], [1.5, 0.5]])
-    replay = memory.replay(20000, memory.visit(near), rng)
-    replayed = replay.samples
+    replayed = memory.replay(20000, memory.visit(near), rng)
     assert len(replayed) == 20000 and replayed.points.dtype == np.float64
     in_first = np.all((replayed.points >= 0) & (replayed.points < 1), axis=1)
     in_second = (replayed.points[:, 0] >= 1) & (replayed.points[:, 0] < 2)
@@ -79,13 +78,6 @@ def test_replay_draws_cells_in_proportion_to_what_they_saw(rng):
     # Within a cell, the kept samples come back alike.
     _, per_sample = np.unique(replayed.points[in_second], axis=0, return_counts=True)
     assert len(per_sample) == 4 and per_sample.min() > 0.8 * per_sample.max()
-    # One group of neighbour search per cell, centred on the mean of its replayed samples.
-    groups = replay.groups
-    assert len(groups.centres) == 2
-    np.testing.assert_allclose(
-        groups.centres[groups.group_of_point[in_first][0]],
-        replayed.points[in_first].mean(axis=0),
-    )
 
 
 def test_replay_reaches_cells_of_either_kind_around_the_new_samples(rng):
@@ -94,12 +86,12 @@ def test_replay_reaches_cells_of_either_kind_around_the_new_samples(rng):
     insert(memory, hits, np.ones(2, bool), rng)
     # Free samples along a later ray pass through the cell of those hits.
     ray = samples_at([[0.55, 0.4]], at_surface=False)
-    replayed = memory.replay(50, memory.visit(ray), rng).samples
+    replayed = memory.replay(50, memory.visit(ray), rng)
     assert len(replayed) == 50 and replayed.occupied.all() and replayed.at_surface.all()
     far = memory.visit(samples_at([[3.5, 3.5]]))
-    assert len(memory.replay(50, far, rng).samples) == 0
+    assert len(memory.replay(50, far, rng)) == 0
     empty = SampleMemory(2, 4, (1.0, 5.0))
-    assert len(empty.replay(50, empty.visit(ray), rng).samples) == 0
+    assert len(empty.replay(50, empty.visit(ray), rng)) == 0
 
 
 def test_samples_without_cluster_wait_in_their_cell_until_clustered(rng):
@@ -147,7 +139,7 @@ def test_a_memory_of_no_samples_keeps_and_replays_nothing(rng):
     insert(memory, samples, np.zeros(20, bool), rng)
     assert len(memory) == 0 and memory.n_cells == 0
     visit = memory.visit(samples)
-    assert len(memory.replay(10, visit, rng).samples) == 0
+    assert len(memory.replay(10, visit, rng)) == 0
     assert len(memory.pending(visit).samples) == 0
     # Without a memory, samples may lie anywhere.
     far = samples_at(np.array([[1e9, 0.0, 0.0]]))

@@ -74,6 +74,7 @@ METHODS: dict[str, Callable[[float, int], Mapper]] = {
     "lls-hm": _localized("lls-hm"),
     "gpom": _gpom,
     "ehm": _localized("ehm"),
+    "ehm-alone": _localized("ehm-alone"),
     "ehm-batch": _localized("ehm-batch"),
 }
 """Every method by name, as a factory (resolution in metres, seed) -> Mapper."""

@@ -9,8 +9,13 @@ from ehm.core.scan import Scan
 from ehm.hilbert_map import HilbertMap
 from ehm.pipeline import MappingPipeline
 
+SCAN_BY_SCAN = ("ehm", "ehm-alone")
 KINDS = {
-    "ehm": ("EHM, incremental: one integrate per scan (Alg. 2, 3)", {}),
+    "ehm": ("EHM, incremental: one integrate per scan (Alg. 2, 3), past samples replayed", {}),
+    "ehm-alone": (
+        "EHM, incremental, each scan learned from its own samples alone (Alg. 2 as published)",
+        {"memory_per_cell": 0},
+    ),
     "ehm-batch": ("EHM, single batch: every scan in one fit (Alg. 2, 3)", {}),
     "lls-hm": (
         "LLS-HM (Guizilini & Ramos 2016): EHM's clusters and kernels, one kd-tree search per "
@@ -30,11 +35,11 @@ class LocalizedMapper:
         self.description, overrides = KINDS[kind]
         self.map = HilbertMap(seed=seed, **overrides)
         self.scan_seconds: list[float] = []
-        """Wall-clock seconds of each integrate ('ehm' only)."""
+        """Wall-clock seconds of each integrate (kinds learned scan by scan only)."""
 
     def build(self, scans: list[Scan]) -> None:
-        run = MappingPipeline(scans, self.map, batch=self.kind != "ehm").run()
-        if self.kind == "ehm":
+        run = MappingPipeline(scans, self.map, batch=self.kind not in SCAN_BY_SCAN).run()
+        if self.kind in SCAN_BY_SCAN:
             self.scan_seconds = run.scan_seconds
 
     def occupancy(self, points: np.ndarray) -> np.ndarray:

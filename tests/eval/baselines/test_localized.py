@@ -21,9 +21,16 @@ def test_incremental_ehm_times_every_scan_and_batch_learns_at_once(plan):
     np.testing.assert_array_equal(incremental.occupancy(points), incremental.map.occupancy(points))
 
 
+def test_ehm_alone_learns_scan_by_scan_without_a_memory(plan):
+    mapper = LocalizedMapper("ehm-alone")
+    mapper.build(plan.scans)
+    assert len(mapper.scan_seconds) == len(plan.scans)
+    assert mapper.map.config.memory_per_cell == 0 and len(mapper.map.memory_) == 0
+
+
 def test_lls_hm_searches_per_point():
     mapper = LocalizedMapper("lls-hm")
     assert mapper.map.config.train_search == "point"
     assert mapper.map.config.query_mode == "exact"
-    with pytest.raises(ValueError, match="kind must be one of ehm, ehm-batch, lls-hm"):
+    with pytest.raises(ValueError, match="kind must be one of ehm, ehm-alone, ehm-batch, lls-hm"):
         LocalizedMapper("ehm-fast")

@@ -16,6 +16,7 @@ DESCRIBED_BY = {
     "lls-hm": "LLS-HM (Guizilini & Ramos 2016)",
     "gpom": "2,000",
     "ehm": "EHM, incremental",
+    "ehm-alone": "own samples alone",
     "ehm-batch": "EHM, single batch",
 }
 
