@@ -29,6 +29,10 @@ def test_overrides_and_validation():
         ("anchor_layers", 0, "anchor_layers must be an integer >= 1"),
         ("anchor_radius_factor", 1.0, "anchor_radius_factor must be above 1"),
         ("train_search", "cluster", "train_search must be 'group' or 'point'"),
+        ("memory_per_cell", -1, "memory_per_cell must be an integer >= 0"),
+        ("memory_per_cell", 2.5, "memory_per_cell must be an integer >= 0"),
+        ("replay_ratio", -0.5, "replay_ratio must be >= 0"),
+        ("replay_ratio", float("nan"), "replay_ratio must be >= 0"),
     ],
 )
 def test_kernel_selection_search_and_hierarchy_settings_are_validated(setting, value, message):
