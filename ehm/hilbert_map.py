@@ -120,9 +120,7 @@ class HilbertMap:
             self.bias_state_,
             self.n_scans_,
             self._rng.bit_generator.state,
-            self.memory_
-            if self.memory_ is not None
-            else SampleMemory.of_config(clusters.dim, self.config),
+            self._memory(),
         )
 
     @classmethod
@@ -151,6 +149,12 @@ class HilbertMap:
             self._query_intercept(),
             self._lineage,
         )
+
+    def _memory(self) -> SampleMemory:
+        """The sample memory, made with the clusters: there is one whenever there are clusters."""
+        if self.memory_ is None:
+            raise RuntimeError("the map has no sample memory before it has learned")
+        return self.memory_
 
     def _learned(self, action: str) -> ClusterSet:
         if self.clusters_ is None:

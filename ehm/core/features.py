@@ -33,18 +33,6 @@ class PointGroups:
         """One group per point: a search at every point (exact)."""
         return cls(np.arange(len(points), dtype=np.int64), points)
 
-    @classmethod
-    def by_label(cls, labels: np.ndarray, points: np.ndarray) -> PointGroups:
-        """Points (n, d), metres, grouped by equal `labels` (n,) int64, each group centred on
-        the mean of its points."""
-        _, group_of_point = np.unique(labels, return_inverse=True)
-        group_of_point = group_of_point.ravel().astype(np.int64)
-        sizes = np.bincount(group_of_point)
-        d = points.shape[1]
-        sums = [np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)]
-        centres = np.stack(sums, axis=1).reshape(len(sizes), d) / sizes[:, None]
-        return cls(group_of_point, centres)
-
     def __add__(self, other: PointGroups) -> PointGroups:
         """The groups of this set's points followed by `other`'s."""
         return PointGroups(
@@ -64,9 +52,14 @@ class PointGroups:
 def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
     """Group (n, d) points, metres, by the cubic cell of side `cell` they fall in (Alg. 3
     line 1); each group's centre is the mean of its points."""
-    if len(points) == 0:
-        return PointGroups.by_label(np.zeros(0, dtype=np.int64), points)
-    return PointGroups.by_label(cell_keys(points, cell).keys, points)
+    n, d = points.shape
+    if n == 0:
+        return PointGroups(np.zeros(0, dtype=np.int64), np.zeros((0, d)))
+    _, group_of_point = np.unique(cell_keys(points, cell).keys, return_inverse=True)
+    group_of_point = group_of_point.ravel().astype(np.int64)
+    sizes = np.bincount(group_of_point)
+    sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)
+    return PointGroups(group_of_point, sums / sizes[:, None])
 
 
 def group_neighbours(

@@ -16,8 +16,8 @@ change weights everywhere, so grids that follow the map would be rebuilt after e
 
 Samples that formed no cluster when they came (their quick-means seed took too few samples)
 are marked. They join the clustering again when a later scan brings samples to their cell, so
-sparse scans (a 2D laser with 180 rays) still build the clusters one batch of all their
-samples would.
+sparse scans (a 2D laser with 180 rays) build clusters their samples could not build alone
+(still fewer than one batch: on the Intel lab 8,900 against 9,620).
 
 Samples around hits live in cells `cluster_radius` on a side, free samples along rays in cells
 `free_cluster_radius` on a side. A cell is named by one 64-bit key: its integer coordinates in

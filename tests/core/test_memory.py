@@ -144,3 +144,4 @@ def test_a_memory_of_no_samples_keeps_and_replays_nothing(rng):
     # Without a memory, samples may lie anywhere.
     far = samples_at(np.array([[1e9, 0.0, 0.0]]))
     insert(memory, far, np.zeros(1, bool), rng)
+    assert len(memory) == 0 and memory.n_cells == 0
