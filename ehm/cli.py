@@ -58,8 +58,11 @@ def _load_or_fail(path: Path):
         raise typer.Exit(1) from error
 
 
-def _grid_or_fail(hilbert_map, bounds: str | None, resolution: float, max_gib: float):
-    """The map's grid over `bounds` ('x0,y0,..' text), or a usage error naming the problem."""
+def _grid_or_fail(
+    hilbert_map, bounds: str | None, resolution: float, max_gib: float, std: bool = False
+):
+    """The map's grid over `bounds` ('x0,y0,..' text), with the std when asked, or a usage
+    error naming the problem."""
     import numpy as np
 
     try:
@@ -72,7 +75,7 @@ def _grid_or_fail(hilbert_map, bounds: str | None, resolution: float, max_gib: f
                     f"got {len(box)}"
                 )
             box = box.reshape(2, hilbert_map.dim)
-        return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30))
+        return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30), std=std)
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
 
@@ -179,8 +182,11 @@ def query(
         Path | None, typer.Option("--output", "-o", help="Write .npy or .csv; default stdout.")
     ] = None,
     mode: Annotated[str | None, typer.Option(help="batch or exact.")] = None,
+    std: Annotated[
+        bool, typer.Option("--std", help="Also the standard deviation: columns p, std.")
+    ] = False,
 ) -> None:
-    """Occupancy probability of each point."""
+    """Occupancy probability of each point (and with --std its standard deviation)."""
     import numpy as np
 
     hilbert_map = _load_or_fail(map_path)
@@ -189,15 +195,16 @@ def query(
     else:
         query_points = np.loadtxt(points, delimiter=",", ndmin=2, comments="#")
     try:
-        probability = hilbert_map.occupancy(query_points, mode=mode)
+        answers = hilbert_map.occupancy(query_points, mode=mode, return_std=std)
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
+    columns = np.column_stack(answers) if std else answers
     if output is None:
-        typer.echo("\n".join(f"{p:.6f}" for p in probability))
+        typer.echo("\n".join(",".join(f"{v:.6f}" for v in np.atleast_1d(row)) for row in columns))
     elif output.suffix == ".npy":
-        np.save(output, probability)
+        np.save(output, columns)
     else:
-        np.savetxt(output, probability, fmt="%.6f")
+        np.savetxt(output, columns, fmt="%.6f", delimiter=",")
 
 
 @app.command()
@@ -207,13 +214,16 @@ def grid(
     resolution: Resolution = 0.05,
     bounds: Bounds = None,
     max_gib: MaxGiB = 1.0,
+    std: Annotated[
+        bool, typer.Option("--std", help="Also the standard deviation of each voxel.")
+    ] = False,
 ) -> None:
     """Occupancy grid of a map (incremental grid reconstruction), saved as .npz with arrays
-    probability, scores, origin, resolution and intercept."""
+    probability, scores, origin, resolution and intercept (and with --std, std)."""
     from ehm.io.grid_file import save_grid
 
     hilbert_map = _load_or_fail(map_path)
-    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
+    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib, std)
     save_grid(occupancy_grid, output)
     console.print(f"{occupancy_grid!r}\nwrote {output}")
 
@@ -261,6 +271,13 @@ def render(
     slices: Annotated[
         Path | None, typer.Option(help="Also write horizontal occupancy slices to this PNG.")
     ] = None,
+    std: Annotated[
+        Path | None,
+        typer.Option(
+            help="Also write the occupancy's standard deviation to this PNG: horizontal "
+            "slices (3D) or the plane (2D)."
+        ),
+    ] = None,
     max_gib: MaxGiB = 1.0,
 ) -> None:
     """Picture of a map, off-screen: its mesh coloured by height (3D) or its grid (2D)."""
@@ -279,10 +296,13 @@ def render(
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
     written = [output]
+    low, high = occupancy_grid.bounds
     if slices is not None:
-        low, high = occupancy_grid.bounds
         occupancy_slices(hilbert_map, low, high, slices)
         written.append(slices)
+    if std is not None:
+        occupancy_slices(hilbert_map, low, high, std, std=True)
+        written.append(std)
     console.print("wrote " + " and ".join(str(p) for p in written))
 
 

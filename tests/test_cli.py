@@ -79,6 +79,17 @@ def test_map_then_info_and_query(map_file, tmp_path):
     assert result.exit_code == 0, result.output
     np.testing.assert_array_equal(np.load(tmp_path / "p.npy"), expected)
     assert expected[0] < 0.5 < expected[1]  # a robot pose is free, the wall occupied
+    with_std = np.column_stack(hilbert_map.occupancy(points, return_std=True))
+    out = runner.invoke(app, ["query", str(map_file), str(tmp_path / "q.csv"), "--std"])
+    assert out.exit_code == 0, out.output
+    rows = [line.split(",") for line in out.output.split()]
+    np.testing.assert_allclose(np.array(rows, float), with_std, atol=1e-6)
+    result = runner.invoke(
+        app,
+        ["query", str(map_file), str(tmp_path / "q.npy"), "--std", "-o", str(tmp_path / "s.csv")],
+    )
+    assert result.exit_code == 0, result.output
+    np.testing.assert_allclose(np.loadtxt(tmp_path / "s.csv", delimiter=","), with_std, atol=1e-6)
 
 
 def test_bad_inputs_give_clear_errors(map_file, tmp_path):
@@ -118,11 +129,14 @@ def test_demo_writes_map_mesh_and_pictures(tmp_path):
 def test_grid_mesh_and_render_commands(room_map_file, map_file, tmp_path):
     bounds = "-4.2,-3.2,-0.2,4.2,3.2,2.5"
     result = runner.invoke(
-        app, ["grid", str(room_map_file), "-o", str(tmp_path / "g.npz"), "--resolution", "0.1"]
+        app,
+        ["grid", str(room_map_file), "-o", str(tmp_path / "g.npz"), "--resolution", "0.1", "--std"],
     )
     assert result.exit_code == 0, result.output
     grid = load_grid(tmp_path / "g.npz")
     assert grid.resolution == 0.1 and grid.dim == 3
+    expected = ehm.load(room_map_file).grid(resolution=0.1, std=True)
+    np.testing.assert_array_equal(grid.std, expected.std)
     ply = tmp_path / "room.ply"
     result = runner.invoke(app, ["mesh", str(room_map_file), "-o", str(ply), "--bounds", bounds])
     assert result.exit_code == 0, result.output
@@ -146,10 +160,14 @@ def test_grid_mesh_and_render_commands(room_map_file, map_file, tmp_path):
     )
     assert result.exit_code == 0, result.output
     assert picture.stat().st_size > 10_000 and (tmp_path / "slices.png").exists()
-    # 2D maps: a picture and a grid, no mesh
-    result = runner.invoke(app, ["render", str(map_file), "-o", str(tmp_path / "plan.png")])
+    # 2D maps: a picture and a grid, no mesh; the std as a picture of the plane
+    std_picture = tmp_path / "plan_std.png"
+    result = runner.invoke(
+        app, ["render", str(map_file), "-o", str(tmp_path / "plan.png"), "--std", str(std_picture)]
+    )
     assert result.exit_code == 0, result.output
     assert (tmp_path / "plan.png").stat().st_size > 10_000
+    assert std_picture.stat().st_size > 10_000 and str(std_picture) in result.output
     result = runner.invoke(app, ["mesh", str(map_file), "-o", str(tmp_path / "plan.ply")])
     assert result.exit_code != 0 and "no surface mesh" in result.output
 

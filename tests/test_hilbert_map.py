@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import ehm
+from ehm.core.uncertainty import occupancy_std
 from ehm.eval.datasets import warehouse
 from ehm.eval.metrics import roc_auc, score
 from ehm.eval.protocol import exact_test_points, held_out_rays, near_surface_points, observed_mask
@@ -90,6 +91,7 @@ def test_incremental_merges_reobserved_clusters(room):
         "replay",
         "features",
         "sgd",
+        "precision",
         "memory",
     }
 
@@ -171,7 +173,12 @@ def test_state_restores_a_map_that_goes_on_exactly(plan):
     assert state.n_scans == 1 and state.config.neighbours == 5
     restored = ehm.HilbertMap.from_state(state)
     points = np.random.default_rng(3).uniform(-6, 6, (1000, 2))
-    np.testing.assert_array_equal(restored.occupancy(points), original.occupancy(points))
+    for got, want in zip(
+        restored.occupancy(points, return_std=True),
+        original.occupancy(points, return_std=True),
+        strict=True,
+    ):
+        np.testing.assert_array_equal(got, want)
     assert restored.memory_bytes() == original.memory_bytes()
     # The restored map draws the same random numbers: its next scan is learned the same way.
     a = ehm.HilbertMap.from_state(original.state())
@@ -179,6 +186,7 @@ def test_state_restores_a_map_that_goes_on_exactly(plan):
     for hilbert_map in (a, b):
         hilbert_map.integrate_scan(plan.scans[1])
     np.testing.assert_array_equal(a.clusters_.weights, b.clusters_.weights)
+    np.testing.assert_array_equal(a.clusters_.precision, b.clusters_.precision)
     with pytest.raises(RuntimeError, match="the map is empty"):
         ehm.HilbertMap().state()
 
@@ -198,3 +206,62 @@ def test_scan_by_scan_with_the_memory_does_not_forget():
     batch = ehm.HilbertMap().fit(split.train)
     assert f1[8] > f1[0] + 0.03
     assert f1[8] > score(split.occupied, batch.occupancy(split.points)).f1 - 0.01
+
+
+def test_std_is_the_prior_where_nothing_was_observed_and_low_at_surfaces(room, room_map):
+    hits = room.scans[0].points_world[room.scans[0].hit_mask]
+    never = np.random.default_rng(3).uniform(30.0, 40.0, (500, 3))  # far outside the room
+    p_never, std_never = room_map.occupancy(never, return_std=True)
+    prior_std = occupancy_std(np.zeros(1), np.ones(1) / room_map.config.prior_precision)[0]
+    np.testing.assert_allclose(p_never, 0.5)
+    np.testing.assert_allclose(std_never, prior_std)
+    assert prior_std == pytest.approx(0.2083, abs=1e-4)
+    _, std_hits = room_map.occupancy(hits, return_std=True)
+    assert std_never.mean() > 2.5 * std_hits.mean()  # 2.62 when written
+
+
+def test_std_shrinks_where_a_place_is_observed_again(room):
+    scan = room.scans[0]
+    rays = np.arange(len(scan))
+    first, second = scan.subset(rays % 2 == 0), scan.subset(rays % 2 == 1)
+    hits = first.points_world[first.hit_mask]
+    hilbert_map = ehm.HilbertMap().integrate_scan(first)
+    _, before = hilbert_map.occupancy(hits, return_std=True)
+    hilbert_map.integrate_scan(second)
+    _, after = hilbert_map.occupancy(hits, return_std=True)
+    assert after.mean() < 0.7 * before.mean()  # 0.061 against 0.096 when written
+    assert np.mean(after < before) > 0.9
+
+
+def test_std_is_calibrated_on_held_out_points(room):
+    split = held_out_rays(room.scans, 0.4, 0.05, seed=1)
+    hilbert_map = ehm.HilbertMap().integrate_scan(split.train[0])
+    p, std = hilbert_map.occupancy(split.points, return_std=True)
+    wrong = (p > 0.5) != split.occupied
+    quartile = np.digitize(std, np.quantile(std, [0.25, 0.5, 0.75]))
+    error_rates = np.array([wrong[quartile == q].mean() for q in range(4)])
+    # Error rate rises with the predicted std: 0.000, 0.029, 0.109, 0.230 when written.
+    assert np.all(np.diff(error_rates) > 0)
+    assert error_rates[3] > 0.15 and error_rates[0] < 0.01
+
+
+def test_return_std_on_every_query(room_map):
+    points = np.array([[0.0, 0.0, 1.0], [4.02, 0.0, 1.0], [np.nan, 0.0, 0.0]])
+    p, std = room_map.occupancy(points, return_std=True)
+    proba, proba_std = room_map.predict_proba(points, return_std=True)
+    np.testing.assert_array_equal(p, room_map.occupancy(points))
+    np.testing.assert_array_equal(proba, room_map.predict_proba(points))
+    np.testing.assert_array_equal(std, proba_std)
+    assert std.shape == (3,) and np.all((std[:2] > 0) & (std[:2] < 0.5)) and np.isnan(std[2])
+    _, exact_std = room_map.occupancy(points[:2], mode="exact", return_std=True)
+    np.testing.assert_allclose(exact_std, std[:2], atol=0.02)
+
+
+def test_grid_std_matches_point_queries_within_tolerance(room_map):
+    grid = room_map.grid(resolution=0.1, std=True)
+    _, std = room_map.occupancy(grid.centers(), return_std=True)
+    difference = np.abs(grid.std.ravel() - std)
+    # The grid sums every kernel, a query its 8 fine and 4 coarse nearest: 0.004 on average.
+    assert difference.mean() < 0.01 and np.quantile(difference, 0.95) < 0.05
+    with pytest.raises(ValueError, match="made without the std: make it with std=True"):
+        _ = room_map.grid(resolution=0.1).std

@@ -80,6 +80,10 @@ class SparseFeatures:
     neighbours: np.ndarray
     values: np.ndarray
 
+    def head(self, n: int) -> SparseFeatures:
+        """The feature vectors of the first n points."""
+        return SparseFeatures(self.group_of_point[:n], self.neighbours, self.values[:n])
+
 
 def training_features(
     points: np.ndarray,
@@ -129,12 +133,24 @@ def kernel_values(
 
 @numba.njit(cache=True, parallel=True)
 def decision_values(
-    points, group_of_point, group_neighbours, means, transforms, planar, weights, bias
+    points,
+    group_of_point,
+    group_neighbours,
+    means,
+    transforms,
+    planar,
+    weights,
+    bias,
+    inverse_precision,
+    with_variance,
 ):  # pragma: no cover - compiled
-    """(n,) float64 w^T phi(x) + bias of each point, without storing the features."""
+    """(n,) float64 w^T phi(x) + bias of each point, without storing the features, and, when
+    with_variance, (n, 2) float64 [sum_m phi_m^2 / lambda_m, sum_m phi_m] over its clusters,
+    from inverse_precision (M,) 1 / lambda_m (see ehm.core.uncertainty); else (0, 2)."""
     n = points.shape[0]
     k = group_neighbours.shape[1]
     scores = np.full(n, bias)
+    variance_sums = np.zeros((n if with_variance else 0, 2))
     for i in numba.prange(n):
         g = group_of_point[i]
         for j in range(k):
@@ -142,7 +158,10 @@ def decision_values(
             if cluster >= 0:
                 value = _kernel_at(points, i, cluster, means, transforms, planar)
                 scores[i] += weights[cluster] * value
-    return scores
+                if with_variance:
+                    variance_sums[i, 0] += value * value * inverse_precision[cluster]
+                    variance_sums[i, 1] += value
+    return scores, variance_sums
 
 
 def kernel_values_reference(
@@ -171,10 +190,17 @@ def decision_values_reference(
     planar: np.ndarray,
     weights: np.ndarray,
     bias: float,
-) -> np.ndarray:
+    inverse_precision: np.ndarray,
+    with_variance: bool,
+) -> tuple[np.ndarray, np.ndarray]:
     """Plain NumPy twin of `decision_values`."""
     values = kernel_values_reference(
         points, group_of_point, group_neighbours, means, transforms, planar
     )
-    neighbours = group_neighbours[group_of_point]
-    return bias + np.sum(values * weights[np.maximum(neighbours, 0)], axis=1)
+    clusters = np.maximum(group_neighbours[group_of_point], 0)
+    scores = bias + np.sum(values * weights[clusters], axis=1)
+    if not with_variance:
+        return scores, np.zeros((0, 2))
+    return scores, np.column_stack(
+        [np.sum(values**2 * inverse_precision[clusters], axis=1), np.sum(values, axis=1)]
+    )

@@ -9,8 +9,8 @@ with loss the logistic loss of Eq. 2, c_i the weight of sample i's class, and mu
 posterior so far (a new cluster: mean 0, precision `prior_precision`). Coordinate descent
 minimises J: each weight the batch touches takes, in turn, a Newton step along its own axis
 (clipped to MAX_STEP log-odds), with the scores of the samples it touches kept current; then
-the bias. Afterwards each precision grows by the curvature the batch adds at the new weights,
-lambda_m += sum_i c_i p_i (1 - p_i) phi_im^2.
+the bias, whose precision then grows by the curvature the batch adds. The weights' precisions
+grow as under every update rule (ehm.core.uncertainty.add_curvature).
 """
 
 from __future__ import annotations
@@ -35,9 +35,9 @@ def update_posterior(
     bias_state: np.ndarray,
     config: MapConfig,
 ) -> None:
-    """Update the clusters' weights and precisions and bias_state ([bias, its precision])
-    with one batch of samples with `features` and labels `occupied` (n,) bool, in place:
-    `config.epochs` sweeps of coordinate descent."""
+    """Update the clusters' weights and bias_state ([bias, its precision]) with one batch of
+    samples with `features` and labels `occupied` (n,) bool, in place: `config.epochs` sweeps
+    of coordinate descent."""
     posterior_update(
         features.values,
         features.group_of_point,
@@ -63,8 +63,9 @@ def posterior_update(
     bias_state,
     sweeps,
 ):  # pragma: no cover - compiled
-    """One batch: `sweeps` rounds of coordinate descent on J, then the precisions' update;
-    weights, precision and bias_state ([bias, its precision]) change in place.
+    """One batch: `sweeps` rounds of coordinate descent on J with the weights' prior
+    precisions `precision`, then the bias precision's update; weights and bias_state ([bias,
+    its precision]) change in place.
 
     values: (n, k) kernel values of each sample at its group's clusters group_neighbours
     (G, k) (-1: none); labels: (n,) 0 or 1; class_weights: (2,) loss weight of a free and of an
@@ -125,11 +126,6 @@ def posterior_update(
         bias_state[0] += step
         for i in range(n):
             scores[i] += step
-    for m in range(n_clusters):
-        for e in range(start[m], start[m + 1]):
-            p = sigmoid_scalar(scores[entry_sample[e]])
-            v = entry_value[e]
-            precision[m] += sample_weight[entry_sample[e]] * p * (1.0 - p) * v * v
     for i in range(n):
         p = sigmoid_scalar(scores[i])
         bias_state[1] += sample_weight[i] * p * (1.0 - p)
@@ -169,5 +165,4 @@ def posterior_update_reference(
         curvature = bias_state[1] + np.sum(sample_weight * p * (1 - p))
         bias_state[0] += np.clip(-gradient / curvature, -MAX_STEP, MAX_STEP)
     p = sigmoid(phi @ weights + bias_state[0])
-    precision += (sample_weight * p * (1 - p)) @ phi**2
     bias_state[1] += np.sum(sample_weight * p * (1 - p))

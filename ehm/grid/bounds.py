@@ -6,19 +6,28 @@ import numpy as np
 
 from ehm.core.snapshot import MapSnapshot
 
-# Bytes a grid holds per voxel: float64 scores and float64 probabilities.
-BYTES_PER_VOXEL = 16
+
+def bytes_per_voxel(with_std: bool = False) -> int:
+    """Bytes a grid holds per voxel: float64 scores and probabilities, and with the std two
+    float64 sums and the std itself."""
+    return 40 if with_std else 16
+
+
 # Grids that would take more than this are refused before anything is allocated.
 DEFAULT_MAX_BYTES = 2**30
 
 
 def grid_shape(
-    bounds: np.ndarray, resolution: float, dim: int, max_bytes: int = DEFAULT_MAX_BYTES
+    bounds: np.ndarray,
+    resolution: float,
+    dim: int,
+    max_bytes: int = DEFAULT_MAX_BYTES,
+    voxel_bytes: int = bytes_per_voxel(),
 ) -> tuple[np.ndarray, tuple[int, ...]]:
     """Check grid bounds (2, dim) [low corner, high corner], metres, and a resolution, metres;
     return the float64 low corner and the voxels per axis. ValueError for a resolution <= 0,
     bounds of the wrong shape, not finite, inverted or empty, and for grids that would take more
-    than `max_bytes` (BYTES_PER_VOXEL per voxel), before anything is allocated."""
+    than `max_bytes` (`voxel_bytes` per voxel), before anything is allocated."""
     resolution = float(resolution)
     if not np.isfinite(resolution) or resolution <= 0.0:
         raise ValueError(f"grid resolution must be a positive number of metres, got {resolution}")
@@ -41,7 +50,7 @@ def grid_shape(
         axis = int(np.argmax(high == low))
         raise ValueError(f"grid bounds are empty: zero extent on axis {axis}")
     counts = np.maximum(np.ceil((high - low) / resolution - 1e-9), 1.0)
-    n_bytes = float(np.prod(counts)) * BYTES_PER_VOXEL
+    n_bytes = float(np.prod(counts)) * voxel_bytes
     if n_bytes > max_bytes:
         shape = " x ".join(f"{c:.0f}" for c in counts)
         raise ValueError(

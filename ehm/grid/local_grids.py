@@ -1,5 +1,7 @@
 """Local grids (Sec. 3.5, Eq. 17): each cluster's weighted kernel over the voxels its support
-covers, added into a global score grid s_g = sum_m w_m k(x_g, M_m).
+covers, added into a global score grid s_g = sum_m w_m k(x_g, M_m), and, for the occupancy's
+uncertainty, into the sums sum_m k(x_g, M_m)^2 / lambda_m and sum_m k(x_g, M_m) (see
+ehm.core.uncertainty).
 
 A cluster's local grid is the box of voxels around its kernel's support, the ellipsoid
 |T_m (x - mu_m)| < 1 (`length_scale` standard deviations along its eigen-axes, 3 by default)
@@ -18,6 +20,10 @@ import numpy as np
 from ehm.core.kernels import cluster_kernel, cluster_kernel_reference
 from ehm.core.snapshot import MapSnapshot
 from ehm.grid.bounds import support_half_widths
+
+# The power of the kernel each field sums: field f of a grid adds up c_mf k(x_g, M_m)^p_f,
+# with c_m = (w_m, 1 / lambda_m, 1): the scores, then the two sums of the variance.
+FIELD_POWERS = (1, 2, 1)
 
 
 @dataclass(frozen=True)
@@ -41,23 +47,31 @@ class Lattice:
 @dataclass(frozen=True)
 class LocalGrids:
     """Local grids of K clusters on a lattice: means (K, 3) metres; transforms (K, 3, 3) 1/m;
-    weights (K,); planar (K,) bool, planar-surface kernel; low, high (K, 3) int64, first and
-    last voxel of each box (high < low on an axis: empty)."""
+    coefficients (K, C) float64, what each cluster's kernel is multiplied by in each field
+    (see `accumulate_local_grids`); planar (K,) bool, planar-surface kernel; low, high (K, 3)
+    int64, first and last voxel of each box (high < low on an axis: empty)."""
 
     means: np.ndarray
     transforms: np.ndarray
-    weights: np.ndarray
+    coefficients: np.ndarray
     planar: np.ndarray
     low: np.ndarray
     high: np.ndarray
 
     @classmethod
     def of(
-        cls, snapshot: MapSnapshot, rows: np.ndarray, lattice: Lattice, sign: float = 1.0
+        cls,
+        snapshot: MapSnapshot,
+        rows: np.ndarray,
+        lattice: Lattice,
+        sign: float = 1.0,
+        with_variance: bool = False,
     ) -> LocalGrids:
-        """The local grids of the snapshot's clusters `rows` (int64), weights times `sign`;
+        """The local grids of the snapshot's clusters `rows` (int64), with coefficients times
+        `sign`: the weights, and with_variance, 1 / precision and 1. Without the variance,
         clusters of weight 0 are left out (they add nothing)."""
-        rows = rows[snapshot.weights[rows] != 0.0]
+        if not with_variance:
+            rows = rows[snapshot.weights[rows] != 0.0]
         means, transforms = snapshot.means[rows], snapshot.transforms[rows]
         planar = snapshot.planar_kernel[rows]
         half = support_half_widths(transforms, planar) if len(rows) else np.zeros_like(means)
@@ -73,17 +87,20 @@ class LocalGrids:
         # `half` of the mean (with a hair of slack for rounding).
         low = np.ceil((means - half - origin) / resolution - 0.5 - 1e-9).astype(np.int64)
         high = np.floor((means + half - origin) / resolution - 0.5 + 1e-9).astype(np.int64)
+        coefficients = [snapshot.weights[rows]]
+        if with_variance:
+            coefficients += [1.0 / snapshot.precision[rows], np.ones(len(rows))]
         return cls(
             np.ascontiguousarray(means),
             np.ascontiguousarray(transforms),
-            np.ascontiguousarray(sign * snapshot.weights[rows]),
+            sign * np.column_stack(coefficients),
             np.ascontiguousarray(planar),
             np.clip(low, 0, None),
             np.minimum(high, np.array(lattice.shape) - 1),
         )
 
     def __len__(self) -> int:
-        return len(self.weights)
+        return len(self.coefficients)
 
     @property
     def voxels(self) -> int:
@@ -91,19 +108,22 @@ class LocalGrids:
         return int(np.prod(np.maximum(self.high - self.low + 1, 0), axis=1).sum())
 
 
-def accumulate_local_grids(scores: np.ndarray, lattice: Lattice, local: LocalGrids) -> None:
-    """Add w_m k(x_g, M_m) of every local grid into `scores` (lattice.shape) in place (Eq. 17).
+def accumulate_local_grids(fields: np.ndarray, lattice: Lattice, local: LocalGrids) -> None:
+    """Add every local grid into `fields` ((C,) + lattice.shape float64) in place: field f
+    sums c_mf k(x_g, M_m)^p_f, with p_f from FIELD_POWERS (field 0: the scores of Eq. 17).
+    local has C coefficients per cluster.
 
     Work is split by planes of constant x, so each thread writes its own voxels and the sum at
     a voxel runs over clusters in the same order whatever the number of threads."""
-    plane_start, plane_clusters = _clusters_per_plane(local, scores.shape[0])
+    plane_start, plane_clusters = _clusters_per_plane(local, fields.shape[1])
     _accumulate_planes(
-        scores,
+        fields,
         lattice.origin,
         lattice.resolution,
         local.means,
         local.transforms,
-        local.weights,
+        local.coefficients,
+        np.array(FIELD_POWERS[: len(fields)]),
         local.planar,
         local.low,
         local.high,
@@ -127,19 +147,21 @@ def _clusters_per_plane(local: LocalGrids, n_planes: int) -> tuple[np.ndarray, n
 
 @numba.njit(cache=True, parallel=True)
 def _accumulate_planes(
-    scores,
+    fields,
     origin,
     resolution,
     means,
     transforms,
-    weights,
+    coefficients,
+    powers,
     planar,
     low,
     high,
     plane_start,
     plane_clusters,
 ):  # pragma: no cover - compiled
-    for i in numba.prange(scores.shape[0]):
+    n_fields = fields.shape[0]
+    for i in numba.prange(fields.shape[1]):
         x = origin[0] + (i + 0.5) * resolution
         for e in range(plane_start[i], plane_start[i + 1]):
             m = plane_clusters[e]
@@ -172,20 +194,25 @@ def _accumulate_planes(
                     p2 = a2 + t[2, 2] * dz
                     r2 = p0 * p0 + p1 * p1 + p2 * p2
                     r_max = max(abs(p0), abs(p1), abs(p2))
-                    scores[i, j, k] += weights[m] * cluster_kernel(r2, r_max, planar[m])
+                    value = cluster_kernel(r2, r_max, planar[m])
+                    for f in range(n_fields):
+                        term = value * value if powers[f] == 2 else value
+                        fields[f, i, j, k] += coefficients[m, f] * term
 
 
 def accumulate_local_grids_reference(
-    scores: np.ndarray, lattice: Lattice, local: LocalGrids
+    fields: np.ndarray, lattice: Lattice, local: LocalGrids
 ) -> None:
     """Plain NumPy twin of `accumulate_local_grids`, one local grid at a time."""
     origin, resolution = lattice.origin, lattice.resolution
-    for m in range(len(local.weights)):
+    powers = FIELD_POWERS[: len(fields)]
+    for m in range(len(local)):
         low, high = local.low[m], local.high[m]
         if np.any(high < low):
             continue
         axes = [origin[a] + (np.arange(low[a], high[a] + 1) + 0.5) * resolution for a in range(3)]
         points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1) - local.means[m]
-        projected = points @ local.transforms[m].T
+        values = cluster_kernel_reference(points @ local.transforms[m].T, local.planar[m])
         box = tuple(slice(low[a], high[a] + 1) for a in range(3))
-        scores[box] += local.weights[m] * cluster_kernel_reference(projected, local.planar[m])
+        for f, power in enumerate(powers):
+            fields[(f, *box)] += local.coefficients[m, f] * values**power

@@ -1,8 +1,10 @@
 """Occupancy grids by incremental grid reconstruction (Sec. 3.5, Eq. 17-18).
 
 The local grids of a map's clusters (ehm.grid.local_grids) add up to a global score grid
-s_g = sum_m w_m k(x_g, M_m) (Eq. 17), and p_g = sigmoid(s_g) (Eq. 18). Kernel values are
-recomputed when needed rather than stored, which keeps a grid's memory at its voxels.
+s_g = sum_m w_m k(x_g, M_m) (Eq. 17), and p_g = sigmoid(s_g) (Eq. 18); a grid made with the
+occupancy's standard deviation also sums what its variance needs (ehm.core.uncertainty).
+Kernel values are recomputed when needed rather than stored, which keeps a grid's memory at
+its voxels.
 
 A grid is fed snapshots of a map (ehm.core.snapshot), never the map itself, and keeps the
 last one. `OccupancyGrid.update` takes out the old contribution of every cluster whose mean,
@@ -18,7 +20,8 @@ import numpy as np
 
 from ehm.core.logistic import sigmoid
 from ehm.core.snapshot import MapSnapshot
-from ehm.grid.bounds import DEFAULT_MAX_BYTES, grid_shape, support_bounds
+from ehm.core.uncertainty import logit_variance, occupancy_std
+from ehm.grid.bounds import DEFAULT_MAX_BYTES, bytes_per_voxel, grid_shape, support_bounds
 from ehm.grid.local_grids import Lattice, LocalGrids, accumulate_local_grids
 from ehm.grid.mesh import marching_cubes
 
@@ -40,16 +43,26 @@ class OccupancyGrid:
 
     origin: (d,) metres, world frame, low corner of voxel (0, ..., 0). resolution: voxel side,
     metres. shape: voxels per axis. scores: array of `shape`, log-odds w^T phi at each voxel
-    centre (Eq. 17); probability: p(occupied) there (Eq. 18). Build one with
-    HilbertMap.grid or `OccupancyGrid.of`; `update` brings it up to date with a newer snapshot.
+    centre (Eq. 17); probability: p(occupied) there (Eq. 18); std, for grids made with_std:
+    the standard deviation of that probability. Build one with HilbertMap.grid or
+    `OccupancyGrid.of`; `update` brings it up to date with a newer snapshot.
     """
 
-    def __init__(self, origin: np.ndarray, resolution: float, shape: tuple[int, ...]) -> None:
+    def __init__(
+        self,
+        origin: np.ndarray,
+        resolution: float,
+        shape: tuple[int, ...],
+        with_std: bool = False,
+    ) -> None:
         self.origin = np.asarray(origin, dtype=np.float64)
         self.resolution = float(resolution)
-        self.scores = np.zeros(shape)
+        # Field 0: the scores; with the std, fields 1 and 2: sum_m k^2 / lambda_m, sum_m k.
+        self._fields = np.zeros((3 if with_std else 1, *shape))
         self.intercept = 0.0
+        self.prior_precision = 1.0
         self._probability: np.ndarray | None = None
+        self._std: np.ndarray | None = None
         self._snapshot: MapSnapshot | None = None
 
     @classmethod
@@ -59,21 +72,40 @@ class OccupancyGrid:
         bounds: np.ndarray | None = None,
         resolution: float = 0.05,
         max_bytes: int = DEFAULT_MAX_BYTES,
+        with_std: bool = False,
     ) -> OccupancyGrid:
         """The grid of a map's snapshot over `bounds` ((2, d) metres, [low corner, high
-        corner]; None: the box holding every kernel's support) at `resolution` metres.
-        ValueError for bad bounds or resolutions and for grids over `max_bytes`, before
-        allocating."""
+        corner]; None: the box holding every kernel's support) at `resolution` metres, with
+        the occupancy's standard deviation when with_std. ValueError for bad bounds or
+        resolutions and for grids over `max_bytes`, before allocating."""
         if bounds is None:
             bounds = support_bounds(snapshot)
-        origin, shape = grid_shape(bounds, resolution, snapshot.dim, max_bytes)
-        grid = cls(origin, resolution, shape)
+        origin, shape = grid_shape(
+            bounds, resolution, snapshot.dim, max_bytes, bytes_per_voxel(with_std)
+        )
+        grid = cls(origin, resolution, shape, with_std)
         grid.update(snapshot)
         return grid
 
     @property
+    def scores(self) -> np.ndarray:
+        """Log-odds w^T phi at each voxel centre (Eq. 17), float64 array of `shape` (a view)."""
+        return self._fields[0]
+
+    @property
+    def has_std(self) -> bool:
+        return len(self._fields) == 3
+
+    @property
+    def variance_sums(self) -> np.ndarray:
+        """(2,) + `shape` float64 (a view), sum_m k^2 / lambda_m and sum_m k at each voxel
+        centre, from which `std` follows; ValueError for a grid made without the std."""
+        self._require_std()
+        return self._fields[1:]
+
+    @property
     def shape(self) -> tuple[int, ...]:
-        return self.scores.shape
+        return self._fields.shape[1:]
 
     @property
     def dim(self) -> int:
@@ -90,6 +122,17 @@ class OccupancyGrid:
         if self._probability is None:
             self._probability = sigmoid(self.scores + self.intercept)
         return self._probability
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviation of p(occupied) per voxel under the weights' posterior
+        (ehm.core.uncertainty), float64 array of `shape` (computed once per update);
+        ValueError for a grid made without it."""
+        self._require_std()
+        if self._std is None:
+            variance = logit_variance(self._fields[1], self._fields[2], self.prior_precision)
+            self._std = occupancy_std(self.scores + self.intercept, variance)
+        return self._std
 
     def axis_centers(self, axis: int) -> np.ndarray:
         """(shape[axis],) metres: voxel centres along one axis."""
@@ -124,8 +167,10 @@ class OccupancyGrid:
             raise ValueError(f"the grid is {self.dim}D, the map is {snapshot.dim}D")
         lattice = Lattice.lift(self.origin, self.resolution, self.shape)
         self.intercept = snapshot.intercept
-        self._probability = None
-        everything = LocalGrids.of(snapshot, np.arange(len(snapshot)), lattice)
+        self.prior_precision = snapshot.prior_precision
+        self._probability = self._std = None
+        with_std = self.has_std
+        everything = LocalGrids.of(snapshot, np.arange(len(snapshot)), lattice, 1.0, with_std)
         old = self._snapshot
         if old is None or old.lineage is not snapshot.lineage:
             return self._rebuild(snapshot, lattice, everything)
@@ -138,27 +183,32 @@ class OccupancyGrid:
             | np.any(snapshot.means[:n_both] != old.means[:n_both], axis=1)
             | np.any(snapshot.transforms[:n_both] != old.transforms[:n_both], axis=(1, 2))
             | (snapshot.planar_kernel[:n_both] != old.planar_kernel[:n_both])
+            | (with_std & (snapshot.precision[:n_both] != old.precision[:n_both]))
         )
         removed_rows = np.concatenate([changed, np.arange(n_both, n_old)])
-        removed = LocalGrids.of(old, removed_rows, lattice, sign=-1.0)
+        removed = LocalGrids.of(old, removed_rows, lattice, -1.0, with_std)
         added_rows = np.concatenate([changed, np.arange(n_both, n_new)])
-        added = LocalGrids.of(snapshot, added_rows, lattice)
+        added = LocalGrids.of(snapshot, added_rows, lattice, 1.0, with_std)
         voxels = removed.voxels + added.voxels
         if voxels >= everything.voxels:
             return self._rebuild(snapshot, lattice, everything)
-        accumulate_local_grids(self._scores_3d(), lattice, removed)
-        accumulate_local_grids(self._scores_3d(), lattice, added)
+        accumulate_local_grids(self._fields_3d(), lattice, removed)
+        accumulate_local_grids(self._fields_3d(), lattice, added)
         self._snapshot = snapshot
         return GridUpdate("incremental", len(removed) + len(added), voxels, everything.voxels)
 
     def _rebuild(
         self, snapshot: MapSnapshot, lattice: Lattice, everything: LocalGrids
     ) -> GridUpdate:
-        self.scores[...] = 0.0
-        accumulate_local_grids(self._scores_3d(), lattice, everything)
+        self._fields[...] = 0.0
+        accumulate_local_grids(self._fields_3d(), lattice, everything)
         self._snapshot = snapshot
         return GridUpdate("rebuild", len(everything), everything.voxels, everything.voxels)
 
-    def _scores_3d(self) -> np.ndarray:
-        """The scores as the 3D array the lattice describes (a view)."""
-        return self.scores if self.dim == 3 else self.scores[:, :, None]
+    def _require_std(self) -> None:
+        if not self.has_std:
+            raise ValueError("this grid was made without the std: make it with std=True")
+
+    def _fields_3d(self) -> np.ndarray:
+        """The fields as (C,) + the 3D shape the lattice describes (a view)."""
+        return self._fields if self.dim == 3 else self._fields[..., None]

@@ -1,4 +1,5 @@
-"""Occupancy grids as .npz files: probability, scores, intercept, origin, resolution."""
+"""Occupancy grids as .npz files: probability, scores, intercept, origin, resolution, and for
+grids with the occupancy's standard deviation, std and the variance sums it comes from."""
 
 from __future__ import annotations
 
@@ -10,15 +11,22 @@ from ehm.grid.occupancy_grid import OccupancyGrid
 
 
 def save_grid(grid: OccupancyGrid, path: str | PathLike[str]) -> None:
-    """Write a grid as .npz: probability, scores, intercept, origin, resolution."""
-    np.savez_compressed(
-        path,
-        probability=grid.probability,
-        scores=grid.scores,
-        intercept=grid.intercept,
-        origin=grid.origin,
-        resolution=grid.resolution,
-    )
+    """Write a grid as .npz: probability, scores, intercept, origin, resolution; with the std
+    also std, variance_sums ((2,) + shape: sum k^2 / lambda, sum k) and prior_precision."""
+    arrays = {
+        "probability": grid.probability,
+        "scores": grid.scores,
+        "intercept": grid.intercept,
+        "origin": grid.origin,
+        "resolution": grid.resolution,
+    }
+    if grid.has_std:
+        arrays |= {
+            "std": grid.std,
+            "variance_sums": grid.variance_sums,
+            "prior_precision": grid.prior_precision,
+        }
+    np.savez_compressed(path, **arrays)
 
 
 def load_grid(path: str | PathLike[str]) -> OccupancyGrid:
@@ -28,7 +36,12 @@ def load_grid(path: str | PathLike[str]) -> OccupancyGrid:
         missing = {"scores", "intercept", "origin", "resolution"} - set(data.files)
         if missing:
             raise ValueError(f"{path}: not an ehm grid file (no {', '.join(sorted(missing))})")
-        grid = OccupancyGrid(data["origin"], float(data["resolution"]), data["scores"].shape)
+        with_std = "variance_sums" in data.files
+        shape = data["scores"].shape
+        grid = OccupancyGrid(data["origin"], float(data["resolution"]), shape, with_std)
         grid.scores[...] = data["scores"]
         grid.intercept = float(data["intercept"])
+        if with_std:
+            grid.variance_sums[...] = data["variance_sums"]
+            grid.prior_precision = float(data["prior_precision"])
     return grid

@@ -34,11 +34,14 @@ MAGIC = b"EHMMAP\r\n"
 # Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
 ANCHOR_PREFIX = "anchor_"
 MEMORY_PREFIX = "memory_"
+# Version 6: every update rule learns the weights' precisions (the occupancy's std); files of
+# older versions learned by SGD hold the prior's, so their std stays near the prior's until
+# they learn more.
 # Version 5 stores the sample memory; older files load with none (memory_per_cell 0).
 # Version 4 stores the random generator's state and each weight's posterior precision;
 # version 3 files load with a generator started afresh from the map's seed, and learn on by
 # SGD as they did.
-FORMAT_VERSION = 5
+FORMAT_VERSION = 6
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -94,7 +97,7 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 5); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 6); MapFileError
     names what is wrong otherwise."""
     data = Path(path).read_bytes()
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:

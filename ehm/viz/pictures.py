@@ -8,6 +8,7 @@ from os import PathLike
 
 import numpy as np
 
+from ehm.core.uncertainty import occupancy_std
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap
 from ehm.viz.colors import HEIGHT_COLORMAP, height_range
@@ -32,12 +33,25 @@ def occupancy_slices(
     exact_occupancy: Callable[[np.ndarray], np.ndarray] | None = None,
     heights: tuple[float, ...] | None = None,
     resolution: float = 0.025,
+    std: bool = False,
 ) -> None:
     """Write a PNG of horizontal occupancy slices (3D maps, at `heights` metres; default four
     evenly inside [low, high]) or of the whole plane (2D maps) over the box [low, high].
     exact_occupancy: when given, the true occupancy of (n, d) points ((n,) bool, for example
-    a simulated scene's `occupied`), drawn as contours of the exact surfaces."""
+    a simulated scene's `occupied`), drawn as contours of the exact surfaces. std: draw the
+    standard deviation of the occupancy instead (from 0 to its value where nothing was
+    observed)."""
     plt = pyplot()
+    quantity = "std of occupancy" if std else "occupancy"
+    if std:
+        prior_variance = np.ones(1) / hilbert_map.config.prior_precision
+        colours = {
+            "cmap": "magma",
+            "vmin": 0.0,
+            "vmax": occupancy_std(np.zeros(1), prior_variance)[0],
+        }
+    else:
+        colours = {"cmap": "viridis", "vmin": 0.0, "vmax": 1.0}
 
     xs = np.arange(low[0], high[0], resolution)
     ys = np.arange(low[1], high[1], resolution)
@@ -52,22 +66,21 @@ def occupancy_slices(
     figure, axes = plt.subplots(1, len(levels), figsize=(4.2 * len(levels), 4), squeeze=False)
     for axis, z in zip(axes[0], levels, strict=True):
         points = planar if z is None else np.column_stack([planar, np.full(len(planar), z)])
-        probability = hilbert_map.occupancy(points).reshape(grid_x.shape)
+        probability, spread = hilbert_map.occupancy(points, return_std=True)
         image = axis.imshow(
-            probability,
+            (spread if std else probability).reshape(grid_x.shape),
             origin="lower",
             extent=(xs[0], xs[-1], ys[0], ys[-1]),
-            cmap="viridis",
-            vmin=0.0,
-            vmax=1.0,
+            **colours,
         )
         if exact_occupancy is not None:
             truth = exact_occupancy(points).reshape(grid_x.shape).astype(float)
             axis.contour(grid_x, grid_y, truth, levels=[0.5], colors="white", linewidths=0.6)
-        axis.set_title("occupancy" if z is None else f"occupancy at z = {z:.2f} m")
+        axis.set_title(quantity if z is None else f"{quantity} at z = {z:.2f} m")
         axis.set_xlabel("x (m)")
         axis.set_ylabel("y (m)")
-    figure.colorbar(image, ax=axes[0].tolist(), shrink=0.8, label="p(occupied)")
+    label = "std of p(occupied)" if std else "p(occupied)"
+    figure.colorbar(image, ax=axes[0].tolist(), shrink=0.8, label=label)
     figure.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(figure)
 

@@ -44,10 +44,17 @@ def test_kernel_values_match_reference(rng):
 def test_decision_values_match_reference(rng):
     problem = _random_problem(rng, 3)
     weights = rng.normal(size=len(problem[3]))
-    compiled = decision_values(*problem, weights, 0.3)
-    np.testing.assert_allclose(
-        compiled, decision_values_reference(*problem, weights, 0.3), atol=1e-12
-    )
+    inverse_precision = 1.0 / rng.uniform(1.0, 50.0, len(weights))
+    for with_variance in (False, True):
+        compiled = decision_values(*problem, weights, 0.3, inverse_precision, with_variance)
+        reference = decision_values_reference(
+            *problem, weights, 0.3, inverse_precision, with_variance
+        )
+        for got, want in zip(compiled, reference, strict=True):
+            np.testing.assert_allclose(got, want, atol=1e-12)
+    scores, squares = compiled
+    assert squares.shape == (len(scores), 2)
+    assert np.all(squares[:, 1] >= squares[:, 0]) and squares[:, 1].max() > 1.0
 
 
 def test_searches_bounded_by_kernel_reach_give_the_same_features(rng):
@@ -67,15 +74,18 @@ def test_searches_bounded_by_kernel_reach_give_the_same_features(rng):
         clusters.planar_kernel,
         rng.normal(size=300),
         0.0,
+        np.ones(300),
+        True,
     )
     bounded = ClusterIndex.of(clusters).nearest(centres, 8, 2, spread)
     unbounded = ClusterIndex(clusters.means, clusters.coarse).nearest(centres, 8, 2)
     assert (bounded == -1).sum() > (unbounded == -1).sum()  # the bound did prune
-    np.testing.assert_allclose(
+    for got, want in zip(
         decision_values(*args, bounded, *cluster_arrays),
         decision_values(*args, unbounded, *cluster_arrays),
-        atol=1e-12,
-    )
+        strict=True,
+    ):
+        np.testing.assert_allclose(got, want, atol=1e-12)
 
 
 def test_group_by_cell_groups_points_sharing_a_cell():

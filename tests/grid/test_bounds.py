@@ -21,3 +21,11 @@ def test_bad_grids_are_refused_before_allocating(room_map, bounds, resolution, m
     with pytest.raises(ValueError, match="grid") as error:
         room_map.grid(bounds, resolution)
     assert message in str(error.value)
+
+
+def test_grids_with_the_std_count_40_bytes_a_voxel(room_map):
+    # 100 x 100 x 100 voxels: 16 MB without the std, 40 MB with it.
+    bounds = np.array([[-2.0, -2.0, 0.0], [2.0, 2.0, 4.0]])
+    room_map.grid(bounds, 0.04, max_bytes=20_000_000)
+    with pytest.raises(ValueError, match=r"would take 0\.04 GiB"):
+        room_map.grid(bounds, 0.04, max_bytes=20_000_000, std=True)

@@ -34,7 +34,7 @@ def test_grid_is_the_sum_over_every_kernel_at_voxel_centres(fixture, request):
     every = np.full((len(picked), max(map(len, lists))), -1)
     for row, found in enumerate(lists):
         every[row, : len(found)] = found
-    expected = decision_values(
+    expected, squares = decision_values(
         centres[picked],
         np.arange(len(picked)),
         every,
@@ -43,8 +43,14 @@ def test_grid_is_the_sum_over_every_kernel_at_voxel_centres(fixture, request):
         clusters.planar_kernel,
         clusters.weights,
         0.0,
+        1.0 / clusters.precision,
+        True,
     )
     np.testing.assert_allclose(grid.scores.ravel()[picked], expected, rtol=0, atol=1e-9)
+    with_std = hilbert_map.grid(resolution=0.1, std=True)
+    np.testing.assert_array_equal(with_std.scores, grid.scores)
+    sums = with_std.variance_sums.reshape(2, -1)[:, picked].T
+    np.testing.assert_allclose(sums, squares, rtol=1e-12, atol=1e-12)
 
 
 def test_grid_matches_point_queries_within_tolerance(room_map):
@@ -82,16 +88,17 @@ def test_followed_grids_stay_equal_to_rebuilt_ones(room):
     hilbert_map.integrate_scan(scans[0])
     bounds = np.array([[-4.5, -3.5, -0.5], [4.5, 3.5, 3.5]])
     fine = hilbert_map.grid(bounds, resolution=0.1, follow=True)
-    coarse = hilbert_map.grid(bounds, resolution=0.25, follow=True)
+    coarse = hilbert_map.grid(bounds, resolution=0.25, follow=True, std=True)
     kinds = []
     for scan in scans[1:]:
         hilbert_map.integrate_scan(scan)
         assert "grids" in hilbert_map.timings_
         kinds.append(fine.update(hilbert_map.snapshot()).kind)  # already current: nothing to do
         for followed in (fine, coarse):
-            rebuilt = hilbert_map.grid(bounds, followed.resolution)
+            rebuilt = hilbert_map.grid(bounds, followed.resolution, std=followed.has_std)
             np.testing.assert_allclose(followed.scores, rebuilt.scores, rtol=0, atol=1e-9)
             np.testing.assert_array_equal(followed.probability, 1 / (1 + np.exp(-followed.scores)))
+        np.testing.assert_allclose(coarse.std, rebuilt.std, rtol=0, atol=1e-9)
     assert kinds == ["incremental"] * 3
 
 

@@ -7,13 +7,18 @@ import ehm
 from ehm.io.grid_file import load_grid, save_grid
 
 
-def test_grid_file_round_trip(plan, tmp_path):
-    grid = ehm.HilbertMap().fit(plan.scans).grid(resolution=0.1)
+@pytest.mark.parametrize("std", [False, True])
+def test_grid_file_round_trip(plan, std, tmp_path):
+    grid = ehm.HilbertMap(prior_precision=2.0).fit(plan.scans).grid(resolution=0.1, std=std)
     save_grid(grid, tmp_path / "plan.npz")
     loaded = load_grid(tmp_path / "plan.npz")
     np.testing.assert_array_equal(loaded.probability, grid.probability)
     np.testing.assert_array_equal(loaded.origin, grid.origin)
     assert loaded.resolution == grid.resolution
+    assert loaded.has_std == std
+    if std:
+        np.testing.assert_array_equal(loaded.std, grid.std)
+        assert np.load(tmp_path / "plan.npz")["std"].shape == grid.shape
     np.savez(tmp_path / "other.npz", scores=np.zeros(3))
     with pytest.raises(
         ValueError, match=r"not an ehm grid file \(no intercept, origin, resolution\)"

@@ -110,17 +110,20 @@ def test_empty_map_cannot_be_saved(tmp_path):
 def test_maps_of_format_3_load_and_answer_as_they_did(name):
     """Files written in format 3, before the random generator's state was stored: a 2D plan
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
-    They answer as when they were written, and a map built now from the same scans with the
-    same settings (no sample memory then) answers the same."""
+    They answer as when they were written (to rounding), and a map built now from the same
+    scans with the same settings (no sample memory then) answers the same."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
     points = recorded[f"{name}_points"]
     rebuilt = rebuild_v3_map(name)
     assert loaded.config == rebuilt.config
+    # Equal up to the last bit or two: another release of Numba or LLVM may round the compiled
+    # sums differently.
     for mode in ("batch", "exact"):
-        np.testing.assert_array_equal(loaded.occupancy(points, mode), recorded[f"{name}_{mode}"])
-        np.testing.assert_array_equal(rebuilt.occupancy(points, mode), recorded[f"{name}_{mode}"])
+        answers = recorded[f"{name}_{mode}"]
+        np.testing.assert_allclose(loaded.occupancy(points, mode), answers, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(rebuilt.occupancy(points, mode), answers, rtol=0, atol=1e-14)
 
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
