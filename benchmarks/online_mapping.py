@@ -6,8 +6,8 @@ against the exact occupancy.
                                         [--datasets warehouse,street,...]
 
 For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the
-four methods: held-out F1 of the occupied class at p = 0.5 (OctoMap at 0.05 m, on the street
-at 0.2 m). On the simulated scenes the same
+four methods: held-out F1 of the occupied class at p = 0.5, every method at the data set's
+resolution (0.05 m, on the street 0.2 m). On the simulated scenes the same
 maps are also scored against the exact occupancy at points near surfaces: uniform in balls of
 0.3 m around training hits (both sides of each surface), kept where some training ray
 reached; precision, recall and F1 of the occupied class there. Prints markdown tables, mean
@@ -21,7 +21,7 @@ import statistics
 from collections.abc import Sequence
 
 import numpy as np
-from common import RESOLUTION, heading, markdown_table
+from common import RESOLUTION, RESOLUTIONS, heading, markdown_table
 
 from ehm.core.scan import Scan
 from ehm.eval.baselines import make_mapper
@@ -36,10 +36,6 @@ SIMULATED = {"virtual_room": virtual_room, "warehouse": warehouse, "street": str
 DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab")
 # Test points near surfaces: uniform in balls of this radius around training hits, metres.
 NEAR = 0.3
-# Voxel side of OctoMap and margin of the held-out split, metres: outdoor LiDAR out to 40 m is
-# mapped at 0.2 m (at 0.05 m OctoMap's held-out F1 on the street is 0.27: voxels that far
-# out are seldom hit twice), indoor data at RESOLUTION.
-RESOLUTIONS = {"street": 0.2}
 
 
 def near_surface_test_points(scans: Sequence[Scan], n: int, rng: np.random.Generator) -> np.ndarray:

@@ -149,18 +149,27 @@ def map_command(
     ] = None,
     poses: Annotated[Path | None, typer.Option(help="Poses file for KITTI .bin scans.")] = None,
     batch: Annotated[bool, typer.Option(help="Learn all scans at once (single batch).")] = False,
+    resolution: Annotated[
+        float,
+        typer.Option(
+            help="Map detail, metres: scales every length setting (MapConfig.for_resolution); "
+            "about 0.2 for long-range outdoor LiDAR."
+        ),
+    ] = 0.05,
     setting: Annotated[
         list[str] | None, typer.Option("--set", help="MapConfig override name=value.")
     ] = None,
 ) -> None:
     """Build a map from scans of any supported format and save it."""
+    from ehm.config import MapConfig
     from ehm.hilbert_map import HilbertMap
     from ehm.io.readers import read_scans
     from ehm.pipeline import MappingPipeline, ProgressBar
 
     sensor = [float(v) for v in origin.split(",")] if origin else None
     try:
-        hilbert_map = HilbertMap(**_parse_settings(setting or []))
+        config = MapConfig.for_resolution(resolution, **_parse_settings(setting or []))
+        hilbert_map = HilbertMap(config)
         scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
     except ValueError as error:
         raise typer.BadParameter(str(error)) from error
@@ -364,7 +373,11 @@ def eval_command(
     fractions: Annotated[str, typer.Option(help="Train fractions of the rays.")] = "0.8,0.6,0.4",
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds of the splits.")] = "0",
     resolution: Annotated[
-        float, typer.Option(help="Voxel side of OctoMap and of the test split's margin, metres.")
+        float,
+        typer.Option(
+            help="Map detail, metres: OctoMap's voxel side, EHM's MapConfig.for_resolution and "
+            "the test split's margin."
+        ),
     ] = 0.05,
     json_path: Annotated[
         Path | None, typer.Option("--json", help="Write one record per run to this JSON file.")

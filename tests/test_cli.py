@@ -108,7 +108,18 @@ def test_bad_inputs_give_clear_errors(map_file, tmp_path):
     fails(["map", log, "-o", output, "--set", "k=1"], 2, "'k=1': expected name=value with a")
     fails(["map", log, "-o", output, "--set", "neighbours"], 2, "expected name=value")
     fails(["map", log, "-o", output, "--set", "neighbours=0"], 2, "must be an integer >= 1")
+    fails(["map", log, "-o", output, "--resolution", "0"], 2, "resolution must be a positive")
     assert not (tmp_path / "x.ehm").exists()
+
+
+def test_map_at_another_resolution_scales_its_settings(map_file, tmp_path):
+    log, output = str(map_file.with_suffix(".log")), tmp_path / "coarse.ehm"
+    result = runner.invoke(
+        app, ["map", log, "-o", str(output), "--resolution", "0.1", "--set", "min_std=0.03"]
+    )
+    assert result.exit_code == 0, result.output
+    config = ehm.load(output).config
+    assert config.cluster_radius == pytest.approx(0.24) and config.min_std == 0.03
 
 
 def test_demo_writes_map_mesh_and_pictures(tmp_path):

@@ -1,6 +1,7 @@
 import pytest
 
 from ehm import HilbertMap, MapConfig
+from ehm.config import DEFAULT_RESOLUTION, LENGTH_SETTINGS
 
 
 def test_overrides_and_validation():
@@ -38,3 +39,16 @@ def test_overrides_and_validation():
 def test_kernel_selection_search_and_hierarchy_settings_are_validated(setting, value, message):
     with pytest.raises(ValueError, match=message):
         MapConfig(**{setting: value})
+
+
+def test_settings_for_another_resolution_scale_every_length():
+    default = MapConfig()
+    assert MapConfig.for_resolution(DEFAULT_RESOLUTION) == default
+    coarse = MapConfig.for_resolution(0.2, neighbours=6, cluster_radius=0.3)
+    for name in LENGTH_SETTINGS:
+        expected = 0.3 if name == "cluster_radius" else 4.0 * getattr(default, name)
+        assert getattr(coarse, name) == pytest.approx(expected), name
+    assert coarse.neighbours == 6 and coarse.length_scale == default.length_scale
+    for bad in (0.0, -0.1, float("inf"), float("nan"), "0.2"):
+        with pytest.raises(ValueError, match="map resolution must be a positive number"):
+            MapConfig.for_resolution(bad)

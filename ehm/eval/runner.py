@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from ehm.config import DEFAULT_RESOLUTION
 from ehm.core.scan import Scan
 from ehm.eval.baselines import METHODS, Mapper, make_mapper, method_names
 from ehm.eval.datasets import DATASETS, DataMissingError, load_dataset
@@ -27,7 +28,6 @@ from ehm.eval.metrics import score
 from ehm.eval.protocol import held_out_rays
 
 DEFAULT_FRACTIONS = (0.8, 0.6, 0.4)
-DEFAULT_RESOLUTION = 0.05
 
 
 @dataclass(frozen=True)

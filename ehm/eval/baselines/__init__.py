@@ -55,7 +55,7 @@ def _localized(kind: str) -> Callable[[float, int], Mapper]:
     def make(resolution: float, seed: int) -> Mapper:
         from ehm.eval.baselines.localized import LocalizedMapper
 
-        return LocalizedMapper(kind, seed)
+        return LocalizedMapper(kind, seed, resolution)
 
     return make
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ehm.config import DEFAULT_RESOLUTION, MapConfig
 from ehm.core.scan import Scan
 from ehm.hilbert_map import HilbertMap
 from ehm.pipeline import MappingPipeline
@@ -26,14 +27,15 @@ KINDS = {
 
 
 class LocalizedMapper:
-    """A HilbertMap with default settings, learned as `kind` (see KINDS) says."""
+    """A HilbertMap with the default settings for `resolution` metres of detail (see
+    MapConfig.for_resolution), learned as `kind` (see KINDS) says."""
 
-    def __init__(self, kind: str, seed: int = 0) -> None:
+    def __init__(self, kind: str, seed: int = 0, resolution: float = DEFAULT_RESOLUTION) -> None:
         if kind not in KINDS:
             raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
         self.kind = kind
         self.description, overrides = KINDS[kind]
-        self.map = HilbertMap(seed=seed, **overrides)
+        self.map = HilbertMap(MapConfig.for_resolution(resolution, seed=seed, **overrides))
         self.scan_seconds: list[float] = []
         """Wall-clock seconds of each integrate (kinds learned scan by scan only)."""
 
