@@ -133,8 +133,9 @@ class MapConfig:
     no cluster yet are clustered again with a later scan's samples in their cell. 0 keeps
     none: each scan is learned from its own samples alone, as Alg. 2 does."""
     replay_ratio: float = 1.0
-    """Past samples replayed from the memory with each scan, per sample of the scan, drawn in
-    the proportions of every sample seen so far."""
+    """Past samples replayed from the memory with each scan, per sample of the scan: from the
+    cells around hits as many as the scan has samples there (times the ratio), the rest from
+    cells along rays, each cell in proportion to the samples it has seen."""
     balance_classes: bool = False
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2

@@ -247,7 +247,7 @@ class HilbertMap:
                 )
             self._index = ClusterIndex.of(clusters, self.anchors_, cfg)
         with timer("replay"):
-            replayed = memory.replay(round(cfg.replay_ratio * n_new), visit, self._rng)
+            replayed = memory.replay(cfg.replay_ratio, visit, self._rng)
             train = samples + replayed
             if cfg.train_search == "point":
                 groups = PointGroups.singletons(train.points)

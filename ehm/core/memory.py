@@ -10,7 +10,12 @@ Every cell keeps a uniform random subset of at most `per_cell` of the samples th
 Replay draws, among the cells a new scan's samples fall in, a cell in proportion to that count,
 then one of its kept samples uniformly: each past sample there comes back about as often as it
 would among all samples seen so far, while memory grows with the mapped space, not with the
-number of scans. Replay stays where the scan is: drawn from the whole map it scored lower
+number of scans. It draws from cells around hits as many samples as the scan has there, the
+rest from cells along rays: every scan's rays cross open space that earlier scans crossed
+too, and drawn in proportion alone the replay was 93-98 % free samples along rays against
+72-83 % in the scans (the warehouse), pushing the bias, which queries leave out, below one
+batch's and the occupied region into free space (near-surface precision 0.461 against 0.506
+with kinds matched; held-out F1 on the Intel lab 0.923 against 0.909). Replay stays where the scan is: drawn from the whole map it scored lower
 where scans are small (held-out F1 on the Intel lab 0.890 against 0.920) and made every scan
 change weights everywhere, so grids that follow the map would be rebuilt after each scan.
 
@@ -177,19 +182,32 @@ class SampleMemory:
         """Record which `pending` samples ((p,) bool `clustered`) have now formed clusters."""
         self.clustered[pending.cells[clustered], pending.slots[clustered]] = True
 
-    def replay(self, n: int, visit: Visit, rng: np.random.Generator) -> TrainingSamples:
-        """n past samples from the cells, of either kind, that hold any of the visit's samples:
-        each cell drawn in proportion to the samples it has seen, then one of its kept samples
-        uniformly (none when those cells are empty)."""
-        cells = visit.near
-        if len(cells) == 0 or n == 0:
-            cells = np.zeros(0, dtype=np.int64)
-            return self._samples_at(cells, cells)
-        cumulative = np.cumsum(self.seen[cells])
-        drawn = np.searchsorted(cumulative, rng.random(n) * cumulative[-1], side="right")
-        chosen = cells[np.minimum(drawn, len(cells) - 1)]
-        slots = (rng.random(n) * self.filled[chosen]).astype(np.int64)
-        return self._samples_at(chosen, slots)
+    def replay(self, ratio: float, visit: Visit, rng: np.random.Generator) -> TrainingSamples:
+        """`ratio` past samples per sample of the visit, from the cells, of either kind, that
+        hold any of the visit's samples: of each kind of cell as many as the visit has samples
+        of that kind, times ratio (all from one kind when the other has no cells there), each
+        cell drawn in proportion to the samples it has seen, then one of its kept samples
+        uniformly (none when there are no such cells)."""
+        n = round(ratio * len(visit.samples))
+        n_surface = round(ratio * int(visit.samples.at_surface.sum()))
+        kinds = self.at_surface[visit.near]
+        if not kinds.all() and kinds.any():
+            counts = ((True, n_surface), (False, n - n_surface))
+        else:
+            counts = ((bool(kinds.all()), n),)
+        chosen, slots = [], []
+        for at_surface, n_kind in counts:
+            cells = visit.near[kinds == at_surface]
+            if len(cells) == 0 or n_kind == 0:
+                continue
+            cumulative = np.cumsum(self.seen[cells])
+            drawn = np.searchsorted(cumulative, rng.random(n_kind) * cumulative[-1], side="right")
+            chosen.append(cells[np.minimum(drawn, len(cells) - 1)])
+            slots.append((rng.random(n_kind) * self.filled[chosen[-1]]).astype(np.int64))
+        if not chosen:
+            none = np.zeros(0, dtype=np.int64)
+            return self._samples_at(none, none)
+        return self._samples_at(np.concatenate(chosen), np.concatenate(slots))
 
     def insert(self, visit: Visit, clustered: np.ndarray, rng: np.random.Generator) -> None:
         """Offer the visit's samples to the memory; clustered: (n,) bool, each formed part of a

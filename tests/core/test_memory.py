@@ -69,7 +69,7 @@ def test_replay_draws_cells_in_proportion_to_what_they_saw(rng):
     insert(memory, uniform_in_cell(rng, 100, (1, 0)), np.ones(100, bool), rng)
     insert(memory, uniform_in_cell(rng, 50, (7, 7)), np.ones(50, bool), rng)
     near = samples_at([[0.5, 0.5], [1.5, 0.5]])
-    replayed = memory.replay(20000, memory.visit(near), rng)
+    replayed = memory.replay(10_000, memory.visit(near), rng)  # per sample of the 2
     assert len(replayed) == 20000 and replayed.points.dtype == np.float64
     in_first = np.all((replayed.points >= 0) & (replayed.points < 1), axis=1)
     in_second = (replayed.points[:, 0] >= 1) & (replayed.points[:, 0] < 2)
@@ -92,6 +92,20 @@ def test_replay_reaches_cells_of_either_kind_around_the_new_samples(rng):
     assert len(memory.replay(50, far, rng)) == 0
     empty = SampleMemory(2, 4, (1.0, 5.0))
     assert len(empty.replay(50, empty.visit(ray), rng)) == 0
+
+
+def test_replay_matches_the_share_of_each_kind_of_the_new_samples(rng):
+    memory = SampleMemory(2, 8, (1.0, 1.0))
+    around_hits = uniform_in_cell(rng, 100, (0, 0))
+    along_rays = samples_at(uniform_in_cell(rng, 5000, (1, 0)).points, at_surface=False)
+    insert(memory, around_hits, np.ones(100, bool), rng)
+    insert(memory, along_rays, np.ones(5000, bool), rng)
+    # A new scan with a quarter of its samples around hits, in both cells: though the cell
+    # along rays saw 50 times more, a quarter of the replay comes from the cell around hits.
+    new = samples_at([[0.5, 0.5], [1.5, 0.5], [1.6, 0.5], [1.7, 0.5]])
+    new = TrainingSamples(new.points, new.occupied, np.array([True, False, False, False]))
+    replayed = memory.replay(1000, memory.visit(new), rng)
+    assert len(replayed) == 4000 and replayed.at_surface.sum() == 1000
 
 
 def test_samples_without_cluster_wait_in_their_cell_until_clustered(rng):
