@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 import platform
 import statistics
@@ -116,3 +117,18 @@ def markdown_table(
     lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(align) + " |"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines) + "\n"
+
+
+def sweep_arguments(
+    description: str, datasets: Sequence[str]
+) -> tuple[list[int], list[float], list[str]]:
+    """Seeds, train fractions and data sets of a benchmark sweep from the command line
+    (--seeds 0,1,2 --fractions 0.8,0.4 --datasets a,b; the defaults: those, and `datasets`)."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--fractions", default="0.8,0.4")
+    parser.add_argument("--datasets", default=",".join(datasets))
+    args = parser.parse_args()
+    seeds = [int(s) for s in args.seeds.split(",")]
+    fractions = [float(f) for f in args.fractions.split(",")]
+    return seeds, fractions, args.datasets.split(",")

@@ -16,12 +16,11 @@ reached; precision, recall and F1 of the occupied class there. Prints markdown t
 
 from __future__ import annotations
 
-import argparse
 import statistics
 from collections.abc import Sequence
 
 import numpy as np
-from common import RESOLUTION, RESOLUTIONS, heading, markdown_table
+from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
 
 from ehm.core.scan import Scan
 from ehm.eval.baselines import make_mapper
@@ -81,15 +80,9 @@ def measure(
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", default="0,1,2")
-    parser.add_argument("--fractions", default="0.8,0.4")
-    parser.add_argument("--datasets", default=",".join(DATASETS))
-    args = parser.parse_args()
-    seeds = [int(s) for s in args.seeds.split(",")]
-    fractions = [float(f) for f in args.fractions.split(",")]
+    seeds, fractions, names = sweep_arguments(__doc__.splitlines()[0], DATASETS)
     print(heading("Online mapping", f"seeds {seeds}, train fractions {fractions}"))
-    for name in args.datasets.split(","):
+    for name in names:
         if name in SIMULATED:
             data = SIMULATED[name]()
             scans, scene = data.scans, data.scene

@@ -18,11 +18,10 @@ Prints one markdown table, mean over seeds.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
-from common import RESOLUTION, RESOLUTIONS, heading, markdown_table
+from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
 
 import ehm
 from ehm.eval.datasets import DataMissingError, load_dataset
@@ -87,15 +86,9 @@ def measure(
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", default="0,1,2")
-    parser.add_argument("--fractions", default="0.8,0.4")
-    parser.add_argument("--datasets", default=",".join(DATASETS))
-    args = parser.parse_args()
-    seeds = [int(s) for s in args.seeds.split(",")]
-    fractions = [float(f) for f in args.fractions.split(",")]
+    seeds, fractions, names = sweep_arguments(__doc__.splitlines()[0], DATASETS)
     rows = []
-    for name in args.datasets.split(","):
+    for name in names:
         try:
             scans = load_dataset(name)
         except DataMissingError as missing:
@@ -117,7 +110,7 @@ def main() -> None:
             )
             print(" | ".join(rows[-1]), flush=True)
     print()
-    print(heading("Uncertainty", f"seeds {args.seeds}, scan by scan"))
+    print(heading("Uncertainty", f"seeds {seeds}, train fractions {fractions}, scan by scan"))
     print(markdown_table(["data set", "train", *COLUMNS], rows, text_columns=3))
 
 

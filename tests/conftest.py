@@ -69,3 +69,20 @@ def random_clusters():
         return clusters
 
     return make
+
+
+@pytest.fixture
+def sparse_batch():
+    """Makes a random batch of n samples' sparse features over n_clusters clusters: values
+    (n, k), group_of_point (n,), neighbours (n_groups, k) with a group of fewer than k
+    clusters (-1), and labels (n,) 0 or 1, two fifths occupied."""
+
+    def make(rng, n=300, k=5, n_groups=25, n_clusters=40):
+        values = rng.uniform(0, 1, (n, k)) * (rng.random((n, k)) < 0.7)
+        group_of_point = rng.integers(0, n_groups, n)
+        neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
+        neighbours[3, 2:] = -1
+        labels = (rng.random(n) < 0.4).astype(float)
+        return values, group_of_point, neighbours, labels
+
+    return make

@@ -7,17 +7,8 @@ from ehm.core.posterior import posterior_update, posterior_update_reference
 from ehm.core.uncertainty import curvature_sum
 
 
-def random_batch(rng, n=300, k=5, n_groups=25, n_clusters=40):
-    values = rng.uniform(0, 1, (n, k)) * (rng.random((n, k)) < 0.7)
-    group_of_point = rng.integers(0, n_groups, n)
-    neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
-    neighbours[3, 2:] = -1
-    labels = (rng.random(n) < 0.4).astype(float)
-    return values, group_of_point, neighbours, labels
-
-
-def test_compiled_update_matches_reference(rng):
-    batch = random_batch(rng)
+def test_compiled_update_matches_reference(rng, sparse_batch):
+    batch = sparse_batch(rng)
     state = [rng.normal(size=40), rng.uniform(0.5, 3.0, 40), np.array([0.2, 5.0])]
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
@@ -30,8 +21,8 @@ def test_compiled_update_matches_reference(rng):
     np.testing.assert_array_equal(compiled[1], state[1])  # the prior, left as it was
 
 
-def test_sweeps_reach_the_minimum_of_the_regularised_loss(rng):
-    values, group_of_point, neighbours, labels = random_batch(rng)
+def test_sweeps_reach_the_minimum_of_the_regularised_loss(rng, sparse_batch):
+    values, group_of_point, neighbours, labels = sparse_batch(rng)
     weights, precision, bias = np.zeros(40), np.ones(40), np.array([0.0, 1.0])
     posterior_update(
         values, group_of_point, neighbours, labels, np.ones(2), weights, precision.copy(), bias, 50

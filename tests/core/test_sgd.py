@@ -6,13 +6,9 @@ import pytest
 from ehm.core.sgd import class_weights, sgd_pass, sgd_pass_reference
 
 
-def test_sgd_pass_matches_reference(rng):
-    n, k, n_groups, n_clusters = 400, 5, 20, 30
-    values = rng.uniform(0, 1, (n, k)) * (rng.random((n, k)) < 0.7)
-    group_of_point = rng.integers(0, n_groups, n)
-    neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
-    neighbours[3, 2:] = -1
-    labels = (rng.random(n) < 0.4).astype(float)
+def test_sgd_pass_matches_reference(rng, sparse_batch):
+    n, n_clusters = 400, 30
+    values, group_of_point, neighbours, labels = sparse_batch(rng, n, 5, 20, n_clusters)
     order = rng.permutation(n)
     state = [rng.normal(size=n_clusters), rng.uniform(0, 1, n_clusters), np.array([0.1, 0.5])]
     compiled = [a.copy() for a in state]

@@ -13,12 +13,9 @@ from ehm.core.uncertainty import (
 )
 
 
-def test_compiled_curvature_matches_reference(rng):
-    n, k, n_groups, n_clusters = 400, 6, 30, 50
-    values = rng.uniform(0, 1, (n, k)) * (rng.random((n, k)) < 0.7)
-    group_of_point = rng.integers(0, n_groups, n)
-    neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
-    neighbours[4, 3:] = -1
+def test_compiled_curvature_matches_reference(rng, sparse_batch):
+    n, n_clusters = 400, 50
+    values, group_of_point, neighbours, _ = sparse_batch(rng, n, 6, 30, n_clusters)
     sample_weights = rng.uniform(0.5, 2.0, n)
     weights = rng.normal(size=n_clusters)
     start = rng.uniform(1.0, 3.0, n_clusters)
