@@ -125,7 +125,9 @@ class MapConfig:
     l2: float = 1e-3
     """L2 regularisation of the weights (the R(w) of Eq. 2; 'sgd')."""
     prior_precision: float = 1.0
-    """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0 ('posterior')."""
+    """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0: the log-odds
+    variance of never-observed space (occupancy std 0.21 at 1; ehm.core.uncertainty), and
+    under 'posterior' the prior the first update starts from."""
     memory_per_cell: int = 8
     """Past training samples a map keeps per cell of space (ehm.core.memory): a uniform random
     subset of those that fell in the cell, `cluster_radius` on a side around hits,

@@ -267,16 +267,10 @@ class HilbertMap:
                 train_weights(features, train.occupied, clusters, self.bias_state_, cfg, self._rng)
         with timer("precision"):
             # The new samples' curvature, once each: replayed ones were counted when new.
-            sample_weights = class_weights(train.occupied, cfg.balance_classes)[
-                train.occupied[:n_new].astype(np.int64)
-            ]
-            add_curvature(
-                features.head(n_new),
-                sample_weights,
-                clusters.weights,
-                self.bias_,
-                clusters.precision,
-            )
+            weight_of_class = class_weights(train.occupied, cfg.balance_classes)
+            sample_weights = weight_of_class[samples.occupied.astype(np.int64)]
+            new = features.head(n_new)
+            add_curvature(new, sample_weights, clusters.weights, self.bias_, clusters.precision)
         with timer("memory"):
             memory.mark_clustered(pending, grouped.in_cluster[n_new:])
             memory.insert(visit, grouped.in_cluster[:n_new], self._rng)

@@ -10,14 +10,17 @@ Every cell keeps a uniform random subset of at most `per_cell` of the samples th
 Replay draws, among the cells a new scan's samples fall in, a cell in proportion to that count,
 then one of its kept samples uniformly: each past sample there comes back about as often as it
 would among all samples seen so far, while memory grows with the mapped space, not with the
-number of scans. It draws from cells around hits as many samples as the scan has there, the
-rest from cells along rays: every scan's rays cross open space that earlier scans crossed
-too, and drawn in proportion alone the replay was 93-98 % free samples along rays against
-72-83 % in the scans (the warehouse), pushing the bias, which queries leave out, below one
-batch's and the occupied region into free space (near-surface precision 0.461 against 0.506
-with kinds matched; held-out F1 on the Intel lab 0.923 against 0.909). Replay stays where the scan is: drawn from the whole map it scored lower
-where scans are small (held-out F1 on the Intel lab 0.890 against 0.920) and made every scan
-change weights everywhere, so grids that follow the map would be rebuilt after each scan.
+number of scans.
+
+It draws from cells around hits as many samples as the scan has there, the rest from cells
+along rays. Every scan's rays cross open space that earlier scans crossed too: drawn in
+proportion alone, the replay was 89-96 % free samples along rays against 72-83 % in the scans
+(the warehouse), which pushed the bias, left out of queries, below one batch's and the
+occupied region into free space (near-surface precision 0.461 against 0.506 with the kinds
+matched; held-out F1 on the Intel lab 0.923 against 0.909). Replay stays where the scan is:
+drawn from the whole map it scored lower where scans are small (held-out F1 on the Intel lab
+0.890 against 0.920) and made every scan change weights everywhere, so grids that follow the
+map would be rebuilt after each scan.
 
 Samples that formed no cluster when they came (their quick-means seed took too few samples)
 are marked. They join the clustering again when a later scan brings samples to their cell, so
