@@ -66,9 +66,12 @@ def occupancy_slices(
     figure, axes = plt.subplots(1, len(levels), figsize=(4.2 * len(levels), 4), squeeze=False)
     for axis, z in zip(axes[0], levels, strict=True):
         points = planar if z is None else np.column_stack([planar, np.full(len(planar), z)])
-        probability, spread = hilbert_map.occupancy(points, return_std=True)
+        if std:
+            _, values = hilbert_map.occupancy(points, return_std=True)
+        else:
+            values = hilbert_map.occupancy(points)
         image = axis.imshow(
-            (spread if std else probability).reshape(grid_x.shape),
+            values.reshape(grid_x.shape),
             origin="lower",
             extent=(xs[0], xs[-1], ys[0], ys[-1]),
             **colours,
