@@ -10,7 +10,9 @@ four methods: held-out F1 of the occupied class at p = 0.5, every method at the 
 resolution (0.05 m, on the street 0.2 m). On the simulated scenes the same
 maps are also scored against the exact occupancy at points near surfaces: uniform in balls of
 0.3 m around training hits (both sides of each surface), kept where some training ray
-reached; precision, recall and F1 of the occupied class there. Prints markdown tables, mean
+reached; precision, recall and F1 of the occupied class there; and where the scene has thin
+solids (posts at most 0.1 m across), the share of points inside them within 0.1 m of a
+training hit that read occupied (thin recall). Prints markdown tables, mean
 ± standard deviation over seeds.
 """
 
@@ -21,6 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
+from scipy.spatial import cKDTree
 
 from ehm.core.scan import Scan
 from ehm.eval.baselines import make_mapper
@@ -35,6 +38,8 @@ SIMULATED = {"virtual_room": virtual_room, "warehouse": warehouse, "street": str
 DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab")
 # Test points near surfaces: uniform in balls of this radius around training hits, metres.
 NEAR = 0.3
+# Solids at most this wide across in every horizontal direction are thin (posts), metres.
+THIN = 0.1
 
 
 def near_surface_test_points(scans: Sequence[Scan], n: int, rng: np.random.Generator) -> np.ndarray:
@@ -49,17 +54,41 @@ def near_surface_test_points(scans: Sequence[Scan], n: int, rng: np.random.Gener
     return points[observed_mask(list(scans), points, 0.05)]
 
 
+def thin_solid_test_points(
+    scene: Scene, scans: Sequence[Scan], rng: np.random.Generator
+) -> np.ndarray:
+    """(m, d) points uniform inside the scene's thin boxes (at most THIN metres across in
+    every horizontal direction: posts, poles), 400 per box, kept within 0.1 m of a hit of
+    `scans`; (0, d) when the scene has none."""
+    size = scene.box_max - scene.box_min
+    thin = np.all(size[:, :2] <= THIN, axis=1)
+    if not thin.any():
+        return np.zeros((0, scene.dim))
+    points = np.concatenate(
+        [
+            rng.uniform(low, high, (400, scene.dim))
+            for low, high in zip(scene.box_min[thin], scene.box_max[thin], strict=True)
+        ]
+    )
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in scans])
+    distance, _ = cKDTree(hits).query(points, distance_upper_bound=0.1)
+    return points[np.isfinite(distance)]
+
+
 def measure(
     name: str, scans: list[Scan], scene: Scene | None, fraction: float, seed: int
 ) -> dict[str, dict[str, float]]:
     """Measures of each method on one split: 'held-out F1', and with a scene 'near
-    precision', 'near recall', 'near F1'."""
+    precision', 'near recall', 'near F1', and where it has thin solids 'thin recall'."""
     resolution = RESOLUTIONS.get(name, RESOLUTION)
     split = held_out_rays(scans, fraction, resolution, seed)
     near = truth = None
+    thin = np.zeros((0, 1))
     if scene is not None:
-        near = near_surface_test_points(split.train, 100_000, np.random.default_rng(seed))
+        rng = np.random.default_rng(seed)
+        near = near_surface_test_points(split.train, 100_000, rng)
         truth = scene.occupied(near)
+        thin = thin_solid_test_points(scene, split.train, rng)
     found = {}
     for method in METHODS:
         mapper = make_mapper(method, resolution, seed)
@@ -75,6 +104,8 @@ def measure(
                     "near F1": f1_score(truth, predicted),
                 }
             )
+        if len(thin):
+            row["thin recall"] = float(np.mean(mapper.occupancy(thin) > 0.5))
         found[method] = row
     return found
 
