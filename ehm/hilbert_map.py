@@ -344,7 +344,7 @@ class HilbertMap:
             clusters.planar_kernel,
             clusters.weights,
             self._query_intercept(),
-            1.0 / clusters.precision,
+            1.0 / clusters.precision if with_variance else np.zeros(0),
             with_variance,
         )
         scores = np.full(len(points), np.nan)

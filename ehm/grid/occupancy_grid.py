@@ -178,13 +178,15 @@ class OccupancyGrid:
         n_both = min(n_old, n_new)
         # Rows present before and now that differ, rows only before (clusters merged away)
         # and rows only now (new clusters).
-        changed = np.flatnonzero(
+        differs = (
             (snapshot.weights[:n_both] != old.weights[:n_both])
             | np.any(snapshot.means[:n_both] != old.means[:n_both], axis=1)
             | np.any(snapshot.transforms[:n_both] != old.transforms[:n_both], axis=(1, 2))
             | (snapshot.planar_kernel[:n_both] != old.planar_kernel[:n_both])
-            | (with_std & (snapshot.precision[:n_both] != old.precision[:n_both]))
         )
+        if with_std:
+            differs |= snapshot.precision[:n_both] != old.precision[:n_both]
+        changed = np.flatnonzero(differs)
         removed_rows = np.concatenate([changed, np.arange(n_both, n_old)])
         removed = LocalGrids.of(old, removed_rows, lattice, -1.0, with_std)
         added_rows = np.concatenate([changed, np.arange(n_both, n_new)])
