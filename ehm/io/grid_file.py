@@ -37,6 +37,10 @@ def load_grid(path: str | PathLike[str]) -> OccupancyGrid:
         if missing:
             raise ValueError(f"{path}: not an ehm grid file (no {', '.join(sorted(missing))})")
         with_std = "variance_sums" in data.files
+        if with_std and "prior_precision" not in data.files:
+            raise ValueError(
+                f"{path}: not an ehm grid file (variance_sums without prior_precision)"
+            )
         shape = data["scores"].shape
         grid = OccupancyGrid(data["origin"], float(data["resolution"]), shape, with_std)
         grid.scores[...] = data["scores"]

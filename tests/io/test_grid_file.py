@@ -24,3 +24,13 @@ def test_grid_file_round_trip(plan, std, tmp_path):
         ValueError, match=r"not an ehm grid file \(no intercept, origin, resolution\)"
     ):
         load_grid(tmp_path / "other.npz")
+    np.savez(
+        tmp_path / "half.npz",
+        scores=np.zeros(3),
+        intercept=0.0,
+        origin=np.zeros(1),
+        resolution=0.1,
+        variance_sums=np.zeros((2, 3)),
+    )
+    with pytest.raises(ValueError, match="variance_sums without prior_precision"):
+        load_grid(tmp_path / "half.npz")
