@@ -1,0 +1,148 @@
+"""The support hash: every kernel not zero at a point, exactly, as the map's clusters change."""
+
+import numpy as np
+import pytest
+
+from ehm.core.supports import SupportHash, support_boxes, support_features_reference
+
+
+def _listed(clusters, sides=(0.3, 1.0)):
+    table = SupportHash(clusters.dim, sides)
+    table.update(
+        np.arange(len(clusters)),
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+        clusters.coarse,
+    )
+    return table
+
+
+def _assert_same_features(got, want):
+    indptr, rows, values = got
+    np.testing.assert_array_equal(indptr, want[0])
+    # Rows come in the hash's order within each point: compare them sorted.
+    for i in range(len(indptr) - 1):
+        part = slice(indptr[i], indptr[i + 1])
+        order = np.argsort(rows[part])
+        np.testing.assert_array_equal(rows[part][order], want[1][part])
+        np.testing.assert_allclose(values[part][order], want[2][part], atol=1e-12)
+
+
+def test_features_are_every_kernel_not_zero_at_each_point(rng, random_clusters):
+    clusters = random_clusters(rng)
+    points = rng.uniform(-0.5, 6.5, (3000, 3))
+    table = _listed(clusters)
+    want = support_features_reference(
+        points, clusters.means, clusters.transforms, clusters.planar_kernel
+    )
+    _assert_same_features(
+        table.features(points, clusters.means, clusters.transforms, clusters.planar_kernel),
+        want,
+    )
+    per_point = np.diff(want[0])
+    assert per_point.max() >= 3 and np.mean(per_point == 0) < 0.9
+
+
+def test_2d_kernels_and_points_far_outside(rng):
+    from ehm.config import MapConfig
+    from ehm.core.clusters import ClusterSet
+
+    n = 200
+    clusters = ClusterSet.empty(2)
+    spread = rng.normal(size=(n, 2, 2)) * rng.uniform(0.02, 0.3, (n, 1, 1))
+    clusters.append(
+        rng.uniform(-3, 3, (n, 2)),
+        spread @ np.swapaxes(spread, 1, 2),
+        np.full(n, 10),
+        rng.random(n) < 0.3,
+        rng.random(n) < 0.5,
+    )
+    clusters.refresh(np.arange(n), MapConfig(planar_kernel=True, planar_ratio=0.3))
+    table = _listed(clusters, (0.2, 0.9))
+    points = np.vstack([rng.uniform(-4, 4, (2000, 2)), [[1e12, -1e12], [-5e5, 3.0]]])
+    args = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    _assert_same_features(table.features(points, *args), support_features_reference(points, *args))
+
+
+def test_decision_values_sum_every_kernel(rng, random_clusters):
+    clusters = random_clusters(rng)
+    table = _listed(clusters)
+    points = rng.uniform(0, 6, (2000, 3))
+    weights = rng.normal(size=len(clusters))
+    inverse_precision = 1.0 / rng.uniform(1, 20, len(clusters))
+    indptr, rows, values = support_features_reference(
+        points, clusters.means, clusters.transforms, clusters.planar_kernel
+    )
+    point = np.repeat(np.arange(len(points)), np.diff(indptr))
+    want_scores = 0.25 + np.bincount(point, weights[rows] * values, len(points))
+    want_squares = np.bincount(point, values**2 * inverse_precision[rows], len(points))
+    want_sums = np.bincount(point, values, len(points))
+    scores, variance_sums = table.decision_values(
+        points,
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+        weights,
+        0.25,
+        inverse_precision,
+        True,
+    )
+    np.testing.assert_allclose(scores, want_scores, atol=1e-12)
+    np.testing.assert_allclose(
+        variance_sums, np.column_stack([want_squares, want_sums]), atol=1e-12
+    )
+    plain, none = table.decision_values(
+        points,
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+        weights,
+        0.25,
+        inverse_precision,
+        False,
+    )
+    np.testing.assert_array_equal(plain, scores)
+    assert none.shape == (0, 2)
+
+
+def test_updates_follow_moved_and_added_kernels(rng, random_clusters):
+    """Kernels listed in small batches, then moved and grown, give the features of a hash
+    built at once from the final kernels; the table and pool grow on the way."""
+    clusters = random_clusters(rng, n=600)
+    table = SupportHash(3, (0.3, 1.0))
+    for start in range(0, 600, 37):
+        rows = np.arange(start, min(start + 37, 600))
+        table.update(
+            rows, clusters.means[:600], clusters.transforms, clusters.planar_kernel, clusters.coarse
+        )
+    moved = rng.choice(600, 150, replace=False)
+    clusters.means[moved] += rng.normal(scale=0.4, size=(150, 3))
+    clusters.transforms[moved[:50]] *= 0.5  # supports twice as wide
+    table.update(
+        moved, clusters.means, clusters.transforms, clusters.planar_kernel, clusters.coarse
+    )
+    points = rng.uniform(-1, 7, (3000, 3))
+    args = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    _assert_same_features(table.features(points, *args), support_features_reference(points, *args))
+
+
+def test_support_boxes_hold_the_supports(rng, random_clusters):
+    clusters = random_clusters(rng, n=50)
+    low, high = support_boxes(clusters.means, clusters.transforms, clusters.planar_kernel)
+    points = rng.uniform(-1, 7, (20000, 3))
+    indptr, rows, _ = support_features_reference(
+        points, clusters.means, clusters.transforms, clusters.planar_kernel
+    )
+    point = np.repeat(np.arange(len(points)), np.diff(indptr))
+    assert np.all(points[point] >= low[rows]) and np.all(points[point] <= high[rows])
+    # Tight: the ball's box touches the ellipsoid along each axis.
+    volume = np.prod(high - low, axis=1)
+    assert np.all(volume > 0) and np.all(volume < 50.0)
+
+
+def test_kernels_beyond_the_cells_of_the_hash_are_refused(random_clusters, rng):
+    clusters = random_clusters(rng, n=5)
+    clusters.means[2] = [1e6, 0.0, 0.0]
+    with pytest.raises(ValueError, match="beyond the cells"):
+        _listed(clusters)
