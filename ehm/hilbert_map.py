@@ -25,6 +25,7 @@ from ehm.core.clusters import ClusterSet, ClusterView
 from ehm.core.coplanar import merge_coplanar
 from ehm.core.features import (
     PointGroups,
+    SparseFeatures,
     decision_values,
     group_by_cell,
     group_neighbours,
@@ -34,13 +35,14 @@ from ehm.core.grouping import group_samples
 from ehm.core.index import ClusterIndex
 from ehm.core.logistic import sigmoid
 from ehm.core.memory import SampleMemory
-from ehm.core.merging import absorb_clusters
+from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
 from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
 from ehm.core.scan import Scan
 from ehm.core.sgd import class_weights, train_weights
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
+from ehm.core.supports import SupportHash
 from ehm.core.timing import StageTimer
 from ehm.core.uncertainty import add_curvature, logit_variance, occupancy_std
 from ehm.grid.bounds import DEFAULT_MAX_BYTES
@@ -73,6 +75,9 @@ class HilbertMap:
         self.timings_: dict[str, float] = {}
         self.last_update_: dict[str, int] = {}
         self.anchors_ = AnchorLayers()
+        # The search for each point's kernels: the support hash (config.features 'support')
+        # or the index of nearest centres ('nearest').
+        self._supports = SupportHash.of_radii(1, 1.0, 1.0)
         self._index = ClusterIndex(np.zeros((0, 1)), np.zeros(0, dtype=bool))
         self._rng = np.random.default_rng(self.config.seed)
         # Snapshots carry this token, so grids tell a map that was refitted from one that grew.
@@ -109,7 +114,8 @@ class HilbertMap:
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
         memory = 0 if self.memory_ is None else self.memory_.nbytes
         learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
-        return learned + self._index.nbytes
+        search = self._supports if self.config.features == "support" else self._index
+        return learned + search.nbytes
 
     def state(self) -> MapState:
         """Everything the map has learned, as plain data (shared, not copied)."""
@@ -136,7 +142,7 @@ class HilbertMap:
         hilbert_map.memory_ = state.memory
         if state.rng_state is not None:
             hilbert_map._rng.bit_generator.state = state.rng_state
-        hilbert_map._index = ClusterIndex.of(state.clusters, state.anchors, state.config)
+        hilbert_map._relist(None)
         return hilbert_map
 
     def snapshot(self) -> MapSnapshot:
@@ -163,6 +169,34 @@ class HilbertMap:
         if self.clusters_ is None:
             raise RuntimeError(f"the map is empty: integrate a scan or fit before you {action}")
         return self.clusters_
+
+    def _relist(self, changed: np.ndarray | None) -> None:
+        """Bring the search for each point's kernels up to date after the clusters at rows
+        `changed` were added or changed (None: every cluster, for example after rows moved):
+        the support hash re-lists just those; the nearest-centre index is rebuilt."""
+        clusters, cfg = self._learned("search it"), self.config
+        if cfg.features == "nearest":
+            self._index = ClusterIndex.of(clusters, self.anchors_, cfg)
+            return
+        if changed is None:
+            self._supports = SupportHash.of_radii(
+                clusters.dim, cfg.cluster_radius, cfg.free_cluster_radius
+            )
+            changed = np.arange(len(clusters))
+        self._supports.update(
+            changed, clusters.means, clusters.transforms, clusters.planar_kernel, clusters.coarse
+        )
+
+    def _features(self, points: np.ndarray, groups: PointGroups | None) -> SparseFeatures:
+        """Training features of (n, d) points, metres: every kernel not zero at each, or with
+        'nearest' those of the nearest clusters of each of `groups` (None: one per point)."""
+        clusters, cfg = self._learned("search it"), self.config
+        if cfg.features == "support":
+            return self._supports.features(
+                points, clusters.means, clusters.transforms, clusters.planar_kernel
+            )
+        groups = groups if groups is not None else PointGroups.singletons(points)
+        return training_features(points, groups, self._index, clusters, cfg)
 
     def _query_intercept(self) -> float:
         """The log-odds every query adds: the bias when config.query_intercept, else 0."""
@@ -222,6 +256,7 @@ class HilbertMap:
             dim = samples.points.shape[1]
             self.clusters_ = ClusterSet.empty(dim)
             self.memory_ = SampleMemory.of_config(dim, cfg)
+            self._relist(None)
         clusters, memory = self.clusters_, self.memory_
         n_new = len(samples)
         with timer("clustering"):
@@ -229,13 +264,21 @@ class HilbertMap:
             pending = memory.pending(visit)
             grouped = group_samples(samples + pending.samples, cfg, self._rng)
         with timer("length_scales"):
-            absorbed = absorb_clusters(clusters, self._index, grouped.clusters, cfg)
+            new = grouped.clusters
+            if cfg.features == "support":
+                at_means = self._features(new.means, None)
+                candidates = MergeCandidates.covering(at_means)
+            else:
+                candidates = MergeCandidates.nearest(self._index, new)
+            absorbed = absorb_clusters(clusters, candidates, new, cfg)
         self.last_update_ = {"new_clusters": absorbed.n_new, "merged_clusters": absorbed.n_merged}
+        changed: np.ndarray | None = absorbed.changed
         if cfg.merge_coplanar:
             with timer("coplanar"):
                 merge = merge_coplanar(clusters, absorbed.changed, cfg)
             self.anchors_.drop_clusters(merge.source)
             self.last_update_["coplanar_merged"] = merge.merged
+            changed = None  # rows moved into the holes of merged clusters
         with timer("index"):
             if cfg.anchor_layers > 1:
                 self.anchors_.extend(
@@ -245,13 +288,12 @@ class HilbertMap:
                     cfg.anchor_radius_factor,
                     cfg.anchor_layers - 1,
                 )
-            self._index = ClusterIndex.of(clusters, self.anchors_, cfg)
+            self._relist(changed)
         with timer("replay"):
             replayed = memory.replay(cfg.replay_ratio, visit, self._rng)
             train = samples + replayed
-            if cfg.train_search == "point":
-                groups = PointGroups.singletons(train.points)
-            else:
+            groups = None
+            if cfg.features == "nearest" and cfg.train_search == "group":
                 new_groups = PointGroups(
                     grouped.groups.group_of_point[:n_new], grouped.groups.centres
                 )
@@ -259,7 +301,7 @@ class HilbertMap:
                 # lab 0.925 / 0.922 against 0.910 / 0.911 (seeds 1, 2), PCL room +0.005.
                 groups = new_groups + group_samples(replayed, cfg, self._rng).groups
         with timer("features"):
-            features = training_features(train.points, groups, self._index, clusters, cfg)
+            features = self._features(train.points, groups)
         with timer(cfg.update_rule):
             if cfg.update_rule == "posterior":
                 update_posterior(features, train.occupied, clusters, self.bias_state_, cfg)
@@ -328,25 +370,26 @@ class HilbertMap:
             )
         finite = np.all(np.isfinite(points), axis=1)
         query = np.ascontiguousarray(points[finite])
-        if mode == "batch":
-            groups = group_by_cell(query, self.config.query_cell)
-        else:
-            groups = PointGroups.singletons(query)
-        neighbours = group_neighbours(
-            self._index, query, groups, self.config.neighbours, self.config.coarse_neighbours
-        )
-        found, variance_sums = decision_values(
-            query,
-            groups.group_of_point,
-            neighbours,
-            clusters.means,
-            clusters.transforms,
-            clusters.planar_kernel,
+        kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
+        learned = (
             clusters.weights,
             self._query_intercept(),
             1.0 / clusters.precision if with_variance else np.zeros(0),
             with_variance,
         )
+        if self.config.features == "support":
+            found, variance_sums = self._supports.decision_values(query, *kernels, *learned)
+        else:
+            if mode == "batch":
+                groups = group_by_cell(query, self.config.query_cell)
+            else:
+                groups = PointGroups.singletons(query)
+            neighbours = group_neighbours(
+                self._index, query, groups, self.config.neighbours, self.config.coarse_neighbours
+            )
+            found, variance_sums = decision_values(
+                query, groups.group_of_point, neighbours, *kernels, *learned
+            )
         scores = np.full(len(points), np.nan)
         scores[finite] = found
         variance = np.full(len(points) if with_variance else 0, np.nan)

@@ -9,6 +9,7 @@ import pytest
 import ehm
 from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
+from ehm.core.features import SparseFeatures
 from ehm.eval.datasets import floor_plan_2d, virtual_room
 from ehm.eval.datasets.real import DataMissingError
 
@@ -73,9 +74,10 @@ def random_clusters():
 
 @pytest.fixture
 def sparse_batch():
-    """Makes a random batch of n samples' sparse features over n_clusters clusters: values
-    (n, k), group_of_point (n,), neighbours (n_groups, k) with a group of fewer than k
-    clusters (-1), and labels (n,) 0 or 1, two fifths occupied."""
+    """Makes a random batch of n samples' sparse features over n_clusters clusters, up to k
+    per sample (groups of samples share k clusters, one group fewer, 30 % of the values
+    zero), as compressed rows: indptr (n + 1,), rows (nnz,), values (nnz,) (see
+    SparseFeatures), and labels (n,) 0 or 1, two fifths occupied."""
 
     def make(rng, n=300, k=5, n_groups=25, n_clusters=40):
         values = rng.uniform(0, 1, (n, k)) * (rng.random((n, k)) < 0.7)
@@ -83,6 +85,7 @@ def sparse_batch():
         neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
         neighbours[3, 2:] = -1
         labels = (rng.random(n) < 0.4).astype(float)
-        return values, group_of_point, neighbours, labels
+        features = SparseFeatures.of_groups(group_of_point, neighbours, values)
+        return features.indptr, features.rows, features.values, labels
 
     return make

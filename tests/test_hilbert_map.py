@@ -130,6 +130,7 @@ def test_fit_rejects_bad_input():
         {"merge_coplanar": True},
         {"anisotropic_search": True},
         {"anchor_layers": 2},
+        {"features": "support", "planar_kernel": True},
         {
             "planar_kernel": True,
             "merge_coplanar": True,

@@ -73,16 +73,33 @@ def group_neighbours(
 
 @dataclass(frozen=True)
 class SparseFeatures:
-    """Feature vectors of n points: point i's non-zeros sit at the clusters
-    neighbours[group_of_point[i]] ((G, k) int64, -1 for none) with values[i] ((n, k) float64)."""
+    """Feature vectors of n points in compressed rows: point i's non-zero features are at the
+    clusters rows[indptr[i]:indptr[i + 1]] ((nnz,) int64, each at most once per point) with
+    values[indptr[i]:indptr[i + 1]] ((nnz,) float64); indptr (n + 1,) int64."""
 
-    group_of_point: np.ndarray
-    neighbours: np.ndarray
+    indptr: np.ndarray
+    rows: np.ndarray
     values: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.indptr) - 1
 
     def head(self, n: int) -> SparseFeatures:
         """The feature vectors of the first n points."""
-        return SparseFeatures(self.group_of_point[:n], self.neighbours, self.values[:n])
+        end = self.indptr[n]
+        return SparseFeatures(self.indptr[: n + 1], self.rows[:end], self.values[:end])
+
+    @classmethod
+    def of_groups(
+        cls, group_of_point: np.ndarray, neighbours: np.ndarray, values: np.ndarray
+    ) -> SparseFeatures:
+        """From kernel values (n, k) of each point at its group's clusters neighbours (G, k)
+        (-1: none), keeping the non-zeros."""
+        clusters = neighbours[group_of_point]
+        kept = (clusters >= 0) & (values != 0.0)
+        indptr = np.zeros(len(values) + 1, dtype=np.int64)
+        np.cumsum(kept.sum(axis=1), out=indptr[1:])
+        return cls(indptr, clusters[kept].astype(np.int64), values[kept])
 
 
 def training_features(
@@ -105,7 +122,7 @@ def training_features(
         clusters.transforms,
         clusters.planar_kernel,
     )
-    return SparseFeatures(groups.group_of_point, neighbours, values)
+    return SparseFeatures.of_groups(groups.group_of_point, neighbours, values)
 
 
 @numba.njit(cache=True, inline="always")

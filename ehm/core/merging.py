@@ -10,9 +10,36 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
+from ehm.core.features import SparseFeatures
 from ehm.core.grouping import NewClusters
 from ehm.core.index import ClusterIndex
 from ehm.core.kernels import covariance_square_roots
+
+
+@dataclass(frozen=True)
+class MergeCandidates:
+    """Map clusters a new cluster may merge into, as pairs: pair_new (p,) int64 rows of new
+    clusters, pair_old (p,) int64 rows of the map's clusters."""
+
+    pair_new: np.ndarray
+    pair_old: np.ndarray
+
+    @classmethod
+    def nearest(cls, index: ClusterIndex, new: NewClusters, k: int = 4) -> MergeCandidates:
+        """The k nearest centres of each new cluster's scale in `index` (the paper's search)."""
+        nearest = np.full((len(new), k), -1, dtype=np.int64)
+        for coarse in (False, True):
+            rows = new.coarse == coarse
+            nearest[rows] = index.nearest_of_scale(new.means[rows], coarse, k)
+        pair_new, column = np.nonzero(nearest >= 0)
+        return cls(pair_new, nearest[pair_new, column])
+
+    @classmethod
+    def covering(cls, features_at_means: SparseFeatures) -> MergeCandidates:
+        """The clusters whose kernels are not zero at each new cluster's mean (their
+        features there)."""
+        indptr = features_at_means.indptr
+        return cls(np.repeat(np.arange(len(indptr) - 1), np.diff(indptr)), features_at_means.rows)
 
 
 @dataclass(frozen=True)
@@ -26,12 +53,12 @@ class Absorbed:
 
 
 def absorb_clusters(
-    clusters: ClusterSet, index: ClusterIndex, new: NewClusters, config: MapConfig
+    clusters: ClusterSet, candidates: MergeCandidates, new: NewClusters, config: MapConfig
 ) -> Absorbed:
-    """Merge each new cluster into `clusters` (found through `index`, the map's search
-    structure before this batch) or append it with weight 0 and the prior precision, with
-    `config.merge_rule`; the kernels of every changed cluster are refreshed. In place."""
-    targets = match_new_clusters(clusters, index, new, config.merge_threshold, config.min_std)
+    """Merge each new cluster into one of its `candidates` among `clusters` (the map's before
+    this batch) or append it with weight 0 and the prior precision, with `config.merge_rule`;
+    the kernels of every changed cluster are refreshed. In place."""
+    targets = match_new_clusters(clusters, candidates, new, config.merge_threshold, config.min_std)
     merging = targets >= 0
     if merging.any():
         merge = merge_pooled if config.merge_rule == "pooled" else merge_average
@@ -64,41 +91,33 @@ def anisotropic_distances(
 
 def match_new_clusters(
     clusters: ClusterSet,
-    index: ClusterIndex,
+    candidates: MergeCandidates,
     new: NewClusters,
     threshold: float,
     min_std: float,
-    candidates: int = 4,
 ) -> np.ndarray:
-    """For each new cluster, the map cluster of the same scale and label (occupied or free)
-    it merges into (anisotropic distance of Eq. 14 below `threshold`, nearest of `candidates`
-    centres in `index`, the map's), or -1 to add it. Returns (n,) int64."""
-    n = len(new)
-    targets = np.full(n, -1, dtype=np.int64)
-    if n == 0 or len(clusters) == 0:
-        return targets
-    nearest = np.empty((n, candidates), dtype=np.int64)
-    for coarse in (False, True):
-        rows = new.coarse == coarse
-        nearest[rows] = index.nearest_of_scale(new.means[rows], coarse, candidates)
-    found = nearest >= 0
-    found[found] = (
-        clusters.occupied[nearest[found]]
-        == np.broadcast_to(new.occupied[:, None], found.shape)[found]
+    """For each new cluster, the map cluster it merges into: among its candidates of the same
+    scale and label (occupied or free), the one at the smallest anisotropic distance (Eq. 14),
+    when that is below `threshold`; else -1 to add it. Returns (n,) int64."""
+    targets = np.full(len(new), -1, dtype=np.int64)
+    pair_new, pair_old = candidates.pair_new, candidates.pair_old
+    alike = (clusters.occupied[pair_old] == new.occupied[pair_new]) & (
+        clusters.coarse[pair_old] == new.coarse[pair_new]
     )
-    pair_new = np.nonzero(found)[0]
-    pair_old = nearest[found]
-    distances = np.full((n, candidates), np.inf)
-    distances[found] = anisotropic_distances(
+    pair_new, pair_old = pair_new[alike], pair_old[alike]
+    if len(pair_new) == 0:
+        return targets
+    distances = anisotropic_distances(
         new.means[pair_new],
         covariance_square_roots(new.covariances, min_std)[pair_new],
         clusters.means[pair_old],
         covariance_square_roots(clusters.covariances[pair_old], min_std),
     )
-    best = np.argmin(distances, axis=1)
-    closest = distances[np.arange(n), best]
-    merging = closest < threshold
-    targets[merging] = nearest[np.arange(n), best][merging]
+    # The closest candidate of each new cluster: the first of its pairs by distance.
+    order = np.lexsort((distances, pair_new))
+    first = order[np.r_[True, pair_new[order][1:] != pair_new[order][:-1]]]
+    close = first[distances[first] < threshold]
+    targets[pair_new[close]] = pair_old[close]
     return targets
 
 

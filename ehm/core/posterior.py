@@ -39,9 +39,9 @@ def update_posterior(
     samples with `features` and labels `occupied` (n,) bool, in place: `config.epochs` sweeps
     of coordinate descent."""
     posterior_update(
+        features.indptr,
+        features.rows,
         features.values,
-        features.group_of_point,
-        features.neighbours,
         occupied.astype(np.float64),
         class_weights(occupied, config.balance_classes),
         clusters.weights,
@@ -53,9 +53,9 @@ def update_posterior(
 
 @numba.njit(cache=True)
 def posterior_update(
+    indptr,
+    rows,
     values,
-    group_of_point,
-    group_neighbours,
     labels,
     class_weights,
     weights,
@@ -67,19 +67,15 @@ def posterior_update(
     precisions `precision`, then the bias precision's update; weights and bias_state ([bias,
     its precision]) change in place.
 
-    values: (n, k) kernel values of each sample at its group's clusters group_neighbours
-    (G, k) (-1: none); labels: (n,) 0 or 1; class_weights: (2,) loss weight of a free and of an
-    occupied sample. Clusters are visited in increasing order."""
-    n, k = values.shape
+    indptr, rows, values: the samples' features (see SparseFeatures); labels: (n,) 0 or 1;
+    class_weights: (2,) loss weight of a free and of an occupied sample. Clusters are visited
+    in increasing order."""
+    n = len(indptr) - 1
     n_clusters = weights.shape[0]
-    # Entries (sample, value) of each cluster, in CSR form.
+    # Entries (sample, value) of each cluster, in compressed columns.
     start = np.zeros(n_clusters + 1, dtype=np.int64)
-    for i in range(n):
-        g = group_of_point[i]
-        for j in range(k):
-            m = group_neighbours[g, j]
-            if m >= 0 and values[i, j] != 0.0:
-                start[m + 1] += 1
+    for e in range(len(rows)):
+        start[rows[e] + 1] += 1
     for m in range(n_clusters):
         start[m + 1] += start[m]
     fill = start[:-1].copy()
@@ -87,14 +83,12 @@ def posterior_update(
     entry_value = np.empty(start[n_clusters])
     scores = np.full(n, bias_state[0])
     for i in range(n):
-        g = group_of_point[i]
-        for j in range(k):
-            m = group_neighbours[g, j]
-            if m >= 0 and values[i, j] != 0.0:
-                entry_sample[fill[m]] = i
-                entry_value[fill[m]] = values[i, j]
-                fill[m] += 1
-                scores[i] += weights[m] * values[i, j]
+        for e in range(indptr[i], indptr[i + 1]):
+            m = rows[e]
+            entry_sample[fill[m]] = i
+            entry_value[fill[m]] = values[e]
+            fill[m] += 1
+            scores[i] += weights[m] * values[e]
     sample_weight = np.empty(n)
     for i in range(n):
         sample_weight[i] = class_weights[np.int64(labels[i])]
@@ -132,9 +126,9 @@ def posterior_update(
 
 
 def posterior_update_reference(
+    indptr: np.ndarray,
+    rows: np.ndarray,
     values: np.ndarray,
-    group_of_point: np.ndarray,
-    group_neighbours: np.ndarray,
     labels: np.ndarray,
     class_weights: np.ndarray,
     weights: np.ndarray,
@@ -143,11 +137,8 @@ def posterior_update_reference(
     sweeps: int,
 ) -> None:
     """Plain NumPy twin of `posterior_update`, one cluster at a time over dense columns."""
-    clusters = group_neighbours[group_of_point]  # (n, k)
-    active = (clusters >= 0) & (values != 0.0)
-    phi = np.zeros((len(values), len(weights)))
-    rows = np.nonzero(active)
-    np.add.at(phi, (rows[0], clusters[rows]), values[rows])
+    phi = np.zeros((len(indptr) - 1, len(weights)))
+    phi[np.repeat(np.arange(len(indptr) - 1), np.diff(indptr)), rows] = values
     sample_weight = class_weights[labels.astype(np.int64)]
     prior_mean, prior_bias = weights.copy(), bias_state[0]
     touched = np.flatnonzero(np.any(phi != 0.0, axis=0))

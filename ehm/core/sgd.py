@@ -44,9 +44,9 @@ def train_weights(
     weights_per_class = class_weights(occupied, config.balance_classes)
     for _ in range(config.epochs):
         sgd_pass(
+            features.indptr,
+            features.rows,
             features.values,
-            features.group_of_point,
-            features.neighbours,
             labels,
             weights_per_class,
             rng.permutation(len(labels)),
@@ -60,9 +60,9 @@ def train_weights(
 
 @numba.njit(cache=True)
 def sgd_pass(
+    indptr,
+    rows,
     values,
-    group_of_point,
-    group_neighbours,
     labels,
     class_weights,
     order,
@@ -74,24 +74,19 @@ def sgd_pass(
 ):  # pragma: no cover - compiled
     """One pass over the samples in `order`, updating weights, grad_sq and bias_state in place.
 
-    values: (n, k) kernel values; labels: (n,) 0 or 1; class_weights: (2,) loss weight of a
-    free and of an occupied sample; bias_state: [bias, its accumulated squared gradient].
+    indptr, rows, values: the samples' features (see SparseFeatures); labels: (n,) 0 or 1;
+    class_weights: (2,) loss weight of a free and of an occupied sample; bias_state: [bias,
+    its accumulated squared gradient].
     """
-    k = group_neighbours.shape[1]
     for i in order:
-        g = group_of_point[i]
         score = bias_state[0]
-        for j in range(k):
-            cluster = group_neighbours[g, j]
-            if cluster >= 0:
-                score += weights[cluster] * values[i, j]
+        for e in range(indptr[i], indptr[i + 1]):
+            score += weights[rows[e]] * values[e]
         label = labels[i]
         error = (sigmoid_scalar(score) - label) * class_weights[np.int64(label)]
-        for j in range(k):
-            cluster = group_neighbours[g, j]
-            if cluster < 0 or values[i, j] == 0.0:
-                continue
-            grad = error * values[i, j] + l2 * weights[cluster]
+        for e in range(indptr[i], indptr[i + 1]):
+            cluster = rows[e]
+            grad = error * values[e] + l2 * weights[cluster]
             grad_sq[cluster] += grad * grad
             weights[cluster] -= learning_rate * grad / np.sqrt(grad_sq[cluster] + EPSILON)
         bias_state[1] += error * error
@@ -99,9 +94,9 @@ def sgd_pass(
 
 
 def sgd_pass_reference(
+    indptr: np.ndarray,
+    rows: np.ndarray,
     values: np.ndarray,
-    group_of_point: np.ndarray,
-    group_neighbours: np.ndarray,
     labels: np.ndarray,
     class_weights: np.ndarray,
     order: np.ndarray,
@@ -113,9 +108,7 @@ def sgd_pass_reference(
 ) -> None:
     """Plain NumPy twin of `sgd_pass`, one sample at a time."""
     for i in order:
-        clusters = group_neighbours[group_of_point[i]]
-        active = (clusters >= 0) & (values[i] != 0.0)
-        touched, phi = clusters[active], values[i][active]
+        touched, phi = rows[indptr[i] : indptr[i + 1]], values[indptr[i] : indptr[i + 1]]
         score = bias_state[0] + np.dot(weights[touched], phi)
         error = (sigmoid(score) - labels[i]) * class_weights[int(labels[i])]
         grad = error * phi + l2 * weights[touched]

@@ -15,9 +15,9 @@ packs its integer coordinates (20 bits per axis in 3D, 31 in 2D, from -2^19 and 
 scale.
 
 The table is updated in place, in time proportional to the kernels that change: each cell owns
-a block of a shared pool of kernel rows with room to spare; a kernel is removed by swapping
-it out of its cells' blocks and added by appending to them, and a full block moves to the end
-of the pool with twice the room. The pool is compacted when half of it is abandoned blocks and
+a block of a shared pool of kernel rows, sorted, with room to spare; a kernel is removed from
+its cells' blocks and inserted into them in order, and a full block moves to the end of the
+pool with twice the room. The pool is compacted when half of it is abandoned blocks and
 the table doubles when half of its slots are taken, so growth costs amortized O(1) per entry.
 """
 
@@ -26,11 +26,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ehm.core.features import SparseFeatures
 from ehm.core.kernels import cluster_kernel, cluster_kernel_reference, projected_radii
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
-# free_cluster_radius).
-CELL_FACTOR = 4.0
+# free_cluster_radius). Smaller cells list fewer kernels a point does not touch but list each
+# kernel in more cells: on the sample scan's map, 60 kernels looked at per point for 8.3 that
+# are not zero, in 2.4 MB; 33 in 7.4 MB with cells half as large.
+CELL_FACTORS = (4.0, 2.0)
 EMPTY_KEY = np.int64(-1)
 _HASH_MULTIPLIER = np.uint64(11400714819323198485)  # 2^64 / golden ratio
 _MIN_BLOCK = 4
@@ -63,12 +66,16 @@ def _slot(table_keys, key):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _cell_of(points, i, side, bits, coarse, cell):  # pragma: no cover - compiled
-    """Key of the cell of side `side` that holds point i; `cell` is scratch (d,) int64."""
-    limit = float(np.int64(1) << (bits - 1)) - 1.0
+def _cell_of(points, i, side, bits, coarse):  # pragma: no cover - compiled
+    """Key of the cell of side `side` and scale `coarse` that holds point i (coordinates
+    beyond the keys' range clamped to it)."""
+    half = np.int64(1) << (bits - 1)
+    limit = float(half - 1)
+    key = np.int64(0)
     for a in range(points.shape[1]):
-        cell[a] = np.int64(min(max(np.floor(points[i, a] / side), -limit), limit))
-    return _pack(cell, bits, coarse)
+        c = np.int64(min(max(np.floor(points[i, a] / side), -limit), limit))
+        key = (key << bits) | (c + half)
+    return (key << 1) | np.int64(coarse)
 
 
 @numba.njit(cache=True, inline="always")
@@ -101,16 +108,16 @@ def _insert(
     for done in range(len(kernels)):
         m = kernels[done]
         n_cells = _n_cells(m, lo, hi)
-        if 2 * (used[1] + n_cells) > len(table_keys):
-            return done
         need = 0
+        new_cells = 0
         for c in range(n_cells):
             s = _slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
             if table_keys[s] == EMPTY_KEY:
                 need += _MIN_BLOCK
+                new_cells += 1
             elif counts[s] == capacities[s]:
                 need += 2 * capacities[s]
-        if used[0] + need > len(pool):
+        if used[0] + need > len(pool) or 2 * (used[1] + new_cells) > len(table_keys):
             return done
         for c in range(n_cells):
             key = _cell_key(m, c, lo, hi, bits, coarse, cell)
@@ -128,7 +135,14 @@ def _insert(
                 starts[s] = used[0]
                 capacities[s] = grown
                 used[0] += grown
-            pool[starts[s] + counts[s]] = m
+            # Blocks stay sorted by kernel row, so a point's kernels come in an order that does
+            # not depend on the order they were listed in (sums are the same to the last bit
+            # in a map rebuilt from its saved state).
+            j = starts[s] + counts[s]
+            while j > starts[s] and pool[j - 1] > m:
+                pool[j] = pool[j - 1]
+                j -= 1
+            pool[j] = m
             counts[s] += 1
     return len(kernels)
 
@@ -142,44 +156,86 @@ def _remove(
     for m in kernels:
         for c in range(_n_cells(m, lo, hi)):
             s = _slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
-            block = starts[s]
-            for j in range(counts[s]):
-                if pool[block + j] == m:
-                    last = counts[s] - 1
-                    pool[block + j] = pool[block + last]
-                    counts[s] = last
+            end = starts[s] + counts[s]
+            for j in range(starts[s], end):
+                if pool[j] == m:
+                    for k in range(j, end - 1):
+                        pool[k] = pool[k + 1]
+                    counts[s] -= 1
                     break
 
 
 @numba.njit(cache=True)
-def _rehash(
-    table_keys, starts, counts, capacities, pool, new_size, spare
+def _place_cells(
+    keys, sizes, table_keys, counts, pending, lo, hi, coarse, bits
 ):  # pragma: no cover - compiled
-    """A table of new_size slots with every non-empty cell of the old one, each with a fresh
-    block of twice its count (at least _MIN_BLOCK), in a pool with `spare` entries free."""
+    """Put in the empty table `keys` every cell of the old table that lists kernels and every
+    cell of `pending` kernels; sizes (len(keys),) int64 gains the entries each slot will hold.
+    Returns the slots taken."""
+    taken = 0
+    for s in range(len(table_keys)):
+        if table_keys[s] != EMPTY_KEY and counts[s] > 0:
+            t = _slot(keys, table_keys[s])
+            keys[t] = table_keys[s]
+            sizes[t] = counts[s]
+            taken += 1
+    cell = np.empty(lo.shape[1], dtype=np.int64)
+    for m in pending:
+        for c in range(_n_cells(m, lo, hi)):
+            key = _cell_key(m, c, lo, hi, bits, coarse, cell)
+            t = _slot(keys, key)
+            if keys[t] == EMPTY_KEY:
+                keys[t] = key
+                taken += 1
+            sizes[t] += 1
+    return taken
+
+
+@numba.njit(cache=True)
+def _rebuild(
+    table_keys, counts, starts, pool, new_size, pending, lo, hi, coarse, bits
+):  # pragma: no cover - compiled
+    """A table and a compact pool holding every entry of the old ones, with room in each
+    cell's block for the entries of `pending` kernels (still to be listed) and a quarter more:
+    (keys, starts, counts, capacities, pool, pool entries in use, slots taken). new_size:
+    slots enough for every old cell and every pending entry."""
+    # Distinct cells first, in a table large enough for every entry: the new table holds four
+    # times as many slots as there are cells, so it can take as many again before a rebuild.
+    scratch = np.full(new_size, EMPTY_KEY, dtype=np.int64)
+    distinct = _place_cells(
+        scratch,
+        np.zeros(new_size, dtype=np.int64),
+        table_keys,
+        counts,
+        pending,
+        lo,
+        hi,
+        coarse,
+        bits,
+    )
+    new_size = 64
+    while new_size < 4 * distinct:
+        new_size *= 2
     keys = np.full(new_size, EMPTY_KEY, dtype=np.int64)
     new_starts = np.zeros(new_size, dtype=np.int64)
     new_counts = np.zeros(new_size, dtype=np.int64)
-    new_capacities = np.zeros(new_size, dtype=np.int64)
-    total = 0
+    capacities = np.zeros(new_size, dtype=np.int64)
+    taken = _place_cells(keys, capacities, table_keys, counts, pending, lo, hi, coarse, bits)
+    end = 0
+    for t in range(new_size):
+        if keys[t] != EMPTY_KEY:
+            capacities[t] = max(_MIN_BLOCK, capacities[t] + capacities[t] // 4)
+            new_starts[t] = end
+            end += capacities[t]
+    new_pool = np.empty(end + end // 4, dtype=np.int32)
     for s in range(len(table_keys)):
         if table_keys[s] != EMPTY_KEY and counts[s] > 0:
-            total += max(_MIN_BLOCK, 2 * counts[s])
-    new_pool = np.empty(total + spare, dtype=np.int32)
-    end = 0
-    taken = 0
-    for s in range(len(table_keys)):
-        if table_keys[s] == EMPTY_KEY or counts[s] == 0:
-            continue
-        t = _slot(keys, table_keys[s])
-        keys[t] = table_keys[s]
-        new_starts[t] = end
-        new_counts[t] = counts[s]
-        new_capacities[t] = max(_MIN_BLOCK, 2 * counts[s])
-        new_pool[end : end + counts[s]] = pool[starts[s] : starts[s] + counts[s]]
-        end += new_capacities[t]
-        taken += 1
-    return keys, new_starts, new_counts, new_capacities, new_pool, end, taken
+            t = _slot(keys, table_keys[s])
+            new_pool[new_starts[t] : new_starts[t] + counts[s]] = pool[
+                starts[s] : starts[s] + counts[s]
+            ]
+            new_counts[t] = counts[s]
+    return keys, new_starts, new_counts, capacities, new_pool, end, taken
 
 
 @numba.njit(cache=True, inline="always")
@@ -195,9 +251,8 @@ def _candidate_counts(points, table_keys, counts, sides, bits):  # pragma: no co
     n = points.shape[0]
     found = np.zeros(n, dtype=np.int64)
     for i in numba.prange(n):
-        cell = np.empty(points.shape[1], dtype=np.int64)
         for scale in range(2):
-            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale, cell))
+            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
             if table_keys[s] != EMPTY_KEY:
                 found[i] += counts[s]
     return found
@@ -214,10 +269,9 @@ def _fill_features(
     values = np.empty(bound[n])
     nnz = np.zeros(n, dtype=np.int64)
     for i in numba.prange(n):
-        cell = np.empty(points.shape[1], dtype=np.int64)
         out = bound[i]
         for scale in range(2):
-            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale, cell))
+            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
             if table_keys[s] == EMPTY_KEY:
                 continue
             for j in range(starts[s], starts[s] + counts[s]):
@@ -266,9 +320,8 @@ def support_decision_values(
     scores = np.full(n, bias)
     variance_sums = np.zeros((n if with_variance else 0, 2))
     for i in numba.prange(n):
-        cell = np.empty(points.shape[1], dtype=np.int64)
         for scale in range(2):
-            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale, cell))
+            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
             if table_keys[s] == EMPTY_KEY:
                 continue
             for j in range(starts[s], starts[s] + counts[s]):
@@ -315,8 +368,9 @@ class SupportHash:
 
     @classmethod
     def of_radii(cls, dim: int, cluster_radius: float, free_cluster_radius: float) -> SupportHash:
-        """An empty hash with cells CELL_FACTOR times each scale's cluster radius."""
-        return cls(dim, (CELL_FACTOR * cluster_radius, CELL_FACTOR * free_cluster_radius))
+        """An empty hash with cells CELL_FACTORS times each scale's cluster radius."""
+        fine, coarse = CELL_FACTORS
+        return cls(dim, (fine * cluster_radius, coarse * free_cluster_radius))
 
     @staticmethod
     def _empty_table(size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -392,17 +446,24 @@ class SupportHash:
             setattr(self, name, grown)
 
     def _make_room(self, pending: np.ndarray) -> None:
-        """Rehash into a table that `pending` kernels leave at most half full, with a compact
-        pool and room for their entries (a block moves once it is full: at most twice the
-        entries in use, plus a new block per cell)."""
+        """Rebuild the table (at most half full once `pending` kernels are listed) and a
+        compact pool whose blocks have room for the pending kernels' entries."""
         cells = int(np.prod(self._hi[pending] - self._lo[pending] + 1, axis=1).sum())
-        keys, starts, counts, capacities = self._table
+        keys, starts, counts, _ = self._table
         size = len(keys)
         while 2 * (self._used[1] + cells) > size:
             size *= 2
-        spare = 4 * (int(counts.sum()) + cells) + _MIN_BLOCK * cells
-        *table, pool, end, taken = _rehash(
-            keys, starts, counts, capacities, self._pool, size, spare
+        *table, pool, end, taken = _rebuild(
+            keys,
+            counts,
+            starts,
+            self._pool,
+            size,
+            pending,
+            self._lo,
+            self._hi,
+            self._coarse,
+            self.bits,
         )
         self._table, self._pool = tuple(table), pool
         self._used[:] = end, taken
@@ -414,10 +475,8 @@ class SupportHash:
 
     def features(
         self, points: np.ndarray, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Every kernel not zero at each of (n, d) points, metres, as compressed rows:
-        (indptr (n + 1,) int64, rows (nnz,) int64 kernel rows, values (nnz,) float64), point
-        i's kernels at indptr[i]:indptr[i + 1]."""
+    ) -> SparseFeatures:
+        """Every kernel not zero at each of (n, d) points, metres, as the points' features."""
         points = np.ascontiguousarray(points, dtype=np.float64)
         keys, starts, counts, pool, sides, bits = self._arguments()
         bound = np.zeros(len(points) + 1, dtype=np.int64)
@@ -428,7 +487,7 @@ class SupportHash:
         indptr = np.zeros(len(points) + 1, dtype=np.int64)
         np.cumsum(nnz, out=indptr[1:])
         packed_rows, packed_values = _compact(bound, indptr, rows, values)
-        return indptr, packed_rows, packed_values
+        return SparseFeatures(indptr, packed_rows, packed_values)
 
     def decision_values(
         self,
@@ -459,7 +518,7 @@ class SupportHash:
 
 def support_features_reference(
     points: np.ndarray, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> SparseFeatures:
     """Plain NumPy twin of `SupportHash.features`: every kernel evaluated at every point
     (rows in increasing order per point)."""
     offsets = points[:, None, :] - means[None, :, :]
@@ -468,4 +527,4 @@ def support_features_reference(
     point, rows = np.nonzero(values)
     indptr = np.zeros(len(points) + 1, dtype=np.int64)
     np.cumsum(np.bincount(point, minlength=len(points)), out=indptr[1:])
-    return indptr, rows.astype(np.int64), values[point, rows]
+    return SparseFeatures(indptr, rows.astype(np.int64), values[point, rows])

@@ -46,9 +46,9 @@ def add_curvature(
     `precision` ((M,) float64, in place): lambda_m += c_i p_i (1 - p_i) phi_im^2, with c_i
     `sample_weights` (n,) float64."""
     curvature_sum(
+        features.indptr,
+        features.rows,
         features.values,
-        features.group_of_point,
-        features.neighbours,
         sample_weights,
         weights,
         bias,
@@ -58,42 +58,33 @@ def add_curvature(
 
 @numba.njit(cache=True)
 def curvature_sum(
-    values, group_of_point, group_neighbours, sample_weights, weights, bias, precision
+    indptr, rows, values, sample_weights, weights, bias, precision
 ):  # pragma: no cover - compiled
-    """Compiled core of `add_curvature`: values (n, k) kernel values of each sample at its
-    group's clusters group_neighbours (G, k) (-1: none)."""
-    n, k = values.shape
-    for i in range(n):
-        g = group_of_point[i]
+    """Compiled core of `add_curvature`, on the features' compressed rows (see
+    SparseFeatures)."""
+    for i in range(len(indptr) - 1):
         score = bias
-        for j in range(k):
-            m = group_neighbours[g, j]
-            if m >= 0:
-                score += weights[m] * values[i, j]
+        for e in range(indptr[i], indptr[i + 1]):
+            score += weights[rows[e]] * values[e]
         p = sigmoid_scalar(score)
         curvature = sample_weights[i] * p * (1.0 - p)
-        for j in range(k):
-            m = group_neighbours[g, j]
-            if m >= 0:
-                precision[m] += curvature * values[i, j] * values[i, j]
+        for e in range(indptr[i], indptr[i + 1]):
+            precision[rows[e]] += curvature * values[e] * values[e]
 
 
 def curvature_sum_reference(
+    indptr: np.ndarray,
+    rows: np.ndarray,
     values: np.ndarray,
-    group_of_point: np.ndarray,
-    group_neighbours: np.ndarray,
     sample_weights: np.ndarray,
     weights: np.ndarray,
     bias: float,
     precision: np.ndarray,
 ) -> None:
     """Plain NumPy twin of `curvature_sum`."""
-    clusters = group_neighbours[group_of_point]
-    active = clusters >= 0
-    phi = np.where(active, values, 0.0)
-    p = sigmoid(bias + np.sum(phi * weights[np.maximum(clusters, 0)], axis=1))
-    contribution = (sample_weights * p * (1.0 - p))[:, None] * phi**2
-    np.add.at(precision, clusters[active], contribution[active])
+    sample = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+    p = sigmoid(bias + np.bincount(sample, weights[rows] * values, len(indptr) - 1))
+    np.add.at(precision, rows, (sample_weights * p * (1.0 - p))[sample] * values**2)
 
 
 def logit_variance(

@@ -37,11 +37,13 @@ MEMORY_PREFIX = "memory_"
 # Version 6: every update rule learns the weights' precisions (the occupancy's std); files of
 # older versions learned by SGD hold the prior's, so their std stays near the prior's until
 # they learn more.
+# Version 7 maps may take every kernel not zero at a point as its features (MapConfig.features
+# 'support'); older files learned and answer with the nearest clusters ('nearest').
 # Version 5 stores the sample memory; older files load with none (memory_per_cell 0).
 # Version 4 stores the random generator's state and each weight's posterior precision;
 # version 3 files load with a generator started afresh from the map's seed, and learn on by
 # SGD as they did.
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -97,7 +99,7 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 6); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 7); MapFileError
     names what is wrong otherwise."""
     data = Path(path).read_bytes()
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
@@ -145,6 +147,9 @@ def read_map(path: str | PathLike[str]) -> MapState:
         if name.startswith(MEMORY_PREFIX)
     }
     settings = header["config"]
+    if version < 7:
+        # Maps before format 7 learned and answered with the nearest clusters' features.
+        settings = {**settings, "features": "nearest"}
     if version < 5:
         # Maps of formats 3 and 4 learned without a sample memory, and go on so.
         settings = {**settings, "memory_per_cell": 0}

@@ -7,9 +7,11 @@ from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
 from ehm.core.features import (
     PointGroups,
+    SparseFeatures,
     decision_values,
     decision_values_reference,
     group_by_cell,
+    group_neighbours,
     kernel_values,
     kernel_values_reference,
     training_features,
@@ -107,7 +109,7 @@ def test_training_features_are_the_kernels_of_each_groups_neighbours(room_map, r
     groups = group_by_cell(points, 0.3)
     config = MapConfig(neighbours=5, coarse_neighbours=2)
     features = training_features(points, groups, index, clusters, config)
-    neighbours = features.neighbours
+    neighbours = group_neighbours(index, points, groups, 5, 2)
     assert neighbours.shape == (len(groups.centres), 7)
     # Each group's clusters: the nearest fine, then the nearest coarse ones of its centre, no
     # farther than a kernel reaches plus how far the group's points spread.
@@ -131,8 +133,11 @@ def test_training_features_are_the_kernels_of_each_groups_neighbours(room_map, r
         clusters.transforms,
         clusters.planar_kernel,
     )
-    np.testing.assert_allclose(features.values, expected, atol=1e-12)
-    assert np.count_nonzero(features.values) > 0.2 * features.values.size
+    want = SparseFeatures.of_groups(groups.group_of_point, neighbours, expected)
+    np.testing.assert_array_equal(features.indptr, want.indptr)
+    np.testing.assert_array_equal(features.rows, want.rows)
+    np.testing.assert_allclose(features.values, want.values, atol=1e-12)
+    assert np.all(features.values != 0) and len(features.values) > 0.2 * expected.size
 
 
 def test_point_groups_add_up_with_their_groups_renumbered():

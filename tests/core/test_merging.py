@@ -1,18 +1,21 @@
 """How new clusters join the map (Alg. 2 lines 4-21)."""
 
 import numpy as np
+import pytest
 
 from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
 from ehm.core.grouping import NewClusters
 from ehm.core.index import ClusterIndex
 from ehm.core.merging import (
+    MergeCandidates,
     absorb_clusters,
     anisotropic_distances,
     match_new_clusters,
     merge_average,
     merge_pooled,
 )
+from ehm.core.supports import SupportHash
 
 
 def _set_from(groups, coarse=None, occupied=None):
@@ -30,6 +33,21 @@ def _set_from(groups, coarse=None, occupied=None):
 
 def _new(means, covariances, coarse, occupied):
     return NewClusters(means, covariances, np.full(len(means), 10), coarse, occupied)
+
+
+def _candidates(clusters, new, search):
+    """Merge candidates of `new` among `clusters`: the nearest centres, or the clusters whose
+    kernels cover each new mean."""
+    if search == "nearest":
+        return MergeCandidates.nearest(ClusterIndex.of(clusters), new)
+    config = MapConfig()
+    table = SupportHash.of_radii(3, config.cluster_radius, config.free_cluster_radius)
+    kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    table.update(np.arange(len(clusters)), *kernels, clusters.coarse)
+    return MergeCandidates.covering(table.features(new.means, *kernels))
+
+
+SEARCHES = pytest.mark.parametrize("search", ["nearest", "support"])
 
 
 def test_pooled_merge_equals_statistics_of_the_union(rng):
@@ -71,58 +89,50 @@ def test_anisotropic_distance_is_eq14():
     np.testing.assert_allclose(distance, [np.sqrt(4 / 4 + 16 / 16)])
 
 
-def test_match_merges_only_within_one_standard_deviation(rng):
+@SEARCHES
+def test_match_merges_only_within_one_standard_deviation(rng, search):
     clusters = _set_from([rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])])
     covariances = np.repeat(clusters.covariances[:1], 3, axis=0)
     means = np.array([[0.05, 0, 0], [1.0, 0, 0], [2.02, 0.01, 0]])
     coarse, occupied = np.zeros(3, bool), np.ones(3, bool)
     new = _new(means, covariances, coarse, occupied)
-    targets = match_new_clusters(clusters, ClusterIndex.of(clusters), new, 1.0, 1e-3)
+    targets = match_new_clusters(clusters, _candidates(clusters, new, search), new, 1.0, 1e-3)
     np.testing.assert_array_equal(targets, [0, -1, 1])
 
 
-def test_match_merges_only_clusters_of_the_same_scale(rng):
+@SEARCHES
+def test_match_merges_only_clusters_of_the_same_scale(rng, search):
     clusters = _set_from(
         [rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])], coarse=[False, True]
     )
     covariances = np.repeat(clusters.covariances[:1], 4, axis=0)
     means = np.array([[0.05, 0, 0], [0.05, 0, 0], [2.02, 0, 0], [2.02, 0, 0]])
-    coarse = np.array([False, True, False, True])
-    targets = match_new_clusters(
-        clusters,
-        ClusterIndex.of(clusters),
-        _new(means, covariances, coarse, np.ones(4, bool)),
-        1.0,
-        1e-3,
-    )
+    new = _new(means, covariances, np.array([False, True, False, True]), np.ones(4, bool))
+    targets = match_new_clusters(clusters, _candidates(clusters, new, search), new, 1.0, 1e-3)
     np.testing.assert_array_equal(targets, [0, -1, -1, 1])
 
 
-def test_match_merges_only_clusters_of_the_same_label(rng):
+@SEARCHES
+def test_match_merges_only_clusters_of_the_same_label(rng, search):
     clusters = _set_from(
         [rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [0.1, 0, 0])], occupied=[True, False]
     )
     covariances = np.repeat(clusters.covariances[:1], 2, axis=0)
     means = np.array([[0.08, 0, 0], [0.02, 0, 0]])
-    occupied = np.array([True, False])
-    targets = match_new_clusters(
-        clusters,
-        ClusterIndex.of(clusters),
-        _new(means, covariances, np.zeros(2, bool), occupied),
-        1.0,
-        1e-3,
-    )
+    new = _new(means, covariances, np.zeros(2, bool), np.array([True, False]))
+    targets = match_new_clusters(clusters, _candidates(clusters, new, search), new, 1.0, 1e-3)
     np.testing.assert_array_equal(targets, [0, 1])
 
 
-def test_absorb_merges_close_clusters_and_adds_the_others(rng):
+@SEARCHES
+def test_absorb_merges_close_clusters_and_adds_the_others(rng, search):
     clusters = _set_from([rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])])
     weights = np.array([1.5, -2.0])
     clusters.weights[:] = weights
     covariances = np.repeat(clusters.covariances[:1], 3, axis=0)
     means = np.array([[0.05, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
     new = _new(means, covariances, np.zeros(3, bool), np.ones(3, bool))
-    absorbed = absorb_clusters(clusters, ClusterIndex.of(clusters), new, MapConfig())
+    absorbed = absorb_clusters(clusters, _candidates(clusters, new, search), new, MapConfig())
     assert (absorbed.n_new, absorbed.n_merged) == (2, 1)
     np.testing.assert_array_equal(absorbed.changed, [0, 2, 3])
     assert len(clusters) == 4 and clusters.counts[0] == 50 + 10

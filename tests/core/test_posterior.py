@@ -22,14 +22,11 @@ def test_compiled_update_matches_reference(rng, sparse_batch):
 
 
 def test_sweeps_reach_the_minimum_of_the_regularised_loss(rng, sparse_batch):
-    values, group_of_point, neighbours, labels = sparse_batch(rng)
+    indptr, rows, values, labels = sparse_batch(rng)
     weights, precision, bias = np.zeros(40), np.ones(40), np.array([0.0, 1.0])
-    posterior_update(
-        values, group_of_point, neighbours, labels, np.ones(2), weights, precision.copy(), bias, 50
-    )
-    phi = np.zeros((len(values), 40))
-    active = np.nonzero(neighbours[group_of_point] >= 0)
-    np.add.at(phi, (active[0], neighbours[group_of_point][active]), values[active])
+    posterior_update(indptr, rows, values, labels, np.ones(2), weights, precision.copy(), bias, 50)
+    phi = np.zeros((len(labels), 40))
+    phi[np.repeat(np.arange(len(labels)), np.diff(indptr)), rows] = values
     p = 1 / (1 + np.exp(-(phi @ weights + bias[0])))
     gradient = phi.T @ (p - labels) + precision * weights
     np.testing.assert_allclose(gradient, 0.0, atol=1e-6)
@@ -39,12 +36,11 @@ def test_weights_seen_often_move_little():
     # One feature, always 1. First 1,000 samples, 900 of them occupied; then a batch of 100
     # free ones. With the first batch's posterior as prior, the weight lands near the log-odds
     # of all 1,100 samples (900 against 200), not near the last batch's.
-    neighbours = np.array([[0]])
     weights, precision, bias = np.zeros(1), np.ones(1), np.array([0.0, 1e12])
     learned = []
     for labels in (np.r_[np.ones(900), np.zeros(100)], np.zeros(100)):
         n = len(labels)
-        batch = (np.ones((n, 1)), np.zeros(n, dtype=np.int64), neighbours)
+        batch = (np.arange(n + 1), np.zeros(n, dtype=np.int64), np.ones(n))
         posterior_update(*batch, labels, np.ones(2), weights, precision, bias, 20)
         curvature_sum(*batch, np.ones(n), weights, bias[0], precision)
         learned.append(weights[0])

@@ -8,16 +8,14 @@ from ehm.core.sgd import class_weights, sgd_pass, sgd_pass_reference
 
 def test_sgd_pass_matches_reference(rng, sparse_batch):
     n, n_clusters = 400, 30
-    values, group_of_point, neighbours, labels = sparse_batch(rng, n, 5, 20, n_clusters)
+    indptr, rows, values, labels = sparse_batch(rng, n, 5, 20, n_clusters)
     order = rng.permutation(n)
     state = [rng.normal(size=n_clusters), rng.uniform(0, 1, n_clusters), np.array([0.1, 0.5])]
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
     class_weights = np.array([0.7, 1.9])
-    sgd_pass(values, group_of_point, neighbours, labels, class_weights, order, *compiled, 0.3, 1e-3)
-    sgd_pass_reference(
-        values, group_of_point, neighbours, labels, class_weights, order, *reference, 0.3, 1e-3
-    )
+    sgd_pass(indptr, rows, values, labels, class_weights, order, *compiled, 0.3, 1e-3)
+    sgd_pass_reference(indptr, rows, values, labels, class_weights, order, *reference, 0.3, 1e-3)
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     assert not np.allclose(compiled[0], state[0])
@@ -27,13 +25,11 @@ def test_sgd_separates_two_classes():
     # One feature per class: weights must move towards the labels.
     n = 2000
     labels = np.tile([1.0, 0.0], n // 2)
-    values = np.where(labels[:, None] == 1.0, [[1.0, 0.0]], [[0.0, 1.0]])
-    neighbours = np.array([[0, 1]])
     weights, grad_sq, bias = np.zeros(2), np.zeros(2), np.zeros(2)
     sgd_pass(
-        values,
-        np.zeros(n, dtype=np.int64),
-        neighbours,
+        np.arange(n + 1),
+        np.where(labels == 1.0, 0, 1),
+        np.ones(n),
         labels,
         np.ones(2),
         np.arange(n),

@@ -19,14 +19,14 @@ def _listed(clusters, sides=(0.3, 1.0)):
 
 
 def _assert_same_features(got, want):
-    indptr, rows, values = got
-    np.testing.assert_array_equal(indptr, want[0])
+    indptr, rows, values = got.indptr, got.rows, got.values
+    np.testing.assert_array_equal(indptr, want.indptr)
     # Rows come in the hash's order within each point: compare them sorted.
     for i in range(len(indptr) - 1):
         part = slice(indptr[i], indptr[i + 1])
         order = np.argsort(rows[part])
-        np.testing.assert_array_equal(rows[part][order], want[1][part])
-        np.testing.assert_allclose(values[part][order], want[2][part], atol=1e-12)
+        np.testing.assert_array_equal(rows[part][order], want.rows[part])
+        np.testing.assert_allclose(values[part][order], want.values[part], atol=1e-12)
 
 
 def test_features_are_every_kernel_not_zero_at_each_point(rng, random_clusters):
@@ -40,7 +40,7 @@ def test_features_are_every_kernel_not_zero_at_each_point(rng, random_clusters):
         table.features(points, clusters.means, clusters.transforms, clusters.planar_kernel),
         want,
     )
-    per_point = np.diff(want[0])
+    per_point = np.diff(want.indptr)
     assert per_point.max() >= 3 and np.mean(per_point == 0) < 0.9
 
 
@@ -71,9 +71,10 @@ def test_decision_values_sum_every_kernel(rng, random_clusters):
     points = rng.uniform(0, 6, (2000, 3))
     weights = rng.normal(size=len(clusters))
     inverse_precision = 1.0 / rng.uniform(1, 20, len(clusters))
-    indptr, rows, values = support_features_reference(
+    want = support_features_reference(
         points, clusters.means, clusters.transforms, clusters.planar_kernel
     )
+    indptr, rows, values = want.indptr, want.rows, want.values
     point = np.repeat(np.arange(len(points)), np.diff(indptr))
     want_scores = 0.25 + np.bincount(point, weights[rows] * values, len(points))
     want_squares = np.bincount(point, values**2 * inverse_precision[rows], len(points))
@@ -131,9 +132,10 @@ def test_support_boxes_hold_the_supports(rng, random_clusters):
     clusters = random_clusters(rng, n=50)
     low, high = support_boxes(clusters.means, clusters.transforms, clusters.planar_kernel)
     points = rng.uniform(-1, 7, (20000, 3))
-    indptr, rows, _ = support_features_reference(
+    covering = support_features_reference(
         points, clusters.means, clusters.transforms, clusters.planar_kernel
     )
+    indptr, rows = covering.indptr, covering.rows
     point = np.repeat(np.arange(len(points)), np.diff(indptr))
     assert np.all(points[point] >= low[rows]) and np.all(points[point] <= high[rows])
     # Tight: the ball's box touches the ellipsoid along each axis.

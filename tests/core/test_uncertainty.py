@@ -15,15 +15,13 @@ from ehm.core.uncertainty import (
 
 def test_compiled_curvature_matches_reference(rng, sparse_batch):
     n, n_clusters = 400, 50
-    values, group_of_point, neighbours, _ = sparse_batch(rng, n, 6, 30, n_clusters)
+    indptr, rows, values, _ = sparse_batch(rng, n, 6, 30, n_clusters)
     sample_weights = rng.uniform(0.5, 2.0, n)
     weights = rng.normal(size=n_clusters)
     start = rng.uniform(1.0, 3.0, n_clusters)
     compiled, reference = start.copy(), start.copy()
-    curvature_sum(values, group_of_point, neighbours, sample_weights, weights, -0.4, compiled)
-    curvature_sum_reference(
-        values, group_of_point, neighbours, sample_weights, weights, -0.4, reference
-    )
+    curvature_sum(indptr, rows, values, sample_weights, weights, -0.4, compiled)
+    curvature_sum_reference(indptr, rows, values, sample_weights, weights, -0.4, reference)
     np.testing.assert_allclose(compiled, reference, rtol=1e-12)
     assert np.all(compiled >= start) and np.count_nonzero(compiled > start) > 0.9 * n_clusters
 
@@ -32,9 +30,9 @@ def test_curvature_of_one_feature_is_the_fisher_information():
     # 100 samples with phi = 0.5 at a weight of 0 and bias 0: p = 0.5, so each adds 0.25 * 0.25.
     precision = np.ones(1)
     curvature_sum(
-        np.full((100, 1), 0.5),
+        np.arange(101),
         np.zeros(100, dtype=np.int64),
-        np.zeros((1, 1), dtype=np.int64),
+        np.full(100, 0.5),
         np.ones(100),
         np.zeros(1),
         0.0,

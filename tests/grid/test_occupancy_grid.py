@@ -62,6 +62,23 @@ def test_grid_matches_point_queries_within_tolerance(room_map):
     assert np.quantile(difference, 0.95) < 0.08
 
 
+@pytest.mark.parametrize("scene", ["room", "plan"])
+def test_with_support_features_points_and_grids_are_one_model(scene, room, plan):
+    """With every kernel not zero at a point as its features, a point query at a voxel centre
+    is the grid's value there, in both query modes, std included."""
+    scans = room.scans if scene == "room" else plan.scans
+    hilbert_map = ehm.HilbertMap(features="support")
+    for scan in scans:
+        hilbert_map.integrate_scan(scan)
+    grid = hilbert_map.grid(resolution=0.1 if scene == "room" else 0.05, std=True)
+    centres = grid.centers()
+    for mode in ("batch", "exact"):
+        probability, std = hilbert_map.occupancy(centres, mode, return_std=True)
+        np.testing.assert_allclose(probability, grid.probability.ravel(), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(std, grid.std.ravel(), rtol=0, atol=1e-9)
+    assert np.ptp(grid.probability) > 0.9
+
+
 def test_grid_geometry_and_centres_order(room_map):
     bounds = np.array([[-1.0, -2.0, 0.0], [1.0, 0.5, 1.25]])
     grid = room_map.grid(bounds, resolution=0.25)

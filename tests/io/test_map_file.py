@@ -42,7 +42,9 @@ def test_memory_bytes_counts_every_array(small_map):
     assert small_map.memory_bytes() < 2 * learned
 
 
-@pytest.mark.parametrize("overrides", [{}, {"anchor_layers": 2, "merge_coplanar": True}])
+@pytest.mark.parametrize(
+    "overrides", [{}, {"features": "support"}, {"anchor_layers": 2, "merge_coplanar": True}]
+)
 def test_loaded_map_goes_on_learning_exactly_as_the_saved_one(plan, tmp_path, overrides):
     original = ehm.HilbertMap(**overrides)
     for scan in plan.scans[:2]:
@@ -111,7 +113,8 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     """Files written in format 3, before the random generator's state was stored: a 2D plan
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
     They answer as when they were written (to rounding), and a map built now from the same
-    scans with the same settings (no sample memory then) answers the same."""
+    scans with the same settings (no sample memory then, the nearest clusters' features)
+    answers the same."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
@@ -129,11 +132,17 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
     if name == "plan":
-        hilbert_map = ehm.HilbertMap(neighbours=6, anchor_layers=2, memory_per_cell=0)
+        hilbert_map = ehm.HilbertMap(
+            features="nearest", neighbours=6, anchor_layers=2, memory_per_cell=0
+        )
         scans = floor_plan_2d(seed=0).scans
     else:
         hilbert_map = ehm.HilbertMap(
-            planar_kernel=True, merge_coplanar=True, anisotropic_search=True, memory_per_cell=0
+            features="nearest",
+            planar_kernel=True,
+            merge_coplanar=True,
+            anisotropic_search=True,
+            memory_per_cell=0,
         )
         (scan,) = virtual_room(seed=0, rings=16, azimuths=240).scans
         scans = [scan.subset(np.arange(len(scan)) % 2 == part) for part in (0, 1)]
