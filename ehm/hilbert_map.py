@@ -76,7 +76,7 @@ class HilbertMap:
         self.last_update_: dict[str, int] = {}
         self.anchors_ = AnchorLayers()
         # The search for each point's kernels: the support hash (config.features 'support')
-        # or the index of nearest centres ('nearest').
+        # or the index of nearest centres ('nearest'); both empty until the first scan.
         self._supports = SupportHash.of_radii(1, 1.0, 1.0)
         self._index = ClusterIndex(np.zeros((0, 1)), np.zeros(0, dtype=bool))
         self._rng = np.random.default_rng(self.config.seed)
