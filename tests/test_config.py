@@ -30,6 +30,7 @@ def test_overrides_and_validation():
         ("anchor_layers", 0, "anchor_layers must be an integer >= 1"),
         ("anchor_radius_factor", 1.0, "anchor_radius_factor must be above 1"),
         ("train_search", "cluster", "train_search must be 'group' or 'point'"),
+        ("features", "all", "features must be 'support' or 'nearest', got 'all'"),
         ("memory_per_cell", -1, "memory_per_cell must be an integer >= 0"),
         ("memory_per_cell", 2.5, "memory_per_cell must be an integer >= 0"),
         ("replay_ratio", -0.5, "replay_ratio must be >= 0"),

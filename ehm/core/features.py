@@ -95,11 +95,52 @@ class SparseFeatures:
     ) -> SparseFeatures:
         """From kernel values (n, k) of each point at its group's clusters neighbours (G, k)
         (-1: none), keeping the non-zeros."""
-        clusters = neighbours[group_of_point]
-        kept = (clusters >= 0) & (values != 0.0)
+        group_of_point = np.asarray(group_of_point, dtype=np.int64)
+        neighbours = np.asarray(neighbours, dtype=np.int64)
         indptr = np.zeros(len(values) + 1, dtype=np.int64)
-        np.cumsum(kept.sum(axis=1), out=indptr[1:])
-        return cls(indptr, clusters[kept].astype(np.int64), values[kept])
+        np.cumsum(_nonzero_counts(group_of_point, neighbours, values), out=indptr[1:])
+        return cls(indptr, *_compress_rows(group_of_point, neighbours, values, indptr))
+
+
+def compress_rows_reference(
+    group_of_point: np.ndarray, neighbours: np.ndarray, values: np.ndarray
+) -> SparseFeatures:
+    """Plain NumPy twin of SparseFeatures.of_groups."""
+    clusters = neighbours[group_of_point]
+    kept = (clusters >= 0) & (values != 0.0)
+    indptr = np.zeros(len(values) + 1, dtype=np.int64)
+    np.cumsum(kept.sum(axis=1), out=indptr[1:])
+    return SparseFeatures(indptr, clusters[kept].astype(np.int64), values[kept])
+
+
+@numba.njit(cache=True, parallel=True)
+def _nonzero_counts(group_of_point, neighbours, values):  # pragma: no cover - compiled
+    """(n,) int64 non-zero values of each point at a cluster (not -1)."""
+    n, k = values.shape
+    counts = np.zeros(n, dtype=np.int64)
+    for i in numba.prange(n):
+        g = group_of_point[i]
+        for j in range(k):
+            if neighbours[g, j] >= 0 and values[i, j] != 0.0:
+                counts[i] += 1
+    return counts
+
+
+@numba.njit(cache=True, parallel=True)
+def _compress_rows(group_of_point, neighbours, values, indptr):  # pragma: no cover - compiled
+    """Cluster rows and values of the non-zeros, point i's from indptr[i] on."""
+    n, k = values.shape
+    rows = np.empty(indptr[n], dtype=np.int64)
+    kept = np.empty(indptr[n])
+    for i in numba.prange(n):
+        g = group_of_point[i]
+        out = indptr[i]
+        for j in range(k):
+            if neighbours[g, j] >= 0 and values[i, j] != 0.0:
+                rows[out] = neighbours[g, j]
+                kept[out] = values[i, j]
+                out += 1
+    return rows, kept
 
 
 def training_features(
@@ -126,7 +167,7 @@ def training_features(
 
 
 @numba.njit(cache=True, inline="always")
-def _kernel_at(points, i, cluster, means, transforms, planar):  # pragma: no cover - compiled
+def kernel_at(points, i, cluster, means, transforms, planar):  # pragma: no cover - compiled
     r2, r_max = projected_radii(points, i, cluster, means, transforms)
     return cluster_kernel(r2, r_max, planar[cluster])
 
@@ -144,8 +185,20 @@ def kernel_values(
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster >= 0:
-                values[i, j] = _kernel_at(points, i, cluster, means, transforms, planar)
+                values[i, j] = kernel_at(points, i, cluster, means, transforms, planar)
     return values
+
+
+@numba.njit(cache=True, inline="always")
+def add_to_sums(
+    scores, variance_sums, i, cluster, value, weights, inverse_precision, with_variance
+):  # pragma: no cover - compiled
+    """Add kernel `cluster`'s value at point i to its score and, when with_variance, to its
+    variance sums (see decision_values)."""
+    scores[i] += weights[cluster] * value
+    if with_variance:
+        variance_sums[i, 0] += value * value * inverse_precision[cluster]
+        variance_sums[i, 1] += value
 
 
 @numba.njit(cache=True, parallel=True)
@@ -173,11 +226,17 @@ def decision_values(
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster >= 0:
-                value = _kernel_at(points, i, cluster, means, transforms, planar)
-                scores[i] += weights[cluster] * value
-                if with_variance:
-                    variance_sums[i, 0] += value * value * inverse_precision[cluster]
-                    variance_sums[i, 1] += value
+                value = kernel_at(points, i, cluster, means, transforms, planar)
+                add_to_sums(
+                    scores,
+                    variance_sums,
+                    i,
+                    cluster,
+                    value,
+                    weights,
+                    inverse_precision,
+                    with_variance,
+                )
     return scores, variance_sums
 
 

@@ -26,8 +26,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ehm.core.features import SparseFeatures
-from ehm.core.kernels import cluster_kernel, cluster_kernel_reference, projected_radii
+from ehm.core.features import SparseFeatures, add_to_sums, kernel_at
+from ehm.core.kernels import cluster_kernel_reference
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
 # free_cluster_radius). Smaller cells list fewer kernels a point does not touch but list each
@@ -239,22 +239,27 @@ def _rebuild(
 
 
 @numba.njit(cache=True, inline="always")
-def _kernel_value(points, i, m, means, transforms, planar):  # pragma: no cover - compiled
-    r2, r_max = projected_radii(points, i, m, means, transforms)
-    return cluster_kernel(r2, r_max, planar[m])
+def _block(points, i, scale, table_keys, starts, counts, sides, bits):  # pragma: no cover
+    """(first, last + 1) positions in the pool of the kernels listed in point i's cell of
+    `scale` (0 fine, 1 coarse); empty where the cell lists none."""
+    s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
+    if table_keys[s] == EMPTY_KEY:
+        return 0, 0
+    return starts[s], starts[s] + counts[s]
 
 
 @numba.njit(cache=True, parallel=True)
-def _candidate_counts(points, table_keys, counts, sides, bits):  # pragma: no cover - compiled
+def _candidate_counts(
+    points, table_keys, starts, counts, sides, bits
+):  # pragma: no cover - compiled
     """(n,) int64 kernels listed in the cells (both scales) of each point: a bound on its
     features."""
     n = points.shape[0]
     found = np.zeros(n, dtype=np.int64)
     for i in numba.prange(n):
         for scale in range(2):
-            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
-            if table_keys[s] != EMPTY_KEY:
-                found[i] += counts[s]
+            first, end = _block(points, i, scale, table_keys, starts, counts, sides, bits)
+            found[i] += end - first
     return found
 
 
@@ -271,12 +276,10 @@ def _fill_features(
     for i in numba.prange(n):
         out = bound[i]
         for scale in range(2):
-            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
-            if table_keys[s] == EMPTY_KEY:
-                continue
-            for j in range(starts[s], starts[s] + counts[s]):
+            first, end = _block(points, i, scale, table_keys, starts, counts, sides, bits)
+            for j in range(first, end):
                 m = pool[j]
-                value = _kernel_value(points, i, m, means, transforms, planar)
+                value = kernel_at(points, i, m, means, transforms, planar)
                 if value != 0.0:
                     rows[out] = m
                     values[out] = value
@@ -287,6 +290,7 @@ def _fill_features(
 
 @numba.njit(cache=True, parallel=True)
 def _compact(bound, indptr, rows, values):  # pragma: no cover - compiled
+    """Rows and values written from bound[i] on, packed to start at indptr[i]."""
     n = len(indptr) - 1
     packed_rows = np.empty(indptr[n], dtype=np.int64)
     packed_values = np.empty(indptr[n])
@@ -321,17 +325,21 @@ def support_decision_values(
     variance_sums = np.zeros((n if with_variance else 0, 2))
     for i in numba.prange(n):
         for scale in range(2):
-            s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
-            if table_keys[s] == EMPTY_KEY:
-                continue
-            for j in range(starts[s], starts[s] + counts[s]):
+            first, end = _block(points, i, scale, table_keys, starts, counts, sides, bits)
+            for j in range(first, end):
                 m = pool[j]
-                value = _kernel_value(points, i, m, means, transforms, planar)
+                value = kernel_at(points, i, m, means, transforms, planar)
                 if value != 0.0:
-                    scores[i] += weights[m] * value
-                    if with_variance:
-                        variance_sums[i, 0] += value * value * inverse_precision[m]
-                        variance_sums[i, 1] += value
+                    add_to_sums(
+                        scores,
+                        variance_sums,
+                        i,
+                        m,
+                        value,
+                        weights,
+                        inverse_precision,
+                        with_variance,
+                    )
     return scores, variance_sums
 
 
@@ -480,7 +488,7 @@ class SupportHash:
         points = np.ascontiguousarray(points, dtype=np.float64)
         keys, starts, counts, pool, sides, bits = self._arguments()
         bound = np.zeros(len(points) + 1, dtype=np.int64)
-        np.cumsum(_candidate_counts(points, keys, counts, sides, bits), out=bound[1:])
+        np.cumsum(_candidate_counts(points, keys, starts, counts, sides, bits), out=bound[1:])
         rows, values, nnz = _fill_features(
             points, bound, keys, starts, counts, pool, sides, bits, means, transforms, planar
         )

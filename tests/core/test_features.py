@@ -8,6 +8,7 @@ from ehm.core.clusters import ClusterSet
 from ehm.core.features import (
     PointGroups,
     SparseFeatures,
+    compress_rows_reference,
     decision_values,
     decision_values_reference,
     group_by_cell,
@@ -41,6 +42,17 @@ def test_kernel_values_match_reference(rng):
         np.testing.assert_allclose(compiled, kernel_values_reference(*problem), atol=1e-12)
         assert np.count_nonzero(compiled) > 0.05 * compiled.size
         assert np.any(compiled == 1.0) and np.any((compiled > 0) & (compiled < 1))
+
+
+def test_compressed_rows_match_reference(rng):
+    points, group_of_point, neighbours, means, transforms, planar = _random_problem(rng, 3)
+    values = kernel_values(points, group_of_point, neighbours, means, transforms, planar)
+    compiled = SparseFeatures.of_groups(group_of_point, neighbours, values)
+    reference = compress_rows_reference(group_of_point, neighbours, values)
+    for name in ("indptr", "rows", "values"):
+        np.testing.assert_array_equal(getattr(compiled, name), getattr(reference, name))
+    assert 0 < len(compiled.rows) < values.size and np.all(compiled.values != 0)
+    assert not np.isin(-1, compiled.rows)
 
 
 def test_decision_values_match_reference(rng):

@@ -79,30 +79,14 @@ def test_decision_values_sum_every_kernel(rng, random_clusters):
     want_scores = 0.25 + np.bincount(point, weights[rows] * values, len(points))
     want_squares = np.bincount(point, values**2 * inverse_precision[rows], len(points))
     want_sums = np.bincount(point, values, len(points))
-    scores, variance_sums = table.decision_values(
-        points,
-        clusters.means,
-        clusters.transforms,
-        clusters.planar_kernel,
-        weights,
-        0.25,
-        inverse_precision,
-        True,
-    )
+    kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    learned = (weights, 0.25, inverse_precision)
+    scores, variance_sums = table.decision_values(points, *kernels, *learned, True)
     np.testing.assert_allclose(scores, want_scores, atol=1e-12)
     np.testing.assert_allclose(
         variance_sums, np.column_stack([want_squares, want_sums]), atol=1e-12
     )
-    plain, none = table.decision_values(
-        points,
-        clusters.means,
-        clusters.transforms,
-        clusters.planar_kernel,
-        weights,
-        0.25,
-        inverse_precision,
-        False,
-    )
+    plain, none = table.decision_values(points, *kernels, *learned, False)
     np.testing.assert_array_equal(plain, scores)
     assert none.shape == (0, 2)
 
