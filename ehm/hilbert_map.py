@@ -39,10 +39,11 @@ from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
 from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
 from ehm.core.scan import Scan
-from ehm.core.sgd import class_weights, train_weights
+from ehm.core.sgd import loss_weights, train_weights
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
 from ehm.core.supports import SupportHash
+from ehm.core.thinning import thin_samples
 from ehm.core.timing import StageTimer
 from ehm.core.uncertainty import add_curvature, logit_variance, occupancy_std
 from ehm.grid.bounds import DEFAULT_MAX_BYTES
@@ -248,9 +249,10 @@ class HilbertMap:
         return self
 
     def _learn(self, samples: TrainingSamples, timer: StageTimer) -> None:
-        """Alg. 2 from the samples on, one step per stage of the paper's Table 2, with past
-        samples from the memory: those waiting for a cluster join the clustering, and some are
-        replayed with the new ones (ehm.core.memory)."""
+        """Alg. 2 from the samples on, one step per stage of the paper's Table 2: samples
+        thinned where rays crowd (ehm.core.thinning), and past samples from the memory: those
+        waiting for a cluster join the clustering, and some are replayed with the new ones
+        (ehm.core.memory)."""
         cfg = self.config
         if self.clusters_ is None or self.memory_ is None:
             dim = samples.points.shape[1]
@@ -258,6 +260,9 @@ class HilbertMap:
             self.memory_ = SampleMemory.of_config(dim, cfg)
             self._relist(None)
         clusters, memory = self.clusters_, self.memory_
+        if cfg.samples_per_cell:
+            with timer("thinning"):
+                samples = thin_samples(samples, cfg, self._rng)
         n_new = len(samples)
         with timer("clustering"):
             visit = memory.visit(samples)
@@ -303,16 +308,17 @@ class HilbertMap:
         with timer("features"):
             features = self._features(train.points, groups)
         with timer(cfg.update_rule):
+            weights = loss_weights(train.occupied, train.weight, cfg.balance_classes)
             if cfg.update_rule == "posterior":
-                update_posterior(features, train.occupied, clusters, self.bias_state_, cfg)
+                update_posterior(features, train.occupied, weights, clusters, self.bias_state_, cfg)
             else:
-                train_weights(features, train.occupied, clusters, self.bias_state_, cfg, self._rng)
+                train_weights(
+                    features, train.occupied, weights, clusters, self.bias_state_, cfg, self._rng
+                )
         with timer("precision"):
             # The new samples' curvature, once each: replayed ones were counted when new.
-            weight_of_class = class_weights(train.occupied, cfg.balance_classes)
-            sample_weights = weight_of_class[samples.occupied.astype(np.int64)]
             new = features.head(n_new)
-            add_curvature(new, sample_weights, clusters.weights, self.bias_, clusters.precision)
+            add_curvature(new, weights[:n_new], clusters.weights, self.bias_, clusters.precision)
         with timer("memory"):
             memory.mark_clustered(pending, grouped.in_cluster[n_new:])
             memory.insert(visit, grouped.in_cluster[:n_new], self._rng)

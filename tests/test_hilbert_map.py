@@ -131,6 +131,7 @@ def test_fit_rejects_bad_input():
         {"anisotropic_search": True},
         {"anchor_layers": 2},
         {"features": "support", "planar_kernel": True},
+        {"samples_per_cell": 4},
         {
             "planar_kernel": True,
             "merge_coplanar": True,

@@ -27,3 +27,27 @@ def cell_keys(points: np.ndarray, cell: float) -> CellKeys:
         raise ValueError(f"points span too many cells of {cell} m: cell keys overflow")
     strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
     return CellKeys(cells, extents, strides, cells @ strides)
+
+
+def packed_cell_keys(
+    points: np.ndarray, side: np.ndarray, kind: np.ndarray, kind_bits: int, remedy: str
+) -> np.ndarray:
+    """(n,) int64 key of the cell of side side[i] metres that holds each of (n, d) points,
+    metres, world frame, with kind[i] (0 .. 2**kind_bits - 1) in its lowest bits: the cell's
+    integer coordinates from the world origin take (63 - kind_bits) // d bits per axis.
+
+    ValueError when a point lies beyond the cells' reach; `remedy` ends the message."""
+    bits = (63 - kind_bits) // points.shape[1]
+    cells = np.floor(points / side[:, None])
+    half = 2.0 ** (bits - 1)
+    if len(cells) and not (cells.min() >= -half and cells.max() < half):
+        outside = np.any((cells < -half) | (cells >= half), axis=1)
+        far = np.max(np.abs(points[outside]))
+        raise ValueError(
+            f"a training sample lies {far:.0f} m from the world origin; cells of "
+            f"{side.min():g} m reach {half * side.min():.0f} m ({remedy})"
+        )
+    keys = np.zeros(len(points), dtype=np.int64)
+    for axis in range(points.shape[1]):
+        keys = (keys << bits) | (cells[:, axis].astype(np.int64) + int(half))
+    return (keys << kind_bits) | kind.astype(np.int64)

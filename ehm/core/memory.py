@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
+from ehm.core.cells import packed_cell_keys
 from ehm.core.samples import TrainingSamples
 
 # Priority of an empty slot; samples draw theirs below it.
@@ -75,10 +76,10 @@ class SampleMemory:
     none). `sides`: (side of the cells of samples around hits, side of the cells of free
     samples along rays), metres.
 
-    Per cell, rows 0..n_cells-1: seen (float64, samples that fell in it), filled (int64, kept
-    samples, slots 0..filled-1), at_surface (bool, its kind). Per kept sample, (cells,
-    per_cell) arrays: points (float32, metres, world frame, one more axis), occupied and
-    clustered (bool), priority (uint32, EMPTY in an empty slot). keys: (n_cells,) int64 sorted
+    Per cell, rows 0..n_cells-1: seen (float64, weight of the samples that fell in it), filled
+    (int64, kept samples, slots 0..filled-1), at_surface (bool, its kind). Per kept sample,
+    (cells, per_cell) arrays: points (float32, metres, world frame, one more axis), occupied
+    and clustered (bool), priority (uint32, EMPTY in an empty slot). keys: (n_cells,) int64 sorted
     cell keys, and cell_of_key the row of each.
     """
 
@@ -86,7 +87,6 @@ class SampleMemory:
         self.dim = dim
         self.per_cell = per_cell
         self.sides = (float(sides[0]), float(sides[1]))
-        self.bits = (63 - 1) // dim
         self.keys = np.zeros(0, dtype=np.int64)
         self.cell_of_key = np.zeros(0, dtype=np.int64)
         self.n_cells = 0
@@ -137,19 +137,8 @@ class SampleMemory:
     def cell_keys(self, points: np.ndarray, at_surface: np.ndarray) -> np.ndarray:
         """(n,) int64 key of the cell of each of (n, d) points, metres, of the given kinds."""
         side = np.where(at_surface, self.sides[0], self.sides[1])
-        cells = np.floor(points / side[:, None])
-        half = 2.0 ** (self.bits - 1)
-        if len(cells) and not (cells.min() >= -half and cells.max() < half):
-            outside = np.any((cells < -half) | (cells >= half), axis=1)
-            far = np.max(np.abs(points[outside]))
-            raise ValueError(
-                f"a training sample lies {far:.0f} m from the world origin; the sample memory "
-                f"reaches {half * self.sides[0]:.0f} m (set memory_per_cell=0 to map without it)"
-            )
-        keys = np.zeros(len(points), dtype=np.int64)
-        for axis in range(self.dim):
-            keys = (keys << self.bits) | (cells[:, axis].astype(np.int64) + int(half))
-        return (keys << 1) | at_surface.astype(np.int64)
+        remedy = "set memory_per_cell=0 to map without the sample memory"
+        return packed_cell_keys(points, side, at_surface, 1, remedy)
 
     def _find(self, keys: np.ndarray) -> np.ndarray:
         """(n,) int64 cell row of each of `keys` (n,) int64, -1 where there is none yet."""
@@ -189,16 +178,18 @@ class SampleMemory:
         """`ratio` past samples per sample of the visit, from the cells, of either kind, that
         hold any of the visit's samples: of each kind of cell as many as the visit has samples
         of that kind, times ratio (all from one kind when the other has no cells there), each
-        cell drawn in proportion to the samples it has seen, then one of its kept samples
-        uniformly (none when there are no such cells)."""
-        n = round(ratio * len(visit.samples))
-        n_surface = round(ratio * int(visit.samples.at_surface.sum()))
+        cell drawn in proportion to the samples it has seen (their weights), then one of its
+        kept samples uniformly (none when there are no such cells). Each weighs the mean
+        weight of the visit's samples of its kind."""
+        samples = visit.samples
+        n = round(ratio * len(samples))
+        n_surface = round(ratio * int(samples.at_surface.sum()))
         kinds = self.at_surface[visit.near]
         if not kinds.all() and kinds.any():
             counts = ((True, n_surface), (False, n - n_surface))
         else:
             counts = ((bool(kinds.all()), n),)
-        chosen, slots = [], []
+        chosen, slots, weights = [], [], []
         for at_surface, n_kind in counts:
             cells = visit.near[kinds == at_surface]
             if len(cells) == 0 or n_kind == 0:
@@ -207,10 +198,16 @@ class SampleMemory:
             drawn = np.searchsorted(cumulative, rng.random(n_kind) * cumulative[-1], side="right")
             chosen.append(cells[np.minimum(drawn, len(cells) - 1)])
             slots.append((rng.random(n_kind) * self.filled[chosen[-1]]).astype(np.int64))
+            # Each weighs as the visit's samples of its kind do on average.
+            same_kind = samples.weight[samples.at_surface == at_surface]
+            weights.append(np.full(n_kind, same_kind.mean() if len(same_kind) else 1.0))
         if not chosen:
             none = np.zeros(0, dtype=np.int64)
             return self._samples_at(none, none)
-        return self._samples_at(np.concatenate(chosen), np.concatenate(slots))
+        replayed = self._samples_at(np.concatenate(chosen), np.concatenate(slots))
+        return TrainingSamples(
+            replayed.points, replayed.occupied, replayed.at_surface, np.concatenate(weights)
+        )
 
     def insert(self, visit: Visit, clustered: np.ndarray, rng: np.random.Generator) -> None:
         """Offer the visit's samples to the memory; clustered: (n,) bool, each formed part of a
@@ -220,7 +217,7 @@ class SampleMemory:
         if self.per_cell == 0 or len(samples) == 0:
             return
         cells = self._add_cells(visit)
-        self.seen[cells] += np.bincount(visit.key_of_sample, minlength=len(cells))
+        self.seen[cells] += np.bincount(visit.key_of_sample, samples.weight, len(cells))
         k, d = self.per_cell, self.dim
         # A new sample can stay only below the highest kept priority of a full cell.
         cell_of_sample = cells[visit.key_of_sample]

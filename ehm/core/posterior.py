@@ -22,7 +22,6 @@ from ehm.config import MapConfig
 from ehm.core.clusters import ClusterSet
 from ehm.core.features import SparseFeatures
 from ehm.core.logistic import sigmoid, sigmoid_scalar
-from ehm.core.sgd import class_weights
 
 # Largest change of one weight in one coordinate step, log-odds.
 MAX_STEP = 4.0
@@ -31,19 +30,20 @@ MAX_STEP = 4.0
 def update_posterior(
     features: SparseFeatures,
     occupied: np.ndarray,
+    sample_weights: np.ndarray,
     clusters: ClusterSet,
     bias_state: np.ndarray,
     config: MapConfig,
 ) -> None:
     """Update the clusters' weights and bias_state ([bias, its precision]) with one batch of
-    samples with `features` and labels `occupied` (n,) bool, in place: `config.epochs` sweeps
-    of coordinate descent."""
+    samples with `features`, labels `occupied` (n,) bool and loss weights `sample_weights` (n,)
+    float64, in place: `config.epochs` sweeps of coordinate descent."""
     posterior_update(
         features.indptr,
         features.rows,
         features.values,
         occupied.astype(np.float64),
-        class_weights(occupied, config.balance_classes),
+        sample_weights,
         clusters.weights,
         clusters.precision,
         bias_state,
@@ -57,7 +57,7 @@ def posterior_update(
     rows,
     values,
     labels,
-    class_weights,
+    sample_weights,
     weights,
     precision,
     bias_state,
@@ -68,8 +68,8 @@ def posterior_update(
     its precision]) change in place.
 
     indptr, rows, values: the samples' features (see SparseFeatures); labels: (n,) 0 or 1;
-    class_weights: (2,) loss weight of a free and of an occupied sample. Clusters are visited
-    in increasing order."""
+    sample_weights: (n,) loss weight of each sample. Clusters are visited in increasing
+    order."""
     n = len(indptr) - 1
     n_clusters = weights.shape[0]
     # Entries (sample, value) of each cluster, in compressed columns.
@@ -89,9 +89,6 @@ def posterior_update(
             entry_value[fill[m]] = values[e]
             fill[m] += 1
             scores[i] += weights[m] * values[e]
-    sample_weight = np.empty(n)
-    for i in range(n):
-        sample_weight[i] = class_weights[np.int64(labels[i])]
     prior_mean = weights.copy()
     prior_bias = bias_state[0]
     for _ in range(sweeps):
@@ -104,8 +101,8 @@ def posterior_update(
                 i = entry_sample[e]
                 v = entry_value[e]
                 p = sigmoid_scalar(scores[i])
-                gradient += sample_weight[i] * (p - labels[i]) * v
-                curvature += sample_weight[i] * p * (1.0 - p) * v * v
+                gradient += sample_weights[i] * (p - labels[i]) * v
+                curvature += sample_weights[i] * p * (1.0 - p) * v * v
             step = min(max(-gradient / curvature, -MAX_STEP), MAX_STEP)
             weights[m] += step
             for e in range(start[m], start[m + 1]):
@@ -114,15 +111,15 @@ def posterior_update(
         curvature = bias_state[1]
         for i in range(n):
             p = sigmoid_scalar(scores[i])
-            gradient += sample_weight[i] * (p - labels[i])
-            curvature += sample_weight[i] * p * (1.0 - p)
+            gradient += sample_weights[i] * (p - labels[i])
+            curvature += sample_weights[i] * p * (1.0 - p)
         step = min(max(-gradient / curvature, -MAX_STEP), MAX_STEP)
         bias_state[0] += step
         for i in range(n):
             scores[i] += step
     for i in range(n):
         p = sigmoid_scalar(scores[i])
-        bias_state[1] += sample_weight[i] * p * (1.0 - p)
+        bias_state[1] += sample_weights[i] * p * (1.0 - p)
 
 
 def posterior_update_reference(
@@ -130,7 +127,7 @@ def posterior_update_reference(
     rows: np.ndarray,
     values: np.ndarray,
     labels: np.ndarray,
-    class_weights: np.ndarray,
+    sample_weights: np.ndarray,
     weights: np.ndarray,
     precision: np.ndarray,
     bias_state: np.ndarray,
@@ -139,21 +136,20 @@ def posterior_update_reference(
     """Plain NumPy twin of `posterior_update`, one cluster at a time over dense columns."""
     phi = np.zeros((len(indptr) - 1, len(weights)))
     phi[np.repeat(np.arange(len(indptr) - 1), np.diff(indptr)), rows] = values
-    sample_weight = class_weights[labels.astype(np.int64)]
     prior_mean, prior_bias = weights.copy(), bias_state[0]
     touched = np.flatnonzero(np.any(phi != 0.0, axis=0))
     for _ in range(sweeps):
         for m in touched:
             p = sigmoid(phi @ weights + bias_state[0])
             gradient = precision[m] * (weights[m] - prior_mean[m])
-            gradient += np.sum(sample_weight * (p - labels) * phi[:, m])
-            curvature = precision[m] + np.sum(sample_weight * p * (1 - p) * phi[:, m] ** 2)
+            gradient += np.sum(sample_weights * (p - labels) * phi[:, m])
+            curvature = precision[m] + np.sum(sample_weights * p * (1 - p) * phi[:, m] ** 2)
             weights[m] += np.clip(-gradient / curvature, -MAX_STEP, MAX_STEP)
         p = sigmoid(phi @ weights + bias_state[0])
         gradient = bias_state[1] * (bias_state[0] - prior_bias) + np.sum(
-            sample_weight * (p - labels)
+            sample_weights * (p - labels)
         )
-        curvature = bias_state[1] + np.sum(sample_weight * p * (1 - p))
+        curvature = bias_state[1] + np.sum(sample_weights * p * (1 - p))
         bias_state[0] += np.clip(-gradient / curvature, -MAX_STEP, MAX_STEP)
     p = sigmoid(phi @ weights + bias_state[0])
-    bias_state[1] += np.sum(sample_weight * p * (1 - p))
+    bias_state[1] += np.sum(sample_weights * p * (1 - p))

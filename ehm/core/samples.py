@@ -17,14 +17,27 @@ class TrainingSamples:
 
     points: (n, d) float64, metres, world frame. occupied: (n,) bool. at_surface: (n,) bool,
     True for the samples drawn around hits (both classes), False for free samples along rays.
+    weight: (n,) float64, how many drawn samples each stands for in the loss (ones unless
+    thinned, ehm.core.thinning; None gives ones).
     """
 
     points: np.ndarray
     occupied: np.ndarray
     at_surface: np.ndarray
+    weight: np.ndarray = None  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.weight is None:
+            object.__setattr__(self, "weight", np.ones(len(self.points)))
 
     def __len__(self) -> int:
         return len(self.points)
+
+    def subset(self, rows: np.ndarray) -> TrainingSamples:
+        """The samples at `rows` (boolean mask or indices)."""
+        return TrainingSamples(
+            self.points[rows], self.occupied[rows], self.at_surface[rows], self.weight[rows]
+        )
 
     def __add__(self, other: TrainingSamples) -> TrainingSamples:
         """This set's samples followed by `other`'s."""
@@ -36,6 +49,7 @@ class TrainingSamples:
             np.concatenate([p.points for p in parts]),
             np.concatenate([p.occupied for p in parts]),
             np.concatenate([p.at_surface for p in parts]),
+            np.concatenate([p.weight for p in parts]),
         )
 
 

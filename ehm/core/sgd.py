@@ -18,37 +18,39 @@ from ehm.core.logistic import sigmoid, sigmoid_scalar
 EPSILON = 1e-8
 
 
-def class_weights(occupied: np.ndarray, balance: bool) -> np.ndarray:
-    """Loss weights [free, occupied] of samples with labels `occupied` (n,) bool: ones, or, when
-    balancing, equal total weight per class, so the density of free samples does not move the
+def loss_weights(occupied: np.ndarray, weight: np.ndarray, balance: bool) -> np.ndarray:
+    """(n,) float64 loss weight of samples with labels `occupied` (n,) bool and weights
+    `weight` (n,) float64 (TrainingSamples.weight): the weights, or, when balancing, scaled so
+    each class carries half of their total, so the density of free samples does not move the
     0.5 boundary."""
-    n_occupied = int(occupied.sum())
-    n_free = len(occupied) - n_occupied
-    if not balance or n_occupied == 0 or n_free == 0:
-        return np.ones(2)
-    return len(occupied) / (2.0 * np.array([n_free, n_occupied], dtype=np.float64))
+    total = weight.sum()
+    total_occupied = weight[occupied].sum()
+    total_free = total - total_occupied
+    if not balance or total_occupied == 0 or total_free == 0:
+        return weight
+    return weight * np.where(occupied, total / (2 * total_occupied), total / (2 * total_free))
 
 
 def train_weights(
     features: SparseFeatures,
     occupied: np.ndarray,
+    sample_weights: np.ndarray,
     clusters: ClusterSet,
     bias_state: np.ndarray,
     config: MapConfig,
     rng: np.random.Generator,
 ) -> None:
-    """`config.epochs` passes of SGD over samples with `features` and labels `occupied` (n,)
-    bool, each in a fresh random order (Alg. 2 lines 26-28); updates the clusters' weights and
-    AdaGrad state and bias_state in place."""
+    """`config.epochs` passes of SGD over samples with `features`, labels `occupied` (n,)
+    bool and loss weights `sample_weights` (n,) float64, each in a fresh random order (Alg. 2
+    lines 26-28); updates the clusters' weights and AdaGrad state and bias_state in place."""
     labels = occupied.astype(np.float64)
-    weights_per_class = class_weights(occupied, config.balance_classes)
     for _ in range(config.epochs):
         sgd_pass(
             features.indptr,
             features.rows,
             features.values,
             labels,
-            weights_per_class,
+            sample_weights,
             rng.permutation(len(labels)),
             clusters.weights,
             clusters.grad_sq,
@@ -64,7 +66,7 @@ def sgd_pass(
     rows,
     values,
     labels,
-    class_weights,
+    sample_weights,
     order,
     weights,
     grad_sq,
@@ -75,15 +77,15 @@ def sgd_pass(
     """One pass over the samples in `order`, updating weights, grad_sq and bias_state in place.
 
     indptr, rows, values: the samples' features (see SparseFeatures); labels: (n,) 0 or 1;
-    class_weights: (2,) loss weight of a free and of an occupied sample; bias_state: [bias,
-    its accumulated squared gradient].
+    sample_weights: (n,) loss weight of each sample; bias_state: [bias, its accumulated squared
+    gradient].
     """
     for i in order:
         score = bias_state[0]
         for e in range(indptr[i], indptr[i + 1]):
             score += weights[rows[e]] * values[e]
         label = labels[i]
-        error = (sigmoid_scalar(score) - label) * class_weights[np.int64(label)]
+        error = (sigmoid_scalar(score) - label) * sample_weights[i]
         for e in range(indptr[i], indptr[i + 1]):
             cluster = rows[e]
             grad = error * values[e] + l2 * weights[cluster]
@@ -98,7 +100,7 @@ def sgd_pass_reference(
     rows: np.ndarray,
     values: np.ndarray,
     labels: np.ndarray,
-    class_weights: np.ndarray,
+    sample_weights: np.ndarray,
     order: np.ndarray,
     weights: np.ndarray,
     grad_sq: np.ndarray,
@@ -110,7 +112,7 @@ def sgd_pass_reference(
     for i in order:
         touched, phi = rows[indptr[i] : indptr[i + 1]], values[indptr[i] : indptr[i + 1]]
         score = bias_state[0] + np.dot(weights[touched], phi)
-        error = (sigmoid(score) - labels[i]) * class_weights[int(labels[i])]
+        error = (sigmoid(score) - labels[i]) * sample_weights[i]
         grad = error * phi + l2 * weights[touched]
         grad_sq[touched] += grad * grad
         weights[touched] -= learning_rate * grad / np.sqrt(grad_sq[touched] + EPSILON)

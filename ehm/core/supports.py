@@ -27,6 +27,7 @@ import numba
 import numpy as np
 
 from ehm.core.features import SparseFeatures, add_to_sums, kernel_at
+from ehm.core.hashing import EMPTY_KEY, hash_slot
 from ehm.core.kernels import cluster_kernel_reference
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
@@ -34,8 +35,6 @@ from ehm.core.kernels import cluster_kernel_reference
 # kernel in more cells: on the sample scan's map, 60 kernels looked at per point for 8.3 that
 # are not zero, in 2.4 MB; 33 in 7.4 MB with cells half as large.
 CELL_FACTORS = (4.0, 2.0)
-EMPTY_KEY = np.int64(-1)
-_HASH_MULTIPLIER = np.uint64(11400714819323198485)  # 2^64 / golden ratio
 _MIN_BLOCK = 4
 
 
@@ -51,18 +50,6 @@ def _pack(cell, bits, coarse):  # pragma: no cover - compiled
     for a in range(cell.shape[0]):
         key = (key << bits) | (np.int64(cell[a]) + half)
     return (key << 1) | np.int64(coarse)
-
-
-@numba.njit(cache=True, inline="always")
-def _slot(table_keys, key):  # pragma: no cover - compiled
-    """Slot of `key` in the table (its size a power of 2), or of the empty slot where it would
-    go (linear probing)."""
-    mask = np.int64(len(table_keys) - 1)
-    mixed = np.uint64(key) * _HASH_MULTIPLIER
-    s = np.int64(mixed ^ (mixed >> np.uint64(29))) & mask
-    while table_keys[s] != key and table_keys[s] != EMPTY_KEY:
-        s = (s + 1) & mask
-    return s
 
 
 @numba.njit(cache=True, inline="always")
@@ -111,7 +98,7 @@ def _insert(
         need = 0
         new_cells = 0
         for c in range(n_cells):
-            s = _slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
+            s = hash_slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
             if table_keys[s] == EMPTY_KEY:
                 need += _MIN_BLOCK
                 new_cells += 1
@@ -121,7 +108,7 @@ def _insert(
             return done
         for c in range(n_cells):
             key = _cell_key(m, c, lo, hi, bits, coarse, cell)
-            s = _slot(table_keys, key)
+            s = hash_slot(table_keys, key)
             if table_keys[s] == EMPTY_KEY:
                 table_keys[s] = key
                 starts[s] = used[0]
@@ -155,7 +142,7 @@ def _remove(
     cell = np.empty(lo.shape[1], dtype=np.int64)
     for m in kernels:
         for c in range(_n_cells(m, lo, hi)):
-            s = _slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
+            s = hash_slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
             end = starts[s] + counts[s]
             for j in range(starts[s], end):
                 if pool[j] == m:
@@ -175,7 +162,7 @@ def _place_cells(
     taken = 0
     for s in range(len(table_keys)):
         if table_keys[s] != EMPTY_KEY and counts[s] > 0:
-            t = _slot(keys, table_keys[s])
+            t = hash_slot(keys, table_keys[s])
             keys[t] = table_keys[s]
             sizes[t] = counts[s]
             taken += 1
@@ -183,7 +170,7 @@ def _place_cells(
     for m in pending:
         for c in range(_n_cells(m, lo, hi)):
             key = _cell_key(m, c, lo, hi, bits, coarse, cell)
-            t = _slot(keys, key)
+            t = hash_slot(keys, key)
             if keys[t] == EMPTY_KEY:
                 keys[t] = key
                 taken += 1
@@ -230,7 +217,7 @@ def _rebuild(
     new_pool = np.empty(end + end // 4, dtype=np.int32)
     for s in range(len(table_keys)):
         if table_keys[s] != EMPTY_KEY and counts[s] > 0:
-            t = _slot(keys, table_keys[s])
+            t = hash_slot(keys, table_keys[s])
             new_pool[new_starts[t] : new_starts[t] + counts[s]] = pool[
                 starts[s] : starts[s] + counts[s]
             ]
@@ -242,7 +229,7 @@ def _rebuild(
 def _block(points, i, scale, table_keys, starts, counts, sides, bits):  # pragma: no cover
     """(first, last + 1) positions in the pool of the kernels listed in point i's cell of
     `scale` (0 fine, 1 coarse); empty where the cell lists none."""
-    s = _slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
+    s = hash_slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
     if table_keys[s] == EMPTY_KEY:
         return 0, 0
     return starts[s], starts[s] + counts[s]

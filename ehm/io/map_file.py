@@ -43,7 +43,9 @@ MEMORY_PREFIX = "memory_"
 # Version 4 stores the random generator's state and each weight's posterior precision;
 # version 3 files load with a generator started afresh from the map's seed, and learn on by
 # SGD as they did.
-FORMAT_VERSION = 7
+# Version 8 maps may thin each batch's samples (MapConfig.samples_per_cell); older files
+# learned every sample.
+FORMAT_VERSION = 8
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -99,7 +101,7 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 7); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 8); MapFileError
     names what is wrong otherwise."""
     data = Path(path).read_bytes()
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
@@ -147,6 +149,9 @@ def read_map(path: str | PathLike[str]) -> MapState:
         if name.startswith(MEMORY_PREFIX)
     }
     settings = header["config"]
+    if version < 8:
+        # Maps before format 8 learned every sample.
+        settings = {**settings, "samples_per_cell": 0}
     if version < 7:
         # Maps before format 7 learned and answered with the nearest clusters' features.
         settings = {**settings, "features": "nearest"}

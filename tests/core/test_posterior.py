@@ -12,9 +12,9 @@ def test_compiled_update_matches_reference(rng, sparse_batch):
     state = [rng.normal(size=40), rng.uniform(0.5, 3.0, 40), np.array([0.2, 5.0])]
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
-    class_weights = np.array([0.7, 1.9])
-    posterior_update(*batch, class_weights, *compiled, 3)
-    posterior_update_reference(*batch, class_weights, *reference, 3)
+    sample_weights = rng.uniform(0.5, 3.0, len(batch[3]))
+    posterior_update(*batch, sample_weights, *compiled, 3)
+    posterior_update_reference(*batch, sample_weights, *reference, 3)
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
     assert not np.allclose(compiled[0], state[0])
@@ -24,7 +24,9 @@ def test_compiled_update_matches_reference(rng, sparse_batch):
 def test_sweeps_reach_the_minimum_of_the_regularised_loss(rng, sparse_batch):
     indptr, rows, values, labels = sparse_batch(rng)
     weights, precision, bias = np.zeros(40), np.ones(40), np.array([0.0, 1.0])
-    posterior_update(indptr, rows, values, labels, np.ones(2), weights, precision.copy(), bias, 50)
+    posterior_update(
+        indptr, rows, values, labels, np.ones(len(labels)), weights, precision.copy(), bias, 50
+    )
     phi = np.zeros((len(labels), 40))
     phi[np.repeat(np.arange(len(labels)), np.diff(indptr)), rows] = values
     p = 1 / (1 + np.exp(-(phi @ weights + bias[0])))
@@ -41,7 +43,7 @@ def test_weights_seen_often_move_little():
     for labels in (np.r_[np.ones(900), np.zeros(100)], np.zeros(100)):
         n = len(labels)
         batch = (np.arange(n + 1), np.zeros(n, dtype=np.int64), np.ones(n))
-        posterior_update(*batch, labels, np.ones(2), weights, precision, bias, 20)
+        posterior_update(*batch, labels, np.ones(n), weights, precision, bias, 20)
         curvature_sum(*batch, np.ones(n), weights, bias[0], precision)
         learned.append(weights[0])
     # The first is exact up to the prior; the second carries the Laplace approximation's error

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.sgd import class_weights, sgd_pass, sgd_pass_reference
+from ehm.core.sgd import loss_weights, sgd_pass, sgd_pass_reference
 
 
 def test_sgd_pass_matches_reference(rng, sparse_batch):
@@ -13,9 +13,9 @@ def test_sgd_pass_matches_reference(rng, sparse_batch):
     state = [rng.normal(size=n_clusters), rng.uniform(0, 1, n_clusters), np.array([0.1, 0.5])]
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
-    class_weights = np.array([0.7, 1.9])
-    sgd_pass(indptr, rows, values, labels, class_weights, order, *compiled, 0.3, 1e-3)
-    sgd_pass_reference(indptr, rows, values, labels, class_weights, order, *reference, 0.3, 1e-3)
+    sample_weights = rng.uniform(0.5, 3.0, n)
+    sgd_pass(indptr, rows, values, labels, sample_weights, order, *compiled, 0.3, 1e-3)
+    sgd_pass_reference(indptr, rows, values, labels, sample_weights, order, *reference, 0.3, 1e-3)
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     assert not np.allclose(compiled[0], state[0])
@@ -31,7 +31,7 @@ def test_sgd_separates_two_classes():
         np.where(labels == 1.0, 0, 1),
         np.ones(n),
         labels,
-        np.ones(2),
+        np.ones(n),
         np.arange(n),
         weights,
         grad_sq,
@@ -45,8 +45,10 @@ def test_sgd_separates_two_classes():
 
 def test_balanced_classes_carry_half_of_the_loss_each():
     occupied = np.array([True, False, False, False])
-    np.testing.assert_allclose(class_weights(occupied, balance=True), [4 / 6, 4 / 2])
-    weights = class_weights(occupied, balance=True)
-    assert weights[0] * 3 == pytest.approx(weights[1] * 1)  # equal totals
-    np.testing.assert_array_equal(class_weights(occupied, balance=False), [1.0, 1.0])
-    np.testing.assert_array_equal(class_weights(np.ones(3, bool), balance=True), [1.0, 1.0])
+    np.testing.assert_allclose(loss_weights(occupied, np.ones(4), True), [2, 2 / 3, 2 / 3, 2 / 3])
+    weight = np.array([3.0, 1.0, 1.0, 2.0])  # thinned samples: each stands for several
+    balanced = loss_weights(occupied, weight, True)
+    assert balanced[0] == pytest.approx(balanced[1:].sum())  # equal totals
+    assert balanced.sum() == pytest.approx(weight.sum())
+    np.testing.assert_array_equal(loss_weights(occupied, weight, False), weight)
+    np.testing.assert_array_equal(loss_weights(np.ones(3, bool), weight[:3], True), weight[:3])

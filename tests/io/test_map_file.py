@@ -113,8 +113,10 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     """Files written in format 3, before the random generator's state was stored: a 2D plan
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
     They answer as when they were written (to rounding), and a map built now from the same
-    scans with the same settings (no sample memory then, the nearest clusters' features)
-    answers the same."""
+    scans with the same settings (no sample memory then, the nearest clusters' features,
+    no thinning) answers nearly the same: quick-means has summed its
+    clusters' moments in another order since, and SGD carries that rounding on (4.4e-5 at
+    most on the plan when changed)."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
@@ -126,14 +128,15 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     for mode in ("batch", "exact"):
         answers = recorded[f"{name}_{mode}"]
         np.testing.assert_allclose(loaded.occupancy(points, mode), answers, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(rebuilt.occupancy(points, mode), answers, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(rebuilt.occupancy(points, mode), answers, rtol=0, atol=1e-4)
 
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
+    before_format_8 = {"samples_per_cell": 0}
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
-            features="nearest", neighbours=6, anchor_layers=2, memory_per_cell=0
+            features="nearest", neighbours=6, anchor_layers=2, memory_per_cell=0, **before_format_8
         )
         scans = floor_plan_2d(seed=0).scans
     else:
@@ -143,6 +146,7 @@ def rebuild_v3_map(name: str) -> ehm.HilbertMap:
             merge_coplanar=True,
             anisotropic_search=True,
             memory_per_cell=0,
+            **before_format_8,
         )
         (scan,) = virtual_room(seed=0, rings=16, azimuths=240).scans
         scans = [scan.subset(np.arange(len(scan)) % 2 == part) for part in (0, 1)]
