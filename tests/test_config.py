@@ -33,6 +33,8 @@ def test_overrides_and_validation():
         ("features", "all", "features must be 'support' or 'nearest', got 'all'"),
         ("memory_per_cell", -1, "memory_per_cell must be an integer >= 0"),
         ("memory_per_cell", 2.5, "memory_per_cell must be an integer >= 0"),
+        ("samples_per_cell", -4, "samples_per_cell must be an integer >= 0"),
+        ("samples_per_cell", 4.0, "samples_per_cell must be an integer >= 0"),
         ("replay_ratio", -0.5, "replay_ratio must be >= 0"),
         ("replay_ratio", float("nan"), "replay_ratio must be >= 0"),
     ],

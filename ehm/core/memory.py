@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.cells import packed_cell_keys
+from ehm.core.cells import packed_cell_keys, rank_in_runs
 from ehm.core.samples import TrainingSamples
 
 # Priority of an empty slot; samples draw theirs below it.
@@ -235,7 +235,7 @@ class SampleMemory:
         occupied = np.concatenate([self.occupied[touched].ravel(), samples.occupied[new]])
         was_clustered = np.concatenate([self.clustered[touched].ravel(), clustered[new]])
         order = np.argsort((cell_of << 32) | priority.astype(np.int64))
-        rank = _rank_in_runs(cell_of[order])
+        rank = rank_in_runs(cell_of[order])
         keep = order[rank < k]
         target_cell, slot = cell_of[keep], rank[rank < k]
         self.priority[target_cell, slot] = priority[keep]
@@ -285,11 +285,3 @@ class SampleMemory:
             if name not in ("keys", "cell_of_key"):
                 getattr(memory, name)[: memory.n_cells] = array
         return memory
-
-
-def _rank_in_runs(sorted_values: np.ndarray) -> np.ndarray:
-    """(n,) int64 position of each element within its run of equal values."""
-    n = len(sorted_values)
-    starts = np.flatnonzero(np.r_[True, sorted_values[1:] != sorted_values[:-1]])
-    lengths = np.diff(np.r_[starts, n])
-    return np.arange(n) - np.repeat(starts, lengths)

@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.cells import packed_cell_keys
+from ehm.core.cells import packed_cell_keys, rank_in_runs
 from ehm.core.hashing import EMPTY_KEY, hash_slot, table_size
 from ehm.core.samples import TrainingSamples
 
@@ -82,14 +82,9 @@ def thinning_reference(
     keys: np.ndarray, order: np.ndarray, per_cell: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plain NumPy twin of `thinning_kernel`, by sorting keys."""
-    keys_in_order = keys[order]
-    by_key = np.argsort(keys_in_order, kind="stable")
-    sorted_keys = keys_in_order[by_key]
-    starts = np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
-    lengths = np.diff(np.r_[starts, len(keys)])
-    rank = np.arange(len(keys)) - np.repeat(starts, lengths)
+    by_key = order[np.argsort(keys[order], kind="stable")]  # each key's samples in `order`
     keep = np.zeros(len(keys), dtype=bool)
-    keep[order[by_key[rank < per_cell]]] = True
-    share = np.empty(len(keys))
-    share[order[by_key]] = np.repeat(lengths / np.minimum(lengths, per_cell), lengths)
-    return keep, share
+    keep[by_key[rank_in_runs(keys[by_key]) < per_cell]] = True
+    _, key_of_sample, count = np.unique(keys, return_inverse=True, return_counts=True)
+    share = count / np.minimum(count, per_cell)
+    return keep, share[key_of_sample]
