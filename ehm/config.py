@@ -52,6 +52,15 @@ class MapConfig:
     the sample scan 1.5x, but held-out F1 scan by scan drops 0.008-0.017 (TUM 0.949, PCL room
     0.917, virtual room 0.937 against 0.966, 0.932, 0.949)."""
 
+    batch_rays: int = 20_000
+    """Scans are gathered until they hold at least this many rays, then learned as one batch
+    (one set of samples, one clustering, one SGD run). A query, a grid, a save or `flush()`
+    learns the scans still waiting first, so every answer sees every scan given. Small scans
+    (a 2D laser's few hundred rays) then share the fixed cost of an update and form their
+    clusters together: the Intel lab's 180-ray scans map 5x faster and score held-out F1
+    0.942 against 0.910 one by one (one batch of all: 0.952). Scans of a LiDAR or a depth
+    camera hold more rays and are learned as they come. 0 learns every scan as it comes."""
+
     # Quick-means (Alg. 1).
     cluster_radius: float = 0.12
     """Inner radius r_i of quick-means for occupied samples, metres."""
@@ -218,6 +227,7 @@ class MapConfig:
             ("anchor_layers", 1),
             ("memory_per_cell", 0),
             ("samples_per_cell", 0),
+            ("batch_rays", 0),
         )
         for name, low in integers:
             value = getattr(self, name)

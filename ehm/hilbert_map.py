@@ -37,7 +37,7 @@ from ehm.core.logistic import sigmoid
 from ehm.core.memory import SampleMemory
 from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
-from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
+from ehm.core.samples import TrainingSamples, samples_of_scans
 from ehm.core.scan import Scan
 from ehm.core.sgd import loss_weights, train_weights
 from ehm.core.snapshot import MapSnapshot
@@ -71,6 +71,9 @@ class HilbertMap:
         """Forget everything learned."""
         self.clusters_: ClusterSet | None = None
         self.memory_: SampleMemory | None = None
+        # Scans given but not learned yet, waiting for config.batch_rays rays.
+        self._waiting: list[Scan] = []
+        self._waiting_rays = 0
         self.bias_state_ = np.zeros(2)
         self.n_scans_ = 0
         self.timings_: dict[str, float] = {}
@@ -87,7 +90,15 @@ class HilbertMap:
     # ------------------------------------------------------------------ state
     @property
     def dim(self) -> int | None:
-        return None if self.clusters_ is None else self.clusters_.dim
+        if self.clusters_ is not None:
+            return self.clusters_.dim
+        return self._waiting[0].dim if self._waiting else None
+
+    @property
+    def n_waiting_scans(self) -> int:
+        """Scans given but not learned yet: they wait for `config.batch_rays` rays, or for
+        the next query, grid, save or `flush()`."""
+        return len(self._waiting)
 
     @property
     def bias_(self) -> float:
@@ -95,6 +106,8 @@ class HilbertMap:
 
     @property
     def n_clusters(self) -> int:
+        """Clusters of the map, after learning any scans waiting for their batch."""
+        self.flush()
         return 0 if self.clusters_ is None else len(self.clusters_)
 
     def __repr__(self) -> str:
@@ -112,6 +125,7 @@ class HilbertMap:
     def memory_bytes(self) -> int:
         """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
         sample memory, anchor layers and the search structure over cluster centres."""
+        self.flush()
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
         memory = 0 if self.memory_ is None else self.memory_.nbytes
         learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
@@ -167,6 +181,8 @@ class HilbertMap:
         return self.memory_
 
     def _learned(self, action: str) -> ClusterSet:
+        """The clusters, after learning any scans waiting for their batch."""
+        self.flush()
         if self.clusters_ is None:
             raise RuntimeError(f"the map is empty: integrate a scan or fit before you {action}")
         return self.clusters_
@@ -218,14 +234,30 @@ class HilbertMap:
         return self.integrate_scan(Scan(points_world, origin, hit_mask))
 
     def integrate_scan(self, scan: Scan) -> HilbertMap:
-        """Learn one Scan (Alg. 2); returns self."""
+        """Learn one Scan (Alg. 2); returns self. With config.batch_rays, the scan waits
+        until the waiting scans hold that many rays, and they are learned together."""
+        if not isinstance(scan, Scan):
+            raise ValueError(f"expected ehm.Scan, got {type(scan).__name__}")
         if self.dim is not None and scan.dim != self.dim:
             raise ValueError(f"scan points are {scan.dim}D, the map is {self.dim}D")
+        self._waiting.append(scan)
+        self._waiting_rays += len(scan)
+        self.n_scans_ += 1
+        self.timings_ = {}
+        if self._waiting_rays >= self.config.batch_rays:
+            self.flush()
+        return self
+
+    def flush(self) -> HilbertMap:
+        """Learn the scans waiting for their batch (config.batch_rays) now, as one batch;
+        returns self. Queries, grids and saves do this themselves."""
+        if not self._waiting:
+            return self
+        scans, self._waiting, self._waiting_rays = self._waiting, [], 0
         timer = StageTimer()
         with timer("samples"):
-            samples = training_samples(scan, self.config, self._rng)
+            samples = samples_of_scans(scans, self.config, self._rng)
         self._learn(samples, timer)
-        self.n_scans_ += 1
         self._update_followers()
         return self
 
@@ -417,8 +449,9 @@ class HilbertMap:
 
         bounds: (2, d) metres, world frame, [low corner, high corner]; None: the box holding
         every kernel's support. resolution: voxel side, metres. follow: keep the grid up to
-        date after every integrate or fit, for as long as it is referenced (several grids,
-        at any resolutions, can follow one map); its bounds stay as they were made. max_bytes:
+        date whenever the map learns (each batch of scans, see MapConfig.batch_rays, and each
+        fit), for as long as it is referenced (several grids, at any resolutions, can follow
+        one map); its bounds stay as they were made. max_bytes:
         refuse larger grids (ValueError) before allocating. std: also the standard deviation
         of each voxel's occupancy (`grid.std`, see `occupancy`), at 40 bytes a voxel instead
         of 16.

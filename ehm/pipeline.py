@@ -57,8 +57,9 @@ class MappingObserver(Protocol):
         """Scan `index` (0-based) was read."""
 
     def scan_learned(self, index: int, scan: Scan, hilbert_map: HilbertMap) -> None:
-        """Scan `index` is in the map (incremental mode; in batch mode all are learned at the
-        end, and only `finished` follows)."""
+        """Scan `index` is in the map (incremental mode; it may wait for its batch of
+        `config.batch_rays` rays, which the map learns before it answers anything; in
+        single-batch mode all are learned at the end, and only `finished` follows)."""
 
     def finished(self, run: MappingRun) -> None:
         """Mapping is over: done, or stopped by an error."""
@@ -116,6 +117,12 @@ class MappingPipeline:
                     self._learned(run, start)
                     for observer in self.observers:
                         observer.scan_learned(index, scan, self.hilbert_map)
+                if self.hilbert_map.n_waiting_scans:
+                    # The last scans' batch is learned now, and counted with the last scan.
+                    start = time.perf_counter()
+                    self.hilbert_map.flush()
+                    run.scan_seconds[-1] += time.perf_counter() - start
+                    run.add_stages(self.hilbert_map.timings_)
         finally:
             for observer in self.observers:
                 observer.finished(run)

@@ -35,6 +35,8 @@ def test_overrides_and_validation():
         ("memory_per_cell", 2.5, "memory_per_cell must be an integer >= 0"),
         ("samples_per_cell", -4, "samples_per_cell must be an integer >= 0"),
         ("samples_per_cell", 4.0, "samples_per_cell must be an integer >= 0"),
+        ("batch_rays", -1, "batch_rays must be an integer >= 0"),
+        ("batch_rays", 1e4, "batch_rays must be an integer >= 0"),
         ("replay_ratio", -0.5, "replay_ratio must be >= 0"),
         ("replay_ratio", float("nan"), "replay_ratio must be >= 0"),
     ],

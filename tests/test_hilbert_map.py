@@ -193,6 +193,50 @@ def test_state_restores_a_map_that_goes_on_exactly(plan):
         ehm.HilbertMap().state()
 
 
+def test_scans_wait_for_their_batch_and_every_answer_sees_them(plan, tmp_path):
+    """With batch_rays, small scans wait and are learned together: the first batch of a new
+    map is exactly one fit of its scans, and a query, a save or a grid learns what waits."""
+    points = np.random.default_rng(4).uniform(-6, 6, (2000, 2))
+    batched = ehm.HilbertMap(batch_rays=1000)
+    batched.integrate_scan(plan.scans[0]).integrate_scan(plan.scans[1])
+    assert batched.n_waiting_scans == 2 and batched.clusters_ is None and batched.dim == 2
+    assert batched.timings_ == {}
+    with pytest.raises(ValueError, match="scan points are 3D, the map is 2D"):
+        batched.integrate(np.ones((4, 3)), np.zeros(3))
+    np.testing.assert_array_equal(
+        batched.occupancy(points), ehm.HilbertMap().fit(plan.scans[:2]).occupancy(points)
+    )
+    assert batched.n_waiting_scans == 0 and batched.n_scans_ == 2
+    # 720 rays wait; 360 more reach the batch, and the three are learned at once.
+    batched.integrate_scan(plan.scans[2]).integrate_scan(plan.scans[3])
+    assert batched.n_waiting_scans == 2 and "sgd" not in batched.timings_
+    batched.integrate_scan(plan.scans[4])
+    assert batched.n_waiting_scans == 0 and "sgd" in batched.timings_
+    batched.integrate_scan(plan.scans[0])
+    batched.save(tmp_path / "plan.ehm")
+    assert batched.n_waiting_scans == 0 and batched.n_scans_ == 6
+    np.testing.assert_array_equal(
+        ehm.load(tmp_path / "plan.ehm").occupancy(points), batched.occupancy(points)
+    )
+    alone = ehm.HilbertMap(batch_rays=0)
+    alone.integrate_scan(plan.scans[0])
+    assert alone.n_waiting_scans == 0 and alone.n_clusters > 0
+
+
+def test_following_grids_catch_up_when_a_batch_is_learned(plan):
+    hilbert_map = ehm.HilbertMap(batch_rays=700).integrate_scan(plan.scans[0])
+    grid = hilbert_map.grid(resolution=0.1, follow=True)
+    before = grid.scores.copy()
+    hilbert_map.integrate_scan(plan.scans[1])
+    assert hilbert_map.n_waiting_scans == 1
+    np.testing.assert_array_equal(grid.scores, before)
+    hilbert_map.flush()
+    np.testing.assert_allclose(
+        grid.scores, hilbert_map.grid(grid.bounds, 0.1).scores, rtol=0, atol=1e-9
+    )
+    assert not np.array_equal(grid.scores, before)
+
+
 def test_scan_by_scan_with_the_memory_does_not_forget():
     """Six sparse LiDAR scans along a warehouse's aisles: learned scan by scan with past samples
     replayed, held-out F1 rises above learning each scan alone and reaches one batch's
@@ -200,7 +244,7 @@ def test_scan_by_scan_with_the_memory_does_not_forget():
     split = held_out_rays(warehouse(rings=16, azimuths=360).scans, 0.8, 0.05, 0)
     f1 = {}
     for per_cell in (0, 8):
-        hilbert_map = ehm.HilbertMap(memory_per_cell=per_cell)
+        hilbert_map = ehm.HilbertMap(memory_per_cell=per_cell, batch_rays=0)
         for scan in split.train:
             hilbert_map.integrate_scan(scan)
         f1[per_cell] = score(split.occupied, hilbert_map.occupancy(split.points)).f1

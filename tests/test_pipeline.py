@@ -34,6 +34,7 @@ def test_incremental_run_equals_integrating_each_scan(plan):
     expected = ehm.HilbertMap(seed=2)
     for scan in plan.scans:
         expected.integrate_scan(scan)
+    expected.flush()
     np.testing.assert_array_equal(run.hilbert_map.clusters_.weights, expected.clusters_.weights)
     assert run.n_scans == run.hilbert_map.n_scans_ == len(plan.scans)
     assert run.n_rays == sum(len(s) for s in plan.scans)
@@ -46,6 +47,22 @@ def test_incremental_run_equals_integrating_each_scan(plan):
     assert recorder.events[0] == ("started", n)
     assert recorder.events[1:3] == [("read", 0, len(plan.scans[0])), ("learned", 0, 1)]
     assert recorder.events[-2:] == [("learned", n - 1, n), ("finished", n)]
+
+
+def test_incremental_run_learns_the_last_waiting_scans(plan):
+    """Scans gathered into batches of 1000 rays (360 each): learned after the third and at the
+    end, both times counted with the scan that closed the batch."""
+    run = MappingPipeline(plan.scans, ehm.HilbertMap(batch_rays=1000)).run()
+    assert run.hilbert_map.n_waiting_scans == 0 and run.n_scans == len(plan.scans)
+    expected = ehm.HilbertMap(batch_rays=1000)
+    for scan in plan.scans:
+        expected.integrate_scan(scan)
+    expected.flush()
+    np.testing.assert_array_equal(run.hilbert_map.clusters_.weights, expected.clusters_.weights)
+    assert len(run.scan_seconds) == len(plan.scans)
+    learning = np.argsort(run.scan_seconds)[-2:]
+    assert sorted(learning) == [2, 4]
+    assert run.stage_seconds["sgd"] <= run.scan_seconds[2] + run.scan_seconds[4]
 
 
 def test_batch_run_fits_once(plan):

@@ -45,7 +45,9 @@ MEMORY_PREFIX = "memory_"
 # SGD as they did.
 # Version 8 maps may thin each batch's samples (MapConfig.samples_per_cell); older files
 # learned every sample.
-FORMAT_VERSION = 8
+# Version 9 maps may gather small scans into batches (MapConfig.batch_rays); older files
+# learned each scan as it came.
+FORMAT_VERSION = 9
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -101,7 +103,7 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 8); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 9); MapFileError
     names what is wrong otherwise."""
     data = Path(path).read_bytes()
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
@@ -149,6 +151,9 @@ def read_map(path: str | PathLike[str]) -> MapState:
         if name.startswith(MEMORY_PREFIX)
     }
     settings = header["config"]
+    if version < 9:
+        # Maps before format 9 learned each scan as it came.
+        settings = {**settings, "batch_rays": 0}
     if version < 8:
         # Maps before format 8 learned every sample.
         settings = {**settings, "samples_per_cell": 0}

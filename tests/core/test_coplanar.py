@@ -97,8 +97,8 @@ def test_merging_shrinks_a_map_of_flat_walls(walls):
     """About a third fewer clusters; near the walls the merged map, whose long clusters reach
     less far with k_SP, loses a few points of accuracy (0.729 against 0.773 when written)."""
     scene, scans = walls
-    flat = ehm.HilbertMap()
-    merged = ehm.HilbertMap(merge_coplanar=True)
+    flat = ehm.HilbertMap(batch_rays=0)
+    merged = ehm.HilbertMap(merge_coplanar=True, batch_rays=0)
     for scan in scans:
         flat.integrate_scan(scan)
         merged.integrate_scan(scan)

@@ -133,10 +133,10 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
-    before_format_8 = {"samples_per_cell": 0}
+    before_format_9 = {"samples_per_cell": 0, "batch_rays": 0}
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
-            features="nearest", neighbours=6, anchor_layers=2, memory_per_cell=0, **before_format_8
+            features="nearest", neighbours=6, anchor_layers=2, memory_per_cell=0, **before_format_9
         )
         scans = floor_plan_2d(seed=0).scans
     else:
@@ -146,7 +146,7 @@ def rebuild_v3_map(name: str) -> ehm.HilbertMap:
             merge_coplanar=True,
             anisotropic_search=True,
             memory_per_cell=0,
-            **before_format_8,
+            **before_format_9,
         )
         (scan,) = virtual_room(seed=0, rings=16, azimuths=240).scans
         scans = [scan.subset(np.arange(len(scan)) % 2 == part) for part in (0, 1)]
