@@ -18,6 +18,8 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
+import numpy as np
+
 from ehm.core.scan import Scan
 from ehm.hilbert_map import HilbertMap
 
@@ -27,7 +29,9 @@ class MappingRun:
     """What a pipeline run did. hilbert_map: the map it learned. n_scans, n_rays: scans and
     rays learned; n_dropped: non-finite points the scans dropped. stage_seconds: wall-clock
     seconds per stage ('read', then the map's stages, Table 2), summed over every update.
-    scan_seconds: wall-clock seconds of each integrate (incremental), or of the one fit."""
+    scan_seconds: wall-clock seconds of each integrate (incremental), or of the one fit.
+    batch_scans: how many scans each batch the map learned held, in order (incremental; see
+    MapConfig.batch_rays)."""
 
     hilbert_map: HilbertMap
     n_scans: int = 0
@@ -35,11 +39,20 @@ class MappingRun:
     n_dropped: int = 0
     stage_seconds: dict[str, float] = field(default_factory=dict)
     scan_seconds: list[float] = field(default_factory=list)
+    batch_scans: list[int] = field(default_factory=list)
 
     @property
     def seconds(self) -> float:
         """Wall-clock seconds of reading and learning."""
         return self.stage_seconds.get("read", 0.0) + sum(self.scan_seconds)
+
+    def amortized_scan_seconds(self) -> np.ndarray:
+        """(n_scans,) seconds per scan with each batch's time shared equally by its scans
+        (incremental runs): what a scan costs, whether it waited or closed its batch."""
+        seconds = np.asarray(self.scan_seconds)
+        ends = np.cumsum(self.batch_scans)
+        per_batch = np.add.reduceat(seconds, ends - np.asarray(self.batch_scans))
+        return np.repeat(per_batch / np.asarray(self.batch_scans), self.batch_scans)
 
     def add_stages(self, seconds: dict[str, float]) -> None:
         """Add seconds per stage to the totals."""
@@ -111,18 +124,24 @@ class MappingPipeline:
                 self.hilbert_map.fit(scans)
                 self._learned(run, start)
             else:
+                in_batch = 0
                 for index, scan in enumerate(self._read(run)):
                     start = time.perf_counter()
                     self.hilbert_map.integrate_scan(scan)
                     self._learned(run, start)
+                    in_batch += 1
                     for observer in self.observers:
                         observer.scan_learned(index, scan, self.hilbert_map)
+                    if self.hilbert_map.n_waiting_scans == 0:  # learned, or an observer asked
+                        run.batch_scans.append(in_batch)
+                        in_batch = 0
                 if self.hilbert_map.n_waiting_scans:
                     # The last scans' batch is learned now, and counted with the last scan.
                     start = time.perf_counter()
                     self.hilbert_map.flush()
                     run.scan_seconds[-1] += time.perf_counter() - start
                     run.add_stages(self.hilbert_map.timings_)
+                    run.batch_scans.append(in_batch)
         finally:
             for observer in self.observers:
                 observer.finished(run)

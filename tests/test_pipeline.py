@@ -61,7 +61,10 @@ def test_incremental_run_learns_the_last_waiting_scans(plan):
     np.testing.assert_array_equal(run.hilbert_map.clusters_.weights, expected.clusters_.weights)
     assert len(run.scan_seconds) == len(plan.scans)
     learning = np.argsort(run.scan_seconds)[-2:]
-    assert sorted(learning) == [2, 4]
+    assert sorted(learning) == [2, 4] and run.batch_scans == [3, 2]
+    amortized = run.amortized_scan_seconds()
+    np.testing.assert_allclose(amortized[:3], sum(run.scan_seconds[:3]) / 3)
+    np.testing.assert_allclose(amortized[3:], sum(run.scan_seconds[3:]) / 2)
     assert run.stage_seconds["sgd"] <= run.scan_seconds[2] + run.scan_seconds[4]
 
 

@@ -84,11 +84,6 @@ class SparseFeatures:
     def __len__(self) -> int:
         return len(self.indptr) - 1
 
-    def head(self, n: int) -> SparseFeatures:
-        """The feature vectors of the first n points."""
-        end = self.indptr[n]
-        return SparseFeatures(self.indptr[: n + 1], self.rows[:end], self.values[:end])
-
     @classmethod
     def of_groups(
         cls, group_of_point: np.ndarray, neighbours: np.ndarray, values: np.ndarray

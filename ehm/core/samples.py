@@ -35,8 +35,15 @@ class TrainingSamples:
 
     def subset(self, rows: np.ndarray) -> TrainingSamples:
         """The samples at `rows` (boolean mask or indices)."""
+        rows = np.asarray(rows)
+        if rows.dtype == bool:
+            rows = np.flatnonzero(rows)
+        # np.take gathers rows of a 2D array several times faster than fancy indexing.
         return TrainingSamples(
-            self.points[rows], self.occupied[rows], self.at_surface[rows], self.weight[rows]
+            *(
+                np.take(values, rows, axis=0)
+                for values in (self.points, self.occupied, self.at_surface, self.weight)
+            )
         )
 
     def __add__(self, other: TrainingSamples) -> TrainingSamples:

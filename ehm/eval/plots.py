@@ -65,15 +65,26 @@ def cost_plot(summaries: Sequence[Summary], dataset: str, path: str | PathLike[s
     plt.close(figure)
 
 
-def scan_time_plot(seconds: dict[str, Sequence[float]], path: str | PathLike[str]) -> None:
-    """Wall-clock integration time per scan against scan index, one panel per sequence."""
+def scan_time_plot(
+    seconds: dict[str, dict[str, Sequence[float]]], path: str | PathLike[str]
+) -> None:
+    """Time per scan against scan index, one panel per sequence and one line per method:
+    seconds[sequence][method] is (n_scans,) seconds. Sequences of more than 200 scans show
+    the median of every 25 scans, so the trend stands out of the noise."""
     plt = pyplot()
     figure, axes = plt.subplots(1, len(seconds), figsize=(5.5 * len(seconds), 3.8), squeeze=False)
-    for axis, (name, times) in zip(axes[0], seconds.items(), strict=True):
-        milliseconds = 1000 * np.asarray(times)
-        axis.plot(np.arange(len(milliseconds)), milliseconds, marker="." if len(times) < 50 else "")
-        axis.axhline(np.median(milliseconds), color="gray", linestyle="--", label="median")
-        axis.set_title(f"{name}: integrate per scan")
+    for axis, (name, methods) in zip(axes[0], seconds.items(), strict=True):
+        for i, (method, times) in enumerate(methods.items()):
+            milliseconds = 1000 * np.asarray(times)
+            index = np.arange(len(milliseconds))
+            if len(milliseconds) > 200:
+                window = len(milliseconds) // 25 * 25
+                milliseconds = np.median(milliseconds[:window].reshape(-1, 25), axis=1)
+                index = np.arange(len(milliseconds)) * 25 + 12
+            axis.plot(
+                index, milliseconds, marker=MARKERS[i] if len(index) < 50 else "", label=method
+            )
+        axis.set_title(f"{name}: time per scan")
         axis.set_xlabel("scan index")
         axis.set_ylabel("time (ms)")
         axis.set_ylim(bottom=0)

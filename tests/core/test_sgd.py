@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.sgd import loss_weights, sgd_pass, sgd_pass_reference
+from ehm.core.sgd import blocked_order, loss_weights, sgd_pass, sgd_pass_reference
 
 
 def test_sgd_pass_matches_reference(rng, sparse_batch):
@@ -52,3 +52,20 @@ def test_balanced_classes_carry_half_of_the_loss_each():
     assert balanced.sum() == pytest.approx(weight.sum())
     np.testing.assert_array_equal(loss_weights(occupied, weight, False), weight)
     np.testing.assert_array_equal(loss_weights(np.ones(3, bool), weight[:3], True), weight[:3])
+
+
+def test_blocked_order_visits_every_sample_once_a_block_at_a_time():
+    rng = np.random.default_rng(0)
+    order = blocked_order(10_000, rng, block=256)
+    np.testing.assert_array_equal(np.sort(order), np.arange(10_000))
+    # The samples of each block of 256 (the last one 16) come one after the other, in random
+    # order, and the blocks come in random order.
+    block_of_visit = order // 256
+    first_visit = []
+    for block in range(40):
+        visits = np.flatnonzero(block_of_visit == block)
+        assert visits[-1] - visits[0] + 1 == len(visits) == (256 if block < 39 else 16)
+        assert not np.array_equal(order[visits], np.sort(order[visits]))
+        first_visit.append(visits[0])
+    assert not np.array_equal(np.argsort(first_visit), np.arange(40))
+    assert len(blocked_order(0, rng)) == 0

@@ -26,6 +26,12 @@ def picture(path) -> np.ndarray:
         return np.asarray(image.convert("RGB"))
 
 
+def coloured(path) -> int:
+    """Pixels of a picture that are neither grey nor black nor white."""
+    pixels = picture(path).astype(int)
+    return int(np.sum(pixels.max(axis=2) - pixels.min(axis=2) > 60))
+
+
 def test_every_data_set_gets_a_sparsity_and_a_cost_plot(tmp_path):
     written = write_comparison_plots(summarise(records()), tmp_path / "plots")
     names = [p.name for p in written]
@@ -44,18 +50,19 @@ def test_plots_draw_one_line_per_method(tmp_path):
     sparsity_plot([s for s in summaries if s.method == "a"], "room", one)
     sparsity_plot(summaries, "room", two)
 
-    def coloured(path):
-        pixels = picture(path).astype(int)
-        return np.sum(pixels.max(axis=2) - pixels.min(axis=2) > 60)
-
     # The second method's lines add coloured pixels.
     assert coloured(two) > 1.3 * coloured(one)
     cost_plot(summaries, "lab", tmp_path / "cost.png")
     assert picture(tmp_path / "cost.png").shape[1] > 800
 
 
-def test_scan_time_plot_has_one_panel_per_sequence(tmp_path):
-    times = {"first": np.full(30, 0.01), "second": np.linspace(0.01, 0.02, 200)}
-    scan_time_plot(times, tmp_path / "one.png")
-    scan_time_plot({"first": times["first"]}, tmp_path / "two.png")
-    assert picture(tmp_path / "one.png").shape[1] > 1.6 * picture(tmp_path / "two.png").shape[1]
+def test_scan_time_plot_has_one_panel_per_sequence_and_a_line_per_method(tmp_path):
+    times = {
+        "first": {"ehm": np.full(30, 0.01)},
+        "second": {"ehm": np.linspace(0.01, 0.02, 2000), "octomap": np.full(2000, 0.004)},
+    }
+    scan_time_plot(times, tmp_path / "two.png")
+    scan_time_plot({"first": times["first"]}, tmp_path / "one.png")
+    assert picture(tmp_path / "two.png").shape[1] > 1.6 * picture(tmp_path / "one.png").shape[1]
+    scan_time_plot({"second": {"ehm": times["second"]["ehm"]}}, tmp_path / "alone.png")
+    assert coloured(tmp_path / "alone.png") < coloured(tmp_path / "two.png")

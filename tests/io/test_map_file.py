@@ -114,9 +114,9 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
     They answer as when they were written (to rounding), and a map built now from the same
     scans with the same settings (no sample memory then, the nearest clusters' features,
-    no thinning) answers nearly the same: quick-means has summed its
-    clusters' moments in another order since, and SGD carries that rounding on (4.4e-5 at
-    most on the plan when changed)."""
+    no thinning, each scan learned as it came) classifies nearly every point the same: SGD
+    has visited the samples in another random order since (measured: the same class at
+    97.6 % of the room's points and 99.2 % of the plan's, 0.04 apart on average)."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
@@ -128,7 +128,9 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     for mode in ("batch", "exact"):
         answers = recorded[f"{name}_{mode}"]
         np.testing.assert_allclose(loaded.occupancy(points, mode), answers, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(rebuilt.occupancy(points, mode), answers, rtol=0, atol=1e-4)
+        again = rebuilt.occupancy(points, mode)
+        assert np.mean((again > 0.5) == (answers > 0.5)) > 0.95
+        assert np.mean(np.abs(again - answers)) < 0.06
 
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:

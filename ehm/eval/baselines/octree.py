@@ -45,9 +45,11 @@ class OctoMapMapper:
     def build(self, scans: list[Scan]) -> None:
         self.tree = self._octomap.OcTree(self.resolution)
         for scan in scans:
-            self.tree.insertPointCloud(
-                _in_3d(scan.points_world[scan.hit_mask]), _in_3d(scan.origin)
-            )
+            self.insert(scan)
+
+    def insert(self, scan: Scan) -> None:
+        """Insert one more scan's hits into the tree (build first)."""
+        self.tree.insertPointCloud(_in_3d(scan.points_world[scan.hit_mask]), _in_3d(scan.origin))
 
     def occupancy(self, points: np.ndarray) -> np.ndarray:
         if self.tree is None:

@@ -208,3 +208,69 @@ def floor_plan_2d(
     rng = np.random.default_rng(seed)
     scans = [simulate_scan(scene, p, directions, max_range, noise_std, rng) for p in poses]
     return SimulatedDataset("floor_plan_2d", scans, scene)
+
+
+def corridor_scene(length: float = 100.0) -> Scene:
+    """A 2D office floor `length` metres long: a 2 m corridor along x with 5 x 4 m rooms on
+    both sides, each with a 1 m door onto the corridor and a piece of furniture, and a pillar
+    in the corridor every 10 m. The layout is fixed."""
+    n_rooms = int(length // 5.0)
+    wall = 0.1
+    layout = np.random.default_rng(7)
+    boxes = [
+        ([-wall, -5.0 - wall], [0.0, 5.0 + wall]),  # the two ends
+        ([5.0 * n_rooms, -5.0 - wall], [5.0 * n_rooms + wall, 5.0 + wall]),
+        ([-wall, -5.0 - wall], [5.0 * n_rooms + wall, -5.0]),  # the back walls of the rooms
+        ([-wall, 5.0], [5.0 * n_rooms + wall, 5.0 + wall]),
+    ]
+    for room in range(n_rooms):
+        x0 = 5.0 * room
+        for side in (-1.0, 1.0):
+            inner, outer = sorted((side * 1.0, side * (1.0 + wall)))
+            boxes.append(([x0, inner], [x0 + 2.0, outer]))  # corridor wall, door from 2 to 3 m
+            boxes.append(([x0 + 3.0, inner], [x0 + 5.0, outer]))
+            near, far = sorted((side * 1.0, side * 5.0))
+            boxes.append(([x0 + 5.0 - wall / 2, near], [x0 + 5.0 + wall / 2, far]))
+            size = layout.uniform([0.5, 0.4], [1.5, 1.0])
+            corner = [x0 + layout.uniform(0.3, 4.7 - size[0]), side * 4.7 - (side > 0) * size[1]]
+            boxes.append((corner, [corner[0] + size[0], corner[1] + size[1]]))
+    pillars = np.array([[10.0 * k + 5.0, 0.6] for k in range(int(length // 10.0))])
+    return Scene(
+        np.array([b[0] for b in boxes], dtype=np.float64),
+        np.array([b[1] for b in boxes], dtype=np.float64),
+        pillars.reshape(-1, 2),
+        np.full(len(pillars), 0.15),
+    )
+
+
+def corridor_2d(
+    seed: int = 0,
+    n_scans: int = 2000,
+    length: float = 100.0,
+    beams: int = 180,
+    max_range: float = 8.0,
+    noise_std: float = 0.01,
+) -> SimulatedDataset:
+    """`n_scans` 2D laser scans of `beams` rays taken along the corridor of
+    `corridor_scene(length)`, evenly spaced from one end to the other and weaving across it: a
+    long run whose map keeps growing. Rays longer than `max_range` metres are no-return rays."""
+    scene = corridor_scene(length)
+    angles = np.linspace(0.0, 2.0 * np.pi, beams, endpoint=False)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+    x = np.linspace(0.5, 5.0 * int(length // 5.0) - 0.5, n_scans)
+    poses = np.column_stack([x, 0.3 * np.sin(x / 3.0)])
+    rng = np.random.default_rng(seed)
+    scans = []
+    for pose in poses:
+        # Only the solids within range can be hit: ray-cast against those alone.
+        gap = np.maximum(np.maximum(scene.box_min - pose, pose - scene.box_max), 0.0)
+        near = np.linalg.norm(gap, axis=1) <= max_range
+        balls = np.linalg.norm(scene.ball_centres - pose, axis=1) <= max_range + scene.ball_radii
+        local = Scene(
+            scene.box_min[near],
+            scene.box_max[near],
+            scene.ball_centres[balls],
+            scene.ball_radii[balls],
+        )
+        scans.append(simulate_scan(local, pose, directions, max_range, noise_std, rng))
+    return SimulatedDataset("corridor_2d", scans, scene)

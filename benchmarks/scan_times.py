@@ -1,0 +1,94 @@
+"""Time per scan against the number of scans already in the map: EHM scan by scan (each batch
+of `MapConfig.batch_rays` rays shared by its scans) and OctoMap's insertPointCloud, in one
+process on the same scans.
+
+    python benchmarks/scan_times.py [--datasets corridor_2d,intel_lab,...]
+
+corridor_2d is a generated 100 m office floor scanned 2,000 times by a 2D laser of 180 rays
+as a robot drives along it: a map that keeps growing. Prints a markdown table and draws
+benchmarks/figures/scan_times.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from common import RESOLUTION, heading, markdown_table
+
+import ehm
+from ehm.core.scan import Scan
+from ehm.eval.baselines.octree import OctoMapMapper
+from ehm.eval.datasets import DataMissingError, load_dataset, warehouse
+from ehm.eval.datasets.simulated import corridor_2d
+from ehm.eval.plots import scan_time_plot
+from ehm.pipeline import MappingPipeline
+
+HERE = Path(__file__).resolve().parent
+LOADERS = {
+    "corridor_2d": lambda: corridor_2d().scans,
+    "intel_lab": lambda: load_dataset("intel_lab"),
+    "tum_fr2_pioneer_slam2": lambda: load_dataset("tum_fr2_pioneer_slam2"),
+    "warehouse": lambda: warehouse().scans,
+}
+
+
+def octomap_scan_seconds(scans: list[Scan]) -> np.ndarray:
+    """(n,) seconds of each scan's insertPointCloud into one OcTree at RESOLUTION."""
+    mapper = OctoMapMapper(RESOLUTION)
+    mapper.build([])
+    seconds = []
+    for scan in scans:
+        start = time.perf_counter()
+        mapper.insert(scan)
+        seconds.append(time.perf_counter() - start)
+    return np.array(seconds)
+
+
+def tenth_means(seconds: np.ndarray) -> tuple[float, float]:
+    """Mean milliseconds of the first and the last tenth of the scans."""
+    tenth = max(1, len(seconds) // 10)
+    return 1e3 * seconds[:tenth].mean(), 1e3 * seconds[-tenth:].mean()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--datasets", default=",".join(LOADERS))
+    args = parser.parse_args()
+    # Compile every kernel before timing.
+    MappingPipeline(corridor_2d(n_scans=20, length=10.0).scans, ehm.HilbertMap()).run()
+    seconds, rows = {}, []
+    for name in args.datasets.split(","):
+        try:
+            scans = LOADERS[name]()
+        except DataMissingError as error:
+            print(f"Left out {name}: {error}\n")
+            continue
+        run = MappingPipeline(scans, ehm.HilbertMap()).run()
+        ours = run.amortized_scan_seconds()
+        theirs = octomap_scan_seconds(scans)
+        seconds[name] = {"EHM (batch time shared by its scans)": ours, "OctoMap": theirs}
+        ours_first, ours_last = tenth_means(ours)
+        theirs_first, theirs_last = tenth_means(theirs)
+        rows.append(
+            [
+                name,
+                f"{len(scans):,}",
+                f"{run.n_rays // len(scans):,}",
+                f"{len(run.batch_scans):,}",
+                f"{ours_first:.2f} / {ours_last:.2f} ({ours_last / ours_first:.2f}x)",
+                f"{theirs_first:.2f} / {theirs_last:.2f} ({theirs_last / theirs_first:.2f}x)",
+                f"{ours.sum():.2f} / {theirs.sum():.2f} ({ours.sum() / theirs.sum():.2f})",
+            ]
+        )
+    print(heading("Time per scan", "EHM and OctoMap in one process"))
+    header = ["sequence", "scans", "rays per scan", "EHM batches"]
+    header += ["EHM ms first / last 10 %", "OctoMap ms first / last 10 %", "total s EHM / OctoMap"]
+    print(markdown_table(header, rows))
+    scan_time_plot(seconds, HERE / "figures" / "scan_times.png")
+
+
+if __name__ == "__main__":
+    main()
