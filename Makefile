@@ -28,6 +28,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/kernel_selection.py
 	$(BIN)/python benchmarks/paper_evaluation.py
 	$(BIN)/python benchmarks/online_mapping.py
+	$(BIN)/python benchmarks/scan_times.py
 	$(BIN)/python benchmarks/startup.py
 
 clean:

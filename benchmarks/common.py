@@ -41,10 +41,11 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "EHM, balance_classes=True": {"balance_classes": True},
     "EHM, samples clustered together": {"cluster_free_apart": False},
 }
-# Merge rules only act between scans: these variants learn the training rays as two scans.
+# Merge rules only act between scans: these variants learn the training rays as two scans,
+# each as it comes.
 MERGE_VARIANTS: dict[str, dict[str, Any]] = {
-    "EHM, paper's average merge (2 halves)": {"merge_rule": "average"},
-    "EHM, pooled merge (2 halves)": {"merge_rule": "pooled"},
+    "EHM, paper's average merge (2 halves)": {"merge_rule": "average", "batch_rays": 0},
+    "EHM, pooled merge (2 halves)": {"merge_rule": "pooled", "batch_rays": 0},
 }
 
 

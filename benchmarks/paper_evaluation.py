@@ -1,6 +1,6 @@
 """The paper's Section 4 re-run on data anyone can get, every method in one process on the
-same held-out-rays splits: Table 3, Figure 9, Table 4, Table 5, integration time per scan,
-memory per method, and every method on every data set.
+same held-out-rays splits: Table 3, Figure 9, Table 4, Table 5, memory per method, and every
+method on every data set (time per scan against the scans in the map: scan_times.py).
 
     python benchmarks/paper_evaluation.py [--seeds 3]
 
@@ -25,9 +25,8 @@ from pathlib import Path
 from common import markdown_table
 
 from ehm.eval.baselines import METHODS, make_mapper
-from ehm.eval.baselines.localized import LocalizedMapper
 from ehm.eval.datasets import DATASETS, DataMissingError, load_dataset
-from ehm.eval.plots import scan_time_plot, sparsity_plot
+from ehm.eval.plots import sparsity_plot
 from ehm.eval.runner import DEFAULT_FRACTIONS, EvalRecord, Summary, evaluate_scans, summarise
 
 HERE = Path(__file__).resolve().parent
@@ -151,41 +150,6 @@ def method_table(
     )
 
 
-def scan_times(runs: Runs, figures: Path) -> str:
-    """Integration time per scan of incremental EHM over whole sequences."""
-    seconds = {}
-    for dataset in ("tum_fr2_pioneer_slam2", "intel_lab"):
-        if runs.load(dataset):
-            mapper = LocalizedMapper("ehm")
-            mapper.build(runs.scans[dataset])
-            seconds[dataset] = mapper.scan_seconds
-    text = "### Integration time per scan\n\n"
-    if not seconds:
-        return text + "Left out: " + "; ".join(runs.missing.values()) + "\n"
-    scan_time_plot(seconds, figures / "scan_times.png")
-    text += (
-        "Incremental EHM over every scan of each sequence (all rays), wall-clock time of each "
-        "integrate.\n\n![integration time against scan index](benchmarks/figures/"
-        "scan_times.png)\n\n"
-    )
-    rows = []
-    for dataset, times in seconds.items():
-        tenth = max(1, len(times) // 10)
-        ms = [1000 * t for t in times]
-        rows.append(
-            [
-                dataset,
-                f"{len(ms)}",
-                f"{sorted(ms)[len(ms) // 2]:.1f}",
-                f"{sum(ms[:tenth]) / tenth:.1f}",
-                f"{sum(ms[-tenth:]) / tenth:.1f}",
-                f"{max(ms):.1f}",
-            ]
-        )
-    header = ["sequence", "scans", "median ms", "first 10 % mean ms", "last 10 % mean ms"]
-    return text + markdown_table([*header, "max ms"], rows)
-
-
 def every_dataset(runs: Runs) -> str:
     """Every method on every data set at train fraction 0.8, seed 0."""
     text = "### Every method on every data set, train fraction 0.8, seed 0\n\n"
@@ -249,7 +213,6 @@ def main() -> None:
             "Table 5: single batch against incremental on the TUM sequence (`ehm`: with the "
             "sample memory; `ehm-alone`: each scan learned alone, as the paper's Alg. 2)",
         ),
-        scan_times(runs, figures),
         every_dataset(runs),
     ]
     minutes = (time.perf_counter() - start) / 60
