@@ -46,19 +46,20 @@ class MapConfig:
     to be solid this deep."""
     samples_per_cell: int = 0
     """Most samples of one batch kept per cell and kind, in cells half a cluster radius wide
-    (ehm.core.thinning); each kept one weighs for those left out of its cell. Where rays
-    crowd, near the sensor, this takes most samples out before any work. 0 keeps all. A
-    trade, off by default: at 16, TUM's 10 frames map 2.5x faster (4.7 s against 11.9 s) and
-    the sample scan 1.5x, but held-out F1 scan by scan drops 0.008-0.017 (TUM 0.949, PCL room
-    0.917, virtual room 0.937 against 0.966, 0.932, 0.949)."""
+    (ehm.core.thinning); each kept one stands for those left out of its cell, and SGD visits
+    it as many times. Where rays crowd, near the sensor, this takes most samples out before
+    any work. 0 keeps all. A trade, off by default: at 16, TUM's frames map 1.7x faster at
+    the same held-out F1 and near-surface F1 rises 0.01-0.02 on the simulated scenes, but the
+    virtual room's held-out F1 drops 0.02-0.03 (0.929 against 0.948 scan by scan) and thin
+    posts read occupied less often (BENCHMARKS.md)."""
 
     batch_rays: int = 20_000
     """Scans are gathered until they hold at least this many rays, then learned as one batch
     (one set of samples, one clustering, one SGD run). A query, a grid, a save or `flush()`
     learns the scans still waiting first, so every answer sees every scan given. Small scans
     (a 2D laser's few hundred rays) then share the fixed cost of an update and form their
-    clusters together: the Intel lab's 180-ray scans map 5x faster and score held-out F1
-    0.942 against 0.910 one by one (one batch of all: 0.952). Scans of a LiDAR or a depth
+    clusters together: the Intel lab's 180-ray scans map 6x faster and score held-out F1
+    0.943 against 0.910 one by one (one batch of all: 0.952). Scans of a LiDAR or a depth
     camera hold more rays and are learned as they come. 0 learns every scan as it comes."""
 
     # Quick-means (Alg. 1).
