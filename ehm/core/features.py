@@ -45,8 +45,8 @@ class PointGroups:
         (0 for no points)."""
         if len(points) == 0:
             return 0.0
-        offsets = points - self.centres[self.group_of_point]
-        return float(np.sqrt(np.max(np.sum(offsets**2, axis=1))))
+        offsets = points - np.take(self.centres, self.group_of_point, axis=0)
+        return float(np.sqrt(np.einsum("ij,ij->i", offsets, offsets).max()))
 
 
 def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:

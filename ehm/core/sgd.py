@@ -73,6 +73,8 @@ def weighted_visits(sample_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     rather than one 40 times as large: on TUM scan by scan, held-out F1 0.965 against 0.949,
     as high as learning every sample."""
     visits = np.maximum(1, np.rint(sample_weights)).astype(np.int64)
+    if len(visits) == 0 or visits.max() == 1:
+        return np.arange(len(visits)), sample_weights
     return np.repeat(np.arange(len(visits)), visits), sample_weights / visits
 
 

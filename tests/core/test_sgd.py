@@ -85,6 +85,9 @@ def test_heavy_samples_are_visited_as_often_as_they_weigh():
     sample_of_visit, per_visit = weighted_visits(np.array([1.0, 3.0, 0.4, 2.6]))
     np.testing.assert_array_equal(sample_of_visit, [0, 1, 1, 1, 2, 3, 3, 3])
     np.testing.assert_allclose(per_visit, [1.0, 1.0, 0.4, 2.6 / 3])
+    sample_of_visit, per_visit = weighted_visits(np.array([1.0, 0.4, 1.2]))
+    np.testing.assert_array_equal(sample_of_visit, [0, 1, 2])
+    np.testing.assert_array_equal(per_visit, [1.0, 0.4, 1.2])
 
 
 def test_a_sample_weighing_three_learns_as_three_copies():
