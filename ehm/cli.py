@@ -40,9 +40,19 @@ def _parse_settings(settings: list[str]) -> dict:
             raise typer.BadParameter(f"{item!r}: expected name=value with a MapConfig name")
         kind = type(defaults[name])
         if kind is bool:
-            overrides[name] = value.lower() in ("1", "true", "yes", "on")
+            words = {"1": True, "true": True, "yes": True, "on": True}
+            words |= {"0": False, "false": False, "no": False, "off": False}
+            if value.lower() not in words:
+                raise typer.BadParameter(f"{item!r}: {name} is true or false, got {value!r}")
+            overrides[name] = words[value.lower()]
         else:
-            overrides[name] = kind(value)
+            try:
+                overrides[name] = kind(value)
+            except ValueError as error:
+                raise typer.BadParameter(
+                    f"{item!r}: {name} is a{'n' if kind is int else ''} {kind.__name__}, "
+                    f"got {value!r}"
+                ) from error
     return overrides
 
 

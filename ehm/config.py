@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -25,6 +26,9 @@ LENGTH_SETTINGS = (
     "min_std",
     "query_cell",
 )
+# The shortest length a setting may take, metres: below it, kernels of that spread
+# overflow in double precision.
+SMALLEST_LENGTH = 1e-6
 
 
 @dataclass(frozen=True)
@@ -193,6 +197,19 @@ class MapConfig:
     """Seed of every random choice (sampling, quick-means order, SGD order)."""
 
     def __post_init__(self) -> None:
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if isinstance(field.default, bool) and not isinstance(value, bool):
+                raise ValueError(f"MapConfig.{field.name} must be True or False, got {value!r}")
+            finite = isinstance(value, int | float) and math.isfinite(value)
+            if isinstance(field.default, float) and not finite:
+                raise ValueError(f"MapConfig.{field.name} must be a finite number, got {value!r}")
+        for name in LENGTH_SETTINGS:
+            if 0 < getattr(self, name) < SMALLEST_LENGTH:
+                raise ValueError(
+                    f"MapConfig.{name} must be at least {SMALLEST_LENGTH:g} m, "
+                    f"got {getattr(self, name)!r}"
+                )
         positive = (
             "free_spacing",
             "surface_margin",

@@ -36,9 +36,15 @@ def test_overrides_and_validation():
         ("samples_per_cell", -4, "samples_per_cell must be an integer >= 0"),
         ("samples_per_cell", 4.0, "samples_per_cell must be an integer >= 0"),
         ("batch_rays", -1, "batch_rays must be an integer >= 0"),
+        ("l2", float("nan"), "l2 must be a finite number, got nan"),
+        ("cluster_radius", float("inf"), "cluster_radius must be a finite number, got inf"),
+        ("learning_rate", "0.3", "learning_rate must be a finite number, got '0.3'"),
+        ("min_std", 1e-300, "min_std must be at least 1e-06 m"),
+        ("planar_kernel", "maybe", "planar_kernel must be True or False, got 'maybe'"),
+        ("balance_classes", 1, "balance_classes must be True or False, got 1"),
         ("batch_rays", 1e4, "batch_rays must be an integer >= 0"),
         ("replay_ratio", -0.5, "replay_ratio must be >= 0"),
-        ("replay_ratio", float("nan"), "replay_ratio must be >= 0"),
+        ("replay_ratio", float("nan"), "replay_ratio must be a finite number, got nan"),
     ],
 )
 def test_kernel_selection_search_and_hierarchy_settings_are_validated(setting, value, message):
