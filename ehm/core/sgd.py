@@ -83,7 +83,7 @@ def blocked_order(n: int, rng: np.random.Generator, block: int = SGD_BLOCK) -> n
     time: the blocks in random order, the samples of each in random order. Over samples that
     were shuffled before, each block is a random draw, so passes in this order learn as
     passes in a fresh permutation do; the features of a block are read from memory once
-    instead of one sample at a time (SGD over the sample scan's 1.1M samples: 4x faster)."""
+    instead of one sample at a time (SGD over the sample scan: 200 ms against 600)."""
     order = np.arange(n, dtype=np.int64)
     starts = range(0, n, block)
     for start in starts:

@@ -1,5 +1,5 @@
 """Embedded synthetic scenes with exact occupancy: the virtual room, a warehouse and an outdoor
-street (3D), and a floor plan (2D).
+street (3D), and a floor plan and a 100 m office corridor (2D).
 
 All are deterministic for a seed; the seed only draws the range noise.
 """

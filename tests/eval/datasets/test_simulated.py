@@ -3,6 +3,7 @@
 import numpy as np
 
 from ehm.eval.datasets import street, warehouse
+from ehm.eval.datasets.simulated import corridor_2d
 
 
 def test_warehouse_scans_start_in_free_space_and_end_on_surfaces():
@@ -36,3 +37,19 @@ def test_street_scans_see_ground_far_away_thin_posts_and_sky():
         )
         on_posts = np.concatenate([on_posts, np.all(inside, axis=2).any(axis=1)])
     assert on_posts.sum() > 100
+
+
+def test_corridor_scans_drive_its_length_and_end_on_its_walls():
+    data = corridor_2d(n_scans=40, length=20.0, noise_std=0.0)
+    origins = np.array([scan.origin for scan in data.scans])
+    assert len(data.scans) == 40 and data.scene.dim == 2
+    assert origins[0, 0] == 0.5 and origins[-1, 0] == 19.5 and np.all(np.diff(origins[:, 0]) > 0)
+    assert not data.scene.occupied(origins).any()
+    for scan in data.scans:
+        hits = scan.points_world[scan.hit_mask]
+        # Ray-cast against the solids in range only, the hits lie on the whole scene's surfaces.
+        np.testing.assert_allclose(data.scene.surface_distance(hits), 0.0, atol=1e-6)
+        assert np.all(np.linalg.norm(hits - scan.origin, axis=1) <= 8.0)
+    # Doors open on the rooms: some rays end beyond the corridor's walls at |y| = 1.1.
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in data.scans])
+    assert np.any(np.abs(hits[:, 1]) > 4.0)
