@@ -111,11 +111,15 @@ class HilbertMap:
         return 0 if self.clusters_ is None else len(self.clusters_)
 
     def __repr__(self) -> str:
+        """The map as it stands, without learning the scans that wait for their batch."""
         changed = {k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v}
-        settings = ", ".join(f"{k}={v!r}" for k, v in changed.items())
-        return f"HilbertMap(dim={self.dim}, clusters={self.n_clusters}, scans={self.n_scans_}" + (
-            f", {settings})" if settings else ")"
-        )
+        parts = [f"dim={self.dim}"]
+        parts.append(f"clusters={0 if self.clusters_ is None else len(self.clusters_)}")
+        parts.append(f"scans={self.n_scans_}")
+        if self._waiting:
+            parts.append(f"waiting={len(self._waiting)}")
+        parts += [f"{k}={v!r}" for k, v in changed.items()]
+        return f"HilbertMap({', '.join(parts)})"
 
     def clusters(self) -> ClusterView:
         """A copy of the clusters: centres, covariances, weights, kind ('planar' or

@@ -200,6 +200,7 @@ def test_scans_wait_for_their_batch_and_every_answer_sees_them(plan, tmp_path):
     batched = ehm.HilbertMap(batch_rays=1000)
     batched.integrate_scan(plan.scans[0]).integrate_scan(plan.scans[1])
     assert batched.n_waiting_scans == 2 and batched.clusters_ is None and batched.dim == 2
+    assert repr(batched) == "HilbertMap(dim=2, clusters=0, scans=2, waiting=2, batch_rays=1000)"
     assert batched.timings_ == {}
     with pytest.raises(ValueError, match="scan points are 3D, the map is 2D"):
         batched.integrate(np.ones((4, 3)), np.zeros(3))
