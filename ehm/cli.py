@@ -3,6 +3,7 @@ each command so that `ehm --help` is instant."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -176,8 +177,8 @@ def map_command(
     from ehm.io.readers import read_scans
     from ehm.pipeline import MappingPipeline, ProgressBar
 
-    sensor = [float(v) for v in origin.split(",")] if origin else None
     try:
+        sensor = _numbers(origin, float, "--origin") if origin else None
         config = MapConfig.for_resolution(resolution, **_parse_settings(setting or []))
         hilbert_map = HilbertMap(config)
         scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
@@ -358,10 +359,14 @@ def _names(text: str, known: list[str], what: str) -> list[str]:
 
 
 def _numbers(text: str, kind: type, what: str) -> list:
+    """Comma-separated finite numbers of `kind`, or a usage error naming `what` and the text."""
     try:
-        return [kind(v) for v in text.split(",") if v.strip()]
+        values = [kind(v) for v in text.split(",") if v.strip()]
     except ValueError as error:
         raise typer.BadParameter(f"{what}: {error}") from error
+    if not all(math.isfinite(v) for v in values):
+        raise typer.BadParameter(f"{what}: expected finite numbers, got {text!r}")
+    return values
 
 
 @app.command("eval")

@@ -111,6 +111,8 @@ def test_bad_inputs_give_clear_errors(map_file, tmp_path):
     fails(["map", log, "-o", output, "--set", "neighbours=1.5"], 2, "neighbours is an int, got")
     fails(["map", log, "-o", output, "--set", "planar_kernel=maybe"], 2, "is true or false")
     fails(["map", log, "-o", output, "--set", "l2=nan"], 2, "l2 must be a finite number")
+    fails(["map", log, "-o", output, "--origin", "a,b,c"], 2, "--origin: could not convert")
+    fails(["map", log, "-o", output, "--origin", "0,nan,1"], 2, "finite numbers, got '0,nan,1'")
     fails(["map", log, "-o", output, "--set", "cluster_radius=inf"], 2, "must be a finite")
     fails(["map", log, "-o", output, "--resolution", "0"], 2, "resolution must be a positive")
     assert not (tmp_path / "x.ehm").exists()
