@@ -63,6 +63,8 @@ def curvature_sum(
     """Compiled core of `add_curvature`, on the features' compressed rows (see
     SparseFeatures)."""
     for i in range(len(indptr) - 1):
+        if sample_weights[i] == 0.0:  # replayed samples, counted when they were new
+            continue
         score = bias
         for e in range(indptr[i], indptr[i + 1]):
             score += weights[rows[e]] * values[e]

@@ -17,6 +17,7 @@ def test_compiled_curvature_matches_reference(rng, sparse_batch):
     n, n_clusters = 400, 50
     indptr, rows, values, _ = sparse_batch(rng, n, 6, 30, n_clusters)
     sample_weights = rng.uniform(0.5, 2.0, n)
+    sample_weights[::3] = 0.0  # samples that add nothing, as replayed ones
     weights = rng.normal(size=n_clusters)
     start = rng.uniform(1.0, 3.0, n_clusters)
     compiled, reference = start.copy(), start.copy()
