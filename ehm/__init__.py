@@ -1,8 +1,9 @@
 """Efficient Hilbert Maps: continuous occupancy maps from range scans.
 
-The public API: HilbertMap, MapConfig, Scan, load, MapFileError and evaluate (the paper's
-comparison, ehm.eval). Each is imported on first use, so `import ehm` and the command line's
-help are instant, and the evaluation is never loaded by a program that does not ask for it.
+The public API: HilbertMap, MapConfig, Scan, load, evaluate (the paper's comparison,
+ehm.eval), and the errors raised for bad input: EhmError and its kinds (ehm.errors). Each is
+imported on first use, so `import ehm` and the command line's help are instant, and the
+evaluation is never loaded by a program that does not ask for it.
 """
 
 from importlib import import_module
@@ -11,12 +12,26 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from ehm.config import MapConfig
     from ehm.core.scan import Scan
+    from ehm.errors import (
+        EhmError,
+        EmptyMapError,
+        FileReadError,
+        InputError,
+        OutputError,
+        SettingsError,
+    )
     from ehm.eval.runner import evaluate
     from ehm.hilbert_map import HilbertMap, load
     from ehm.io.map_file import MapFileError
 
 # Each public name and the module that defines it.
 _HOMES = {
+    "EhmError": "ehm.errors",
+    "EmptyMapError": "ehm.errors",
+    "FileReadError": "ehm.errors",
+    "InputError": "ehm.errors",
+    "OutputError": "ehm.errors",
+    "SettingsError": "ehm.errors",
     "HilbertMap": "ehm.hilbert_map",
     "MapConfig": "ehm.config",
     "MapFileError": "ehm.io.map_file",
@@ -25,7 +40,20 @@ _HOMES = {
     "load": "ehm.hilbert_map",
 }
 
-__all__ = ["HilbertMap", "MapConfig", "MapFileError", "Scan", "evaluate", "load"]
+__all__ = [
+    "EhmError",
+    "EmptyMapError",
+    "FileReadError",
+    "HilbertMap",
+    "InputError",
+    "MapConfig",
+    "MapFileError",
+    "OutputError",
+    "Scan",
+    "SettingsError",
+    "evaluate",
+    "load",
+]
 __version__ = "0.1.0"
 
 

@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from ehm.errors import SettingsError
+
 FeatureSearch = Literal["support", "nearest"]
 MergeRule = Literal["pooled", "average"]
 QueryMode = Literal["batch", "exact"]
@@ -200,13 +202,15 @@ class MapConfig:
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
             if isinstance(field.default, bool) and not isinstance(value, bool):
-                raise ValueError(f"MapConfig.{field.name} must be True or False, got {value!r}")
+                raise SettingsError(f"MapConfig.{field.name} must be True or False, got {value!r}")
             finite = isinstance(value, int | float) and math.isfinite(value)
             if isinstance(field.default, float) and not finite:
-                raise ValueError(f"MapConfig.{field.name} must be a finite number, got {value!r}")
+                raise SettingsError(
+                    f"MapConfig.{field.name} must be a finite number, got {value!r}"
+                )
         for name in LENGTH_SETTINGS:
             if 0 < getattr(self, name) < SMALLEST_LENGTH:
-                raise ValueError(
+                raise SettingsError(
                     f"MapConfig.{name} must be at least {SMALLEST_LENGTH:g} m, "
                     f"got {getattr(self, name)!r}"
                 )
@@ -230,9 +234,9 @@ class MapConfig:
         for name in positive:
             value = getattr(self, name)
             if not isinstance(value, int | float) or not value > 0:
-                raise ValueError(f"MapConfig.{name} must be a positive number, got {value!r}")
+                raise SettingsError(f"MapConfig.{name} must be a positive number, got {value!r}")
         if not self.outer_radius_factor >= 1.0:
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.outer_radius_factor must be >= 1, got {self.outer_radius_factor!r}"
             )
         integers = (
@@ -250,39 +254,41 @@ class MapConfig:
         for name, low in integers:
             value = getattr(self, name)
             if not isinstance(value, int) or value < low:
-                raise ValueError(f"MapConfig.{name} must be an integer >= {low}, got {value!r}")
+                raise SettingsError(f"MapConfig.{name} must be an integer >= {low}, got {value!r}")
         if not self.planar_ratio < 1.0:
-            raise ValueError(f"MapConfig.planar_ratio must be below 1, got {self.planar_ratio!r}")
+            raise SettingsError(
+                f"MapConfig.planar_ratio must be below 1, got {self.planar_ratio!r}"
+            )
         if not self.coplanar_angle < 90.0:
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.coplanar_angle must be below 90 degrees, got {self.coplanar_angle!r}"
             )
         if not self.anchor_radius_factor > 1.0:
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.anchor_radius_factor must be above 1, got {self.anchor_radius_factor!r}"
             )
         if not isinstance(self.replay_ratio, int | float) or not self.replay_ratio >= 0:
-            raise ValueError(f"MapConfig.replay_ratio must be >= 0, got {self.replay_ratio!r}")
+            raise SettingsError(f"MapConfig.replay_ratio must be >= 0, got {self.replay_ratio!r}")
         if self.l2 < 0:
-            raise ValueError(f"MapConfig.l2 must be >= 0, got {self.l2!r}")
+            raise SettingsError(f"MapConfig.l2 must be >= 0, got {self.l2!r}")
         if self.features not in ("support", "nearest"):
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.features must be 'support' or 'nearest', got {self.features!r}"
             )
         if self.merge_rule not in ("pooled", "average"):
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.merge_rule must be 'pooled' or 'average', got {self.merge_rule!r}"
             )
         if self.update_rule not in ("sgd", "posterior"):
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.update_rule must be 'sgd' or 'posterior', got {self.update_rule!r}"
             )
         if self.train_search not in ("group", "point"):
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.train_search must be 'group' or 'point', got {self.train_search!r}"
             )
         if self.query_mode not in ("batch", "exact"):
-            raise ValueError(
+            raise SettingsError(
                 f"MapConfig.query_mode must be 'batch' or 'exact', got {self.query_mode!r}"
             )
 
@@ -295,7 +301,7 @@ class MapConfig:
         centimetres apart, wants about 0.2: on the simulated street, held-out F1 0.98 against
         0.87 at the defaults (BENCHMARKS.md)."""
         if not isinstance(resolution, int | float) or not 0.0 < resolution < float("inf"):
-            raise ValueError(
+            raise SettingsError(
                 f"map resolution must be a positive number of metres, got {resolution!r}"
             )
         defaults = cls()
@@ -304,11 +310,11 @@ class MapConfig:
         return defaults.replace(**{**scaled, **overrides})
 
     def replace(self, **overrides: Any) -> MapConfig:
-        """A copy with some settings changed; unknown names raise ValueError."""
+        """A copy with some settings changed; unknown names raise SettingsError."""
         known = {f.name for f in dataclasses.fields(self)}
         unknown = sorted(set(overrides) - known)
         if unknown:
-            raise ValueError(f"unknown MapConfig setting(s): {', '.join(unknown)}")
+            raise SettingsError(f"unknown MapConfig setting(s): {', '.join(unknown)}")
         return dataclasses.replace(self, **overrides)
 
     def to_dict(self) -> dict[str, Any]:
@@ -316,5 +322,5 @@ class MapConfig:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> MapConfig:
-        """Build from a mapping such as `to_dict()` wrote; unknown names raise ValueError."""
+        """Build from a mapping such as `to_dict()` wrote; unknown names raise SettingsError."""
         return cls().replace(**values)

@@ -46,6 +46,7 @@ from ehm.core.supports import SupportHash
 from ehm.core.thinning import thin_samples
 from ehm.core.timing import StageTimer
 from ehm.core.uncertainty import add_curvature, logit_variance, occupancy_std
+from ehm.errors import EmptyMapError, InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.io.map_file import read_map, write_map
@@ -181,14 +182,14 @@ class HilbertMap:
     def _memory(self) -> SampleMemory:
         """The sample memory, made with the clusters: there is one whenever there are clusters."""
         if self.memory_ is None:
-            raise RuntimeError("the map has no sample memory before it has learned")
+            raise EmptyMapError("the map has no sample memory before it has learned")
         return self.memory_
 
     def _learned(self, action: str) -> ClusterSet:
         """The clusters, after learning any scans waiting for their batch."""
         self.flush()
         if self.clusters_ is None:
-            raise RuntimeError(f"the map is empty: integrate a scan or fit before you {action}")
+            raise EmptyMapError(f"the map is empty: integrate a scan or fit before you {action}")
         return self.clusters_
 
     def _relist(self, changed: np.ndarray | None) -> None:
@@ -241,9 +242,9 @@ class HilbertMap:
         """Learn one Scan (Alg. 2); returns self. With config.batch_rays, the scan waits
         until the waiting scans hold that many rays, and they are learned together."""
         if not isinstance(scan, Scan):
-            raise ValueError(f"expected ehm.Scan, got {type(scan).__name__}")
+            raise InputError(f"expected ehm.Scan, got {type(scan).__name__}")
         if self.dim is not None and scan.dim != self.dim:
-            raise ValueError(f"scan points are {scan.dim}D, the map is {self.dim}D")
+            raise InputError(f"scan points are {scan.dim}D, the map is {self.dim}D")
         self._waiting.append(scan)
         self._waiting_rays += len(scan)
         self.n_scans_ += 1
@@ -269,12 +270,12 @@ class HilbertMap:
         """Single-batch mode (Table 5): forget what was learned and learn all scans at once."""
         scans = list(scans)
         if not scans:
-            raise ValueError("fit needs at least one scan, got none")
+            raise InputError("fit needs at least one scan, got none")
         for i, scan in enumerate(scans):
             if not isinstance(scan, Scan):
-                raise ValueError(f"scan {i}: expected ehm.Scan, got {type(scan).__name__}")
+                raise InputError(f"scan {i}: expected ehm.Scan, got {type(scan).__name__}")
             if scan.dim != scans[0].dim:
-                raise ValueError(f"scan {i}: points are {scan.dim}D, scan 0 is {scans[0].dim}D")
+                raise InputError(f"scan {i}: points are {scan.dim}D, scan 0 is {scans[0].dim}D")
         self._reset()
         timer = StageTimer()
         with timer("samples"):
@@ -407,10 +408,10 @@ class HilbertMap:
         clusters = self._learned("query it")
         mode = mode or self.config.query_mode
         if mode not in ("batch", "exact"):
-            raise ValueError(f"query mode must be 'batch' or 'exact', got {mode!r}")
+            raise InputError(f"query mode must be 'batch' or 'exact', got {mode!r}")
         points = np.asarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != self.dim:
-            raise ValueError(
+            raise InputError(
                 f"query points must have shape (n, {self.dim}), got {tuple(points.shape)}"
             )
         finite = np.all(np.isfinite(points), axis=1)

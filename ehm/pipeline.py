@@ -21,6 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from ehm.core.scan import Scan
+from ehm.errors import InputError
 from ehm.hilbert_map import HilbertMap
 
 
@@ -158,7 +159,7 @@ class MappingPipeline:
             if scan is None:
                 return
             if not isinstance(scan, Scan):
-                raise ValueError(f"scan {index}: expected ehm.Scan, got {type(scan).__name__}")
+                raise InputError(f"scan {index}: expected ehm.Scan, got {type(scan).__name__}")
             run.n_scans += 1
             run.n_rays += len(scan)
             run.n_dropped += scan.n_dropped

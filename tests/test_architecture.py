@@ -14,6 +14,7 @@ PACKAGE = Path(ehm.__file__).parent
 
 # From the bottom up: a module may import its own layer and the layers below it.
 LAYERS = (
+    "ehm.errors",
     "ehm.config",
     "ehm.core",
     "ehm.grid",

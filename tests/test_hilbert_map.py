@@ -112,7 +112,7 @@ def test_map_works_in_2d(plan):
 
 
 def test_querying_an_empty_map_is_refused():
-    with pytest.raises(RuntimeError, match="the map is empty"):
+    with pytest.raises(ehm.EmptyMapError, match="the map is empty"):
         ehm.HilbertMap().occupancy(np.zeros((1, 3)))
 
 
@@ -165,7 +165,7 @@ def test_cluster_view_names_walls_and_floors_as_planar(room):
     floor = (view.kind == "planar") & (view.means[:, 2] < 0.05) & (view.scale == "fine")
     normals = np.linalg.eigh(view.covariances[floor])[1][:, :, 0]
     assert floor.sum() > 50 and np.median(np.abs(normals[:, 2])) > 0.95
-    with pytest.raises(RuntimeError, match="map is empty"):
+    with pytest.raises(ehm.EmptyMapError, match="map is empty"):
         ehm.HilbertMap().clusters()
 
 
@@ -189,7 +189,7 @@ def test_state_restores_a_map_that_goes_on_exactly(plan):
         hilbert_map.integrate_scan(plan.scans[1])
     np.testing.assert_array_equal(a.clusters_.weights, b.clusters_.weights)
     np.testing.assert_array_equal(a.clusters_.precision, b.clusters_.precision)
-    with pytest.raises(RuntimeError, match="the map is empty"):
+    with pytest.raises(ehm.EmptyMapError, match="the map is empty"):
         ehm.HilbertMap().state()
 
 

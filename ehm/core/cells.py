@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ehm.errors import InputError
+
 
 @dataclass(frozen=True)
 class CellKeys:
@@ -24,7 +26,7 @@ def cell_keys(points: np.ndarray, cell: float) -> CellKeys:
     cells = np.floor((points - points.min(axis=0)) / cell).astype(np.int64)
     extents = cells.max(axis=0) + 1
     if np.prod(extents.astype(np.float64)) > 2.0**62:
-        raise ValueError(f"points span too many cells of {cell} m: cell keys overflow")
+        raise InputError(f"points span too many cells of {cell} m: cell keys overflow")
     strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
     return CellKeys(cells, extents, strides, cells @ strides)
 
@@ -43,7 +45,7 @@ def packed_cell_keys(
     if len(cells) and not (cells.min() >= -half and cells.max() < half):
         outside = np.any((cells < -half) | (cells >= half), axis=1)
         far = np.max(np.abs(points[outside]))
-        raise ValueError(
+        raise InputError(
             f"a training sample lies {far:.0f} m from the world origin; cells of "
             f"{side.min():g} m reach {half * side.min():.0f} m ({remedy})"
         )

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from ehm.errors import InputError
+
 
 def quaternion_to_matrix(w: float, x: float, y: float, z: float) -> np.ndarray:
     """(3, 3) rotation matrix of a quaternion (normalised first)."""
     q = np.array([w, x, y, z], dtype=np.float64)
     norm = np.linalg.norm(q)
-    if norm == 0:
-        raise ValueError("zero quaternion")
+    if not 0 < norm < np.inf:
+        raise InputError(f"quaternion {q.tolist()} (w, x, y, z) is no rotation")
     w, x, y, z = q / norm
     return np.array(
         [

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ehm.errors import InputError
+
 
 class Scan:
     """One range scan: ray end points, the sensor origin and which rays returned.
@@ -24,35 +26,35 @@ class Scan:
     ) -> None:
         points = np.asarray(points_world, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] not in (2, 3):
-            raise ValueError(
+            raise InputError(
                 f"scan points must have shape (N, 2) or (N, 3), got {tuple(points.shape)}"
             )
         if origin is None:
-            raise ValueError("scan origin is missing: give the sensor position in world frame")
+            raise InputError("scan origin is missing: give the sensor position in world frame")
         origin = np.asarray(origin, dtype=np.float64)
         if origin.shape != (points.shape[1],):
-            raise ValueError(
+            raise InputError(
                 f"scan origin has shape {tuple(origin.shape)}, points are {points.shape[1]}D"
             )
         if not np.all(np.isfinite(origin)):
-            raise ValueError(f"scan origin is not finite: {origin.tolist()}")
+            raise InputError(f"scan origin is not finite: {origin.tolist()}")
         if hit_mask is None:
             hits = np.ones(len(points), dtype=bool)
         else:
             hits = np.asarray(hit_mask)
             if hits.shape != (len(points),):
-                raise ValueError(
+                raise InputError(
                     f"hit_mask has shape {tuple(hits.shape)}, expected ({len(points)},)"
                 )
             if hits.dtype != bool:
-                raise ValueError(f"hit_mask must be boolean, got dtype {hits.dtype}")
+                raise InputError(f"hit_mask must be boolean, got dtype {hits.dtype}")
         finite = np.all(np.isfinite(points), axis=1)
         self.n_dropped = int(len(points) - finite.sum())
         self.points_world = points[finite]
         self.hit_mask = hits[finite]
         self.origin = origin
         if len(self.points_world) == 0:
-            raise ValueError(
+            raise InputError(
                 f"scan is empty: no finite points ({self.n_dropped} non-finite dropped)"
             )
 

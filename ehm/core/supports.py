@@ -29,6 +29,7 @@ import numpy as np
 from ehm.core.features import SparseFeatures, add_to_sums, kernel_at
 from ehm.core.hashing import EMPTY_KEY, hash_slot
 from ehm.core.kernels import cluster_kernel_reference
+from ehm.errors import InputError
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
 # free_cluster_radius). Smaller cells list fewer kernels a point does not touch but list each
@@ -406,7 +407,7 @@ class SupportHash:
         lo, hi = np.floor(low / side), np.floor(high / side)
         limit = 2.0 ** (self.bits - 1)
         if len(rows) and not (lo.min() >= -limit and hi.max() < limit):
-            raise ValueError(
+            raise InputError(
                 f"a kernel reaches more than {limit * self.sides[0]:.0f} m from the world "
                 "origin, beyond the cells of the support hash"
             )

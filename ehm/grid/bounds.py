@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ehm.core.snapshot import MapSnapshot
+from ehm.errors import InputError
 
 
 def bytes_per_voxel(with_std: bool = False) -> int:
@@ -30,30 +31,30 @@ def grid_shape(
     than `max_bytes` (`voxel_bytes` per voxel), before anything is allocated."""
     resolution = float(resolution)
     if not np.isfinite(resolution) or resolution <= 0.0:
-        raise ValueError(f"grid resolution must be a positive number of metres, got {resolution}")
+        raise InputError(f"grid resolution must be a positive number of metres, got {resolution}")
     expected = f"grid bounds must have shape (2, {dim}), [low corner, high corner]"
     try:
         bounds = np.asarray(bounds, dtype=np.float64)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"{expected}, got {bounds!r}") from error
+        raise InputError(f"{expected}, got {bounds!r}") from error
     if bounds.shape != (2, dim):
-        raise ValueError(f"{expected}, got shape {bounds.shape}")
+        raise InputError(f"{expected}, got shape {bounds.shape}")
     if not np.all(np.isfinite(bounds)):
-        raise ValueError(f"grid bounds must be finite, got {bounds.tolist()}")
+        raise InputError(f"grid bounds must be finite, got {bounds.tolist()}")
     low, high = bounds
     if np.any(high < low):
-        raise ValueError(
+        raise InputError(
             f"grid bounds are inverted: high corner {high.tolist()} lies below low corner "
             f"{low.tolist()} on axis {int(np.argmax(high < low))}"
         )
     if np.any(high == low):
         axis = int(np.argmax(high == low))
-        raise ValueError(f"grid bounds are empty: zero extent on axis {axis}")
+        raise InputError(f"grid bounds are empty: zero extent on axis {axis}")
     counts = np.maximum(np.ceil((high - low) / resolution - 1e-9), 1.0)
     n_bytes = float(np.prod(counts)) * voxel_bytes
     if n_bytes > max_bytes:
         shape = " x ".join(f"{c:.0f}" for c in counts)
-        raise ValueError(
+        raise InputError(
             f"a grid of {shape} voxels at {resolution} m would take {n_bytes / 2**30:.2f} GiB, "
             f"more than the limit of {max_bytes / 2**30:.2f} GiB: coarsen the resolution, "
             "shrink the bounds or raise max_bytes"

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ehm.errors import InputError
+
 
 def marching_cubes(
     probability: np.ndarray, origin: np.ndarray, resolution: float, level: float = 0.5
@@ -17,9 +19,9 @@ def marching_cubes(
     from skimage.measure import marching_cubes as skimage_marching_cubes
 
     if probability.ndim != 3:
-        raise ValueError(f"marching cubes needs a 3D grid, got {probability.ndim} dimensions")
+        raise InputError(f"marching cubes needs a 3D grid, got {probability.ndim} dimensions")
     if not 0.0 < level < 1.0:
-        raise ValueError(f"level must be a probability between 0 and 1, got {level}")
+        raise InputError(f"level must be a probability between 0 and 1, got {level}")
     empty = np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
     if min(probability.shape) < 2 or probability.max() <= level or probability.min() >= level:
         return empty

@@ -21,6 +21,7 @@ import numpy as np
 from ehm.core.logistic import sigmoid
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.uncertainty import logit_variance, occupancy_std
+from ehm.errors import InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, bytes_per_voxel, grid_shape, support_bounds
 from ehm.grid.local_grids import Lattice, LocalGrids, accumulate_local_grids
 from ehm.grid.mesh import marching_cubes
@@ -147,7 +148,7 @@ class OccupancyGrid:
         """Surface where the probability crosses `level` (marching cubes, 3D grids): vertices
         (V, 3) float64 metres, world frame, and faces (F, 3) int64 vertex rows."""
         if self.dim != 3:
-            raise ValueError(
+            raise InputError(
                 "a mesh needs a 3D grid; a 2D map's grid is an image: render it or save the grid"
             )
         return marching_cubes(self.probability, self.origin, self.resolution, level)
@@ -164,7 +165,7 @@ class OccupancyGrid:
         and of clusters merged away, or rebuild when that is less work (or the snapshot comes
         from another map, or the map was refitted)."""
         if snapshot.dim != self.dim:
-            raise ValueError(f"the grid is {self.dim}D, the map is {snapshot.dim}D")
+            raise InputError(f"the grid is {self.dim}D, the map is {snapshot.dim}D")
         lattice = Lattice.lift(self.origin, self.resolution, self.shape)
         self.intercept = snapshot.intercept
         self.prior_precision = snapshot.prior_precision
@@ -209,7 +210,7 @@ class OccupancyGrid:
 
     def _require_std(self) -> None:
         if not self.has_std:
-            raise ValueError("this grid was made without the std: make it with std=True")
+            raise InputError("this grid was made without the std: make it with std=True")
 
     def _fields_3d(self) -> np.ndarray:
         """The fields as (C,) + the 3D shape the lattice describes (a view)."""

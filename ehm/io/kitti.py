@@ -1,35 +1,77 @@
-"""KITTI odometry Velodyne scans (.bin, float32 x y z intensity in the sensor frame) placed
-by a poses file of row-major 3x4 T_world_sensor, one line per scan."""
+"""KITTI odometry Velodyne scans: `velodyne/NNNNNN.bin` (float32 x y z intensity in the
+Velodyne frame), placed by the sequence's poses (line i: frame i's row-major 3x4
+T_world_camera0) and calib.txt's `Tr` (T_camera0_velodyne)."""
 
 from __future__ import annotations
 
 from os import PathLike
+from pathlib import Path
 
 import numpy as np
 
 from ehm.core.geometry import transform_points
 from ehm.core.scan import Scan
+from ehm.errors import FileReadError, InputError
+from ehm.io.files import read_bytes
+from ehm.io.poses import read_kitti_calibration, read_poses
+
+# `calib` value for poses that already place the Velodyne (say, from a LiDAR odometry).
+IDENTITY = "identity"
 
 
-def read_kitti_poses(path: str | PathLike[str]) -> list[np.ndarray]:
-    """KITTI odometry poses: 12 numbers per line, a row-major 3x4 T_world_sensor."""
-    values = np.loadtxt(path, ndmin=2)
-    if values.shape[1] != 12:
-        raise ValueError(f"{path}: expected 12 numbers per line, got {values.shape[1]}")
-    return [np.vstack([row.reshape(3, 4), [0, 0, 0, 1]]) for row in values]
-
-
-def read_kitti(bin_paths: list[str | PathLike[str]], poses_path: str | PathLike[str]) -> list[Scan]:
-    """KITTI Velodyne scans (float32 x y z intensity, sensor frame) placed by their poses."""
-    poses = read_kitti_poses(poses_path)
-    if len(poses) < len(bin_paths):
-        raise ValueError(f"{poses_path}: {len(poses)} poses for {len(bin_paths)} scans")
+def read_kitti(
+    bin_paths: list[str | PathLike[str]],
+    poses_path: str | PathLike[str],
+    calib: str | PathLike[str] | None = None,
+) -> list[Scan]:
+    """KITTI Velodyne scans in world frame, in frame order. The frame number is the file's
+    name (000123.bin is frame 123, placed by line 123 of the poses file), so any subset of a
+    sequence finds its own poses. T_world_velodyne = T_world_camera0 @ Tr, with Tr from
+    `calib`: a calib.txt path; by default the calib.txt of the scans' sequence folder (beside
+    `velodyne/`); or "identity" when the poses already place the Velodyne."""
+    frames = sorted((_frame_number(path), Path(path)) for path in bin_paths)
+    poses = read_poses(poses_path)
+    T_camera_velodyne = _calibration(frames[0][1], calib)
     scans = []
-    for path, T_world_sensor in zip(sorted(map(str, bin_paths)), poses, strict=False):
-        raw = np.fromfile(path, dtype="<f4")
-        if raw.size % 4:
-            raise ValueError(f"{path}: size is not a multiple of 16 bytes (x y z intensity)")
-        points_sensor = raw.reshape(-1, 4)[:, :3].astype(np.float64)
-        points_world = transform_points(T_world_sensor, points_sensor)
-        scans.append(Scan(points_world, T_world_sensor[:3, 3].copy()))
+    for frame, path in frames:
+        if frame >= len(poses):
+            raise FileReadError(
+                poses_path, f"{len(poses)} poses: none for frame {frame} ({path.name})"
+            )
+        T_world_velodyne = poses[frame] @ T_camera_velodyne
+        raw = read_bytes(path)
+        if len(raw) % 16:
+            raise FileReadError(
+                path, f"{len(raw)} bytes is not a whole number of points (16 bytes: x y z i)"
+            )
+        points_velodyne = np.frombuffer(raw, dtype="<f4").reshape(-1, 4)[:, :3]
+        points_world = transform_points(T_world_velodyne, points_velodyne.astype(np.float64))
+        try:
+            scans.append(Scan(points_world, T_world_velodyne[:3, 3].copy()))
+        except InputError as error:
+            raise FileReadError(path, str(error)) from None
     return scans
+
+
+def _frame_number(path: str | PathLike[str]) -> int:
+    stem = Path(path).stem
+    if not stem.isdigit():
+        raise FileReadError(
+            path, "the name is not a frame number (KITTI scans are named 000000.bin, ...)"
+        )
+    return int(stem)
+
+
+def _calibration(first_scan: Path, calib: str | PathLike[str] | None) -> np.ndarray:
+    """T_camera0_velodyne from `calib` (see read_kitti)."""
+    if calib is not None and str(calib) == IDENTITY:
+        return np.eye(4)
+    if calib is not None:
+        return read_kitti_calibration(calib)
+    beside = first_scan.resolve().parent.parent / "calib.txt"
+    if not beside.exists():
+        raise InputError(
+            f"KITTI poses place the left camera, and {beside} is missing: give its calib.txt "
+            f"(--calib PATH) or, for poses that already place the Velodyne, --calib {IDENTITY}"
+        )
+    return read_kitti_calibration(beside)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ehm.errors import InputError
+
 
 @numba.njit(cache=True)
 def _lzf_kernel(source, out):  # pragma: no cover - compiled
@@ -43,11 +45,11 @@ def _lzf_kernel(source, out):  # pragma: no cover - compiled
 
 
 def lzf_decompress(data: bytes, size: int) -> bytes:
-    """Decompress LZF `data` into exactly `size` bytes; ValueError when it is malformed."""
+    """Decompress LZF `data` into exactly `size` bytes; InputError when it is malformed."""
     out = np.empty(size, dtype=np.uint8)
     written = _lzf_kernel(np.frombuffer(data, dtype=np.uint8), out)
     if written != size:
-        raise ValueError(f"corrupt LZF data: decoded {written} bytes, expected {size}")
+        raise InputError(f"corrupt LZF data: decoded {written} bytes, expected {size}")
     return out.tobytes()
 
 
@@ -73,5 +75,5 @@ def lzf_decompress_reference(data: bytes, size: int) -> bytes:
             out.append(out[ref])
             ref += 1
     if len(out) != size:
-        raise ValueError(f"corrupt LZF data: decoded {len(out)} bytes, expected {size}")
+        raise InputError(f"corrupt LZF data: decoded {len(out)} bytes, expected {size}")
     return bytes(out)

@@ -29,6 +29,8 @@ from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet
 from ehm.core.memory import SampleMemory
 from ehm.core.state import MapState
+from ehm.errors import EhmError, FileReadError
+from ehm.io.files import read_bytes
 
 MAGIC = b"EHMMAP\r\n"
 # Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
@@ -53,7 +55,7 @@ _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
 
 
-class MapFileError(ValueError):
+class MapFileError(FileReadError):
     """A file that is not a readable ehm map: foreign, truncated, corrupt or too new."""
 
 
@@ -105,20 +107,21 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
 def read_map(path: str | PathLike[str]) -> MapState:
     """Read the state of a map written by `write_map` (format versions 3 to 9); MapFileError
     names what is wrong otherwise."""
-    data = Path(path).read_bytes()
+    data = read_bytes(path)
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
-        raise MapFileError(f"{path}: not an ehm map file (unknown magic bytes)")
+        raise MapFileError(path, "not an ehm map file (unknown magic bytes)")
     if len(data) < _PREAMBLE.size + _CRC.size:
-        raise MapFileError(f"{path}: truncated ({len(data)} bytes)")
+        raise MapFileError(path, f"truncated ({len(data)} bytes)")
     _, version, header_length = _PREAMBLE.unpack_from(data)
     if version < OLDEST_READABLE_VERSION:
         raise MapFileError(
-            f"{path}: format version {version} is older than this ehm reads "
-            f"({OLDEST_READABLE_VERSION} to {FORMAT_VERSION}); rebuild the map from its scans"
+            path,
+            f"format version {version} is older than this ehm reads "
+            f"({OLDEST_READABLE_VERSION} to {FORMAT_VERSION}); rebuild the map from its scans",
         )
     if version > FORMAT_VERSION:
         raise MapFileError(
-            f"{path}: format version {version} is newer than this ehm reads ({FORMAT_VERSION})"
+            path, f"format version {version} is newer than this ehm reads ({FORMAT_VERSION})"
         )
     body, (stored_crc,) = data[: -_CRC.size], _CRC.unpack_from(data, len(data) - _CRC.size)
     try:
@@ -128,11 +131,21 @@ def read_map(path: str | PathLike[str]) -> MapState:
             int(np.prod(e["shape"])) * np.dtype(e["dtype"]).itemsize for e in header["arrays"]
         )
     except (ValueError, KeyError, TypeError) as error:
-        raise MapFileError(f"{path}: corrupt or truncated header ({error})") from error
+        raise MapFileError(path, f"corrupt or truncated header ({error})") from error
     if len(body) < expected:
-        raise MapFileError(f"{path}: truncated ({len(data)} bytes, expected {expected + 4})")
+        raise MapFileError(path, f"truncated ({len(data)} bytes, expected {expected + 4})")
     if zlib.crc32(body) != stored_crc:
-        raise MapFileError(f"{path}: corrupt (checksum mismatch)")
+        raise MapFileError(path, "corrupt (checksum mismatch)")
+    try:
+        return _map_state(data, header, payload_start, version)
+    except (EhmError, KeyError, TypeError, ValueError) as error:
+        # A file whose checksum matches but whose content does not make a map: written by
+        # something else, or edited and checksummed again.
+        raise MapFileError(path, f"inconsistent content ({error})") from error
+
+
+def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> MapState:
+    """The map state held by a checked file's header and payload."""
     arrays = {}
     for entry in header["arrays"]:
         dtype = np.dtype(entry["dtype"])

@@ -4,24 +4,25 @@ from __future__ import annotations
 
 import struct
 from os import PathLike
-from pathlib import Path
 
 import numpy as np
 
 from ehm.core.geometry import quaternion_to_matrix, transform_points
 from ehm.core.scan import Scan
+from ehm.errors import FileReadError, InputError
+from ehm.io.files import read_bytes
 
 
 def read_octomap_graph(path: str | PathLike[str]) -> list[Scan]:
     """OctoMap ScanGraph (.graph): per node a point cloud in sensor frame and a 6D pose."""
-    data = Path(path).read_bytes()
+    data = read_bytes(path)
     offset = 0
 
     def take(fmt: str) -> tuple:
         nonlocal offset
         size = struct.calcsize(fmt)
         if offset + size > len(data):
-            raise ValueError(f"{path}: truncated OctoMap graph at byte {offset}")
+            raise FileReadError(path, f"truncated: {fmt} expected", f"byte {offset}")
         values = struct.unpack_from(fmt, data, offset)
         offset += size
         return values
@@ -31,7 +32,8 @@ def read_octomap_graph(path: str | PathLike[str]) -> list[Scan]:
     for _ in range(n_nodes):
         (n_points,) = take("<I")
         if offset + 28 * n_points > len(data):
-            raise ValueError(f"{path}: truncated OctoMap graph at byte {offset}")
+            message = f"truncated: {n_points} points announced, {len(data) - offset} bytes left"
+            raise FileReadError(path, message, f"byte {offset}")
         # Each point: int32 (=3) then three float64.
         records = np.frombuffer(
             data, dtype=[("n", "<i4"), ("xyz", "<f8", 3)], count=n_points, offset=offset
@@ -40,9 +42,12 @@ def read_octomap_graph(path: str | PathLike[str]) -> list[Scan]:
         _, tx, ty, tz = take("<i3d")
         _, qw, qx, qy, qz = take("<i4d")
         take("<I")  # node id
-        T_world_sensor = np.eye(4)
-        T_world_sensor[:3, :3] = quaternion_to_matrix(qw, qx, qy, qz)
-        T_world_sensor[:3, 3] = (tx, ty, tz)
-        points_world = transform_points(T_world_sensor, records["xyz"].astype(np.float64))
-        scans.append(Scan(points_world, np.array([tx, ty, tz])))
+        try:
+            T_world_sensor = np.eye(4)
+            T_world_sensor[:3, :3] = quaternion_to_matrix(qw, qx, qy, qz)
+            T_world_sensor[:3, 3] = (tx, ty, tz)
+            points_world = transform_points(T_world_sensor, records["xyz"].astype(np.float64))
+            scans.append(Scan(points_world, T_world_sensor[:3, 3].copy()))
+        except InputError as error:
+            raise FileReadError(path, f"node {len(scans)}: {error}", f"byte {offset}") from None
     return scans

@@ -1,7 +1,8 @@
 """Read any supported input into a list of ehm.Scan, choosing the reader by file extension.
 
 scans = read_scans("scan.dat.bz2", origin=[0.035, 0, 0.513])
-scans = read_scans(["velodyne/000000.bin", ...], poses="poses.txt")
+scans = read_scans(["a.pcd", "b.pcd"], poses="poses.txt")  # one T_world_sensor per file
+scans = read_scans(sorted(glob("sequences/00/velodyne/*.bin")), poses="poses/00.txt")
 scans = read_scans("tum_sequence/")                 # folder with poses.txt and depth/
 """
 
@@ -13,16 +14,21 @@ from pathlib import Path
 
 import numpy as np
 
+from ehm.core.geometry import transform_points
 from ehm.core.scan import Scan
+from ehm.errors import FileReadError, InputError
 from ehm.io.carmen import read_carmen
 from ehm.io.kitti import read_kitti
 from ehm.io.octomap_graph import read_octomap_graph
 from ehm.io.pcd import read_pcd
 from ehm.io.ply import read_ply
+from ehm.io.poses import read_poses
 from ehm.io.tum import read_tum
 from ehm.io.xyz import read_xyz
 
 FORMATS = ("xyz", "ply", "pcd", "kitti", "graph", "tum", "carmen")
+# Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
+POSED_FORMATS = ("graph", "tum", "carmen")
 _EXTENSIONS = {
     ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".bz2": "xyz", ".ply": "ply", ".pcd": "pcd",
     ".bin": "kitti", ".graph": "graph", ".log": "carmen", ".clf": "carmen",
@@ -35,11 +41,11 @@ def guess_format(path: str | PathLike[str]) -> str:
     if path.is_dir():
         if (path / "poses.txt").exists():
             return "tum"
-        raise ValueError(f"{path}: a folder is read as TUM depth frames and needs poses.txt")
+        raise FileReadError(path, "a folder is read as TUM depth frames and needs poses.txt")
     fmt = _EXTENSIONS.get(path.suffix.lower())
     if fmt is None:
-        raise ValueError(
-            f"{path}: unknown extension {path.suffix!r}; pass a format, one of {', '.join(FORMATS)}"
+        raise FileReadError(
+            path, f"unknown extension {path.suffix!r}; give a format, one of {', '.join(FORMATS)}"
         )
     return fmt
 
@@ -49,44 +55,97 @@ def read_scans(
     format: str | None = None,
     origin: Sequence[float] | None = None,
     poses: str | PathLike[str] | None = None,
+    calib: str | PathLike[str] | None = None,
 ) -> list[Scan]:
-    """Scans from one or more files of one format.
+    """Scans from one or more files of one format, in world frame.
 
-    origin: sensor position, metres, for single point clouds (xyz, ply, pcd), which do not
-    record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
-    poses: the poses file of KITTI .bin scans.
+    origin: sensor position (3,), metres, for point clouds (xyz, ply, pcd) in world frame,
+        which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
+    poses: a poses file. For KITTI .bin scans the sequence's poses (line i places frame i);
+        for point clouds one T_world_sensor per file, in the order given (KITTI or TUM layout,
+        ehm.io.poses), each file's points in its sensor's frame (PCD: the VIEWPOINT's frame).
+    calib: KITTI's calib.txt, or "identity" (ehm.io.kitti.read_kitti).
+
+    Raises FileReadError naming the file for anything it cannot read, InputError for options
+    that do not fit the format.
     """
     items = [paths] if isinstance(paths, str | PathLike) else list(paths)
     if not items:
-        raise ValueError("no input files given")
+        raise InputError("no input files given")
     fmt = format or guess_format(items[0])
     if fmt not in FORMATS:
-        raise ValueError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
+        raise InputError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    _check_options(fmt, origin, poses, calib)
     for item in items:
         if not Path(item).exists():
-            raise ValueError(f"{item}: no such file or folder")
+            raise FileReadError(item, "no such file or folder")
     if fmt == "kitti":
         if poses is None:
-            raise ValueError("KITTI .bin scans need a poses file (poses=...)")
-        return read_kitti(items, poses)
+            raise InputError("KITTI .bin scans need the sequence's poses file (--poses)")
+        return read_kitti(items, poses, calib)
     scans: list[Scan] = []
-    for item in items:
-        if fmt == "graph":
-            scans += read_octomap_graph(item)
-        elif fmt == "tum":
-            scans += read_tum(item)
-        elif fmt == "carmen":
-            scans += read_carmen(item)
-        else:
-            scans.append(_point_cloud_scan(Path(item), fmt, origin))
-    return scans
+    readers = {"graph": read_octomap_graph, "tum": read_tum, "carmen": read_carmen}
+    if fmt in readers:
+        for item in items:
+            found = readers[fmt](item)
+            if not found:
+                raise FileReadError(item, "no scans")
+            scans += found
+        return scans
+    T_world_files = _file_poses(poses, len(items))
+    return [
+        _point_cloud_scan(Path(item), fmt, origin, T_world_file)
+        for item, T_world_file in zip(items, T_world_files, strict=True)
+    ]
 
 
-def _point_cloud_scan(path: Path, fmt: str, origin: Sequence[float] | None) -> Scan:
+def _check_options(
+    fmt: str,
+    origin: Sequence[float] | None,
+    poses: str | PathLike[str] | None,
+    calib: str | PathLike[str] | None,
+) -> None:
+    """InputError for an option the format would ignore or that contradicts another."""
+    given = [name for name, value in (("origin", origin), ("poses", poses)) if value is not None]
+    if fmt in POSED_FORMATS and given:
+        raise InputError(
+            f"{fmt} files hold each scan's sensor pose: {' and '.join(given)} would be ignored"
+        )
+    if fmt == "kitti" and origin is not None:
+        raise InputError("KITTI scans are placed by their poses: origin would be ignored")
+    if origin is not None and poses is not None:
+        raise InputError("give an origin or poses, not both: each pose places its sensor")
+    if calib is not None and fmt != "kitti":
+        raise InputError(f"calib is for KITTI scans, not {fmt} files")
+    if origin is not None:
+        values = np.asarray(origin, dtype=np.float64)
+        if values.shape != (3,) or not np.all(np.isfinite(values)):
+            raise InputError(f"origin must be 3 finite numbers x, y, z, got {list(origin)}")
+
+
+def _file_poses(poses: str | PathLike[str] | None, n_files: int) -> list[np.ndarray | None]:
+    """T_world_file of each point-cloud file: from the poses file, or None for each."""
+    if poses is None:
+        return [None] * n_files
+    T_world_files = read_poses(poses)
+    if len(T_world_files) != n_files:
+        raise FileReadError(poses, f"{len(T_world_files)} poses for {n_files} files")
+    return T_world_files
+
+
+def _point_cloud_scan(
+    path: Path, fmt: str, origin: Sequence[float] | None, T_world_file: np.ndarray | None
+) -> Scan:
     if fmt == "pcd":
         points, viewpoint = read_pcd(path)
-        sensor = viewpoint if origin is None else origin
     else:
         points = read_xyz(path) if fmt == "xyz" else read_ply(path)
-        sensor = np.zeros(3) if origin is None else origin
-    return Scan(points, np.asarray(sensor, dtype=np.float64))
+        viewpoint = np.zeros(3)
+    sensor = viewpoint if origin is None else np.asarray(origin, dtype=np.float64)
+    if T_world_file is not None:
+        points = transform_points(T_world_file, points)
+        sensor = transform_points(T_world_file, sensor[None])[0]
+    try:
+        return Scan(points, sensor)
+    except InputError as error:
+        raise FileReadError(path, str(error)) from None

@@ -3,6 +3,7 @@ camera-to-world) and 16-bit depth PNGs."""
 
 from __future__ import annotations
 
+import io
 from os import PathLike
 from pathlib import Path
 
@@ -10,6 +11,8 @@ import numpy as np
 
 from ehm.core.geometry import quaternion_to_matrix, transform_points
 from ehm.core.scan import Scan
+from ehm.errors import FileReadError, InputError
+from ehm.io.files import read_bytes, read_text
 
 
 def read_tum(
@@ -24,24 +27,48 @@ def read_tum(
     """TUM RGB-D depth frames listed in `folder`/poses.txt (`depth/<file> tx ty tz qx qy qz
     qw`, camera-to-world). Intrinsics default to Freiburg 2; depth in metres = value /
     depth_scale; 0 means no reading and is skipped. Every `pixel_stride`-th pixel is used."""
-    from PIL import Image
-
     folder = Path(folder)
+    poses_path = folder / "poses.txt"
     scans = []
-    for line in (folder / "poses.txt").read_text().splitlines():
+    for number, line in enumerate(read_text(poses_path).splitlines(), start=1):
         if not line.strip() or line.startswith("#"):
             continue
         name, *numbers = line.split()
-        tx, ty, tz, qx, qy, qz, qw = map(float, numbers)
-        depth = np.asarray(Image.open(folder / name), dtype=np.float64)[
-            ::pixel_stride, ::pixel_stride
-        ]
+        try:
+            if len(numbers) != 7:
+                raise InputError(f"{len(numbers)} numbers")
+            tx, ty, tz, qx, qy, qz, qw = map(float, numbers)
+            T_world_camera = np.eye(4)
+            T_world_camera[:3, :3] = quaternion_to_matrix(qw, qx, qy, qz)
+            T_world_camera[:3, 3] = (tx, ty, tz)
+        except ValueError as error:  # InputError too
+            message = f"expected 'depth/FILE tx ty tz qx qy qz qw' ({error})"
+            raise FileReadError(poses_path, message, f"line {number}") from None
+        depth = _depth_image(folder / name)[::pixel_stride, ::pixel_stride]
         v, u = np.nonzero(depth)
         z = depth[v, u] / depth_scale
         u, v = u * pixel_stride, v * pixel_stride
         points_camera = np.column_stack([(u - cx) * z / fx, (v - cy) * z / fy, z])
-        T_world_camera = np.eye(4)
-        T_world_camera[:3, :3] = quaternion_to_matrix(qw, qx, qy, qz)
-        T_world_camera[:3, 3] = (tx, ty, tz)
-        scans.append(Scan(transform_points(T_world_camera, points_camera), np.array([tx, ty, tz])))
+        points_world = transform_points(T_world_camera, points_camera)
+        try:
+            scans.append(Scan(points_world, T_world_camera[:3, 3].copy()))
+        except InputError as error:
+            raise FileReadError(folder / name, str(error)) from None
     return scans
+
+
+def _depth_image(path: Path) -> np.ndarray:
+    """(H, W) float64 raw depth values of a 16-bit PNG; FileReadError naming it otherwise."""
+    from PIL import Image, UnidentifiedImageError
+
+    data = read_bytes(path)
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            depth = np.asarray(image)
+    except (UnidentifiedImageError, OSError, ValueError) as error:
+        raise FileReadError(path, f"not a depth image ({error})") from None
+    if depth.ndim != 2 or depth.dtype.kind not in "ui":
+        raise FileReadError(
+            path, f"expected a one-channel 16-bit depth image, got {depth.dtype} {depth.shape}"
+        )
+    return depth.astype(np.float64)

@@ -2,17 +2,27 @@
 
 from __future__ import annotations
 
-import bz2
+import io
+import warnings
 from os import PathLike
-from pathlib import Path
 
 import numpy as np
 
+from ehm.errors import FileReadError
+from ehm.io.files import read_text
+
 
 def read_xyz(path: str | PathLike[str]) -> np.ndarray:
-    """Whitespace-separated `x y z` per line (extra columns ignored); .bz2 is decompressed."""
-    path = Path(path)
-    opener = bz2.open if path.suffix == ".bz2" else open
-    with opener(path, "rt") as stream:
-        points = np.loadtxt(stream, usecols=(0, 1, 2), ndmin=2, comments="#")
+    """(N, 3) float64 points, metres: whitespace-separated `x y z` per line (extra columns
+    ignored, `#` starts a comment); a name ending in .bz2 is decompressed. FileReadError naming
+    the row for a line that is not three numbers, or for a file without points."""
+    text = read_text(path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # numpy's "empty input file"
+            points = np.loadtxt(io.StringIO(text), usecols=(0, 1, 2), ndmin=2, comments="#")
+    except ValueError as error:
+        raise FileReadError(path, f"expected 'x y z' numbers on each line: {error}") from None
+    if len(points) == 0:
+        raise FileReadError(path, "no points (expected 'x y z' numbers on each line)")
     return points.astype(np.float64)

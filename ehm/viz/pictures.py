@@ -9,6 +9,7 @@ from os import PathLike
 import numpy as np
 
 from ehm.core.uncertainty import occupancy_std
+from ehm.errors import InputError
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap
 from ehm.viz.colors import HEIGHT_COLORMAP, height_range
@@ -107,7 +108,7 @@ def mesh_picture(
     if cut_above is not None and len(faces):
         faces = faces[vertices[faces][:, :, 2].mean(axis=1) <= cut_above]
     if len(faces) == 0:
-        raise ValueError("nothing to draw: the mesh has no faces (below the cut)")
+        raise InputError("nothing to draw: the mesh has no faces (below the cut)")
     heights = height_range(vertices, faces)
     image, _ = render_mesh(vertices, faces, camera, heights)
     figure, axis = plt.subplots(figsize=(camera.width / 100 + 1.6, camera.height / 100 + 0.6))
@@ -127,7 +128,7 @@ def grid_picture(grid: OccupancyGrid, path: str | PathLike[str], title: str | No
     plt = pyplot()
 
     if grid.dim != 2:
-        raise ValueError(f"grid_picture draws 2D grids, this one is {grid.dim}D")
+        raise InputError(f"grid_picture draws 2D grids, this one is {grid.dim}D")
     (x0, y0), (x1, y1) = grid.bounds
     figure, axis = plt.subplots(figsize=(8, 8 * (y1 - y0) / (x1 - x0) + 0.6))
     image = axis.imshow(

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ehm.errors import InputError
 from ehm.viz.colors import height_colors, height_range
 
 
@@ -27,11 +28,11 @@ class Camera:
 
     def __post_init__(self) -> None:
         if not -90.0 < self.elevation < 90.0:
-            raise ValueError(
+            raise InputError(
                 f"camera elevation must lie inside (-90, 90) degrees, got {self.elevation}"
             )
         if self.width < 1 or self.height < 1:
-            raise ValueError(f"picture size must be positive, got {self.width} x {self.height}")
+            raise InputError(f"picture size must be positive, got {self.width} x {self.height}")
 
     def rotation(self) -> np.ndarray:
         """(3, 3) R_camera_world: rows are the camera's right, up and toward-viewer axes."""

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+import ehm
 from ehm.core.geometry import quaternion_to_matrix, transform_points
 
 
@@ -15,8 +16,11 @@ def test_quaternions_of_known_rotations():
     np.testing.assert_allclose(quaternion_to_matrix(2 * half, 0, 0, 2 * half), quarter_turn_z)
     half_turn_x = quaternion_to_matrix(0, 1, 0, 0)
     np.testing.assert_allclose(half_turn_x, np.diag([1.0, -1.0, -1.0]), atol=1e-15)
-    with pytest.raises(ValueError, match="zero quaternion"):
-        quaternion_to_matrix(0, 0, 0, 0)
+    for w, x, y, z in [(0, 0, 0, 0), (np.nan, 0, 0, 1), (np.inf, 0, 0, 0)]:
+        with pytest.raises(
+            ehm.InputError, match=r"quaternion \[.*\] \(w, x, y, z\) is no rotation"
+        ):
+            quaternion_to_matrix(w, x, y, z)
 
 
 def test_random_quaternions_give_rotations(rng):

@@ -154,5 +154,5 @@ def test_2d_grid_matches_point_queries(plan):
 
 
 def test_grid_of_an_empty_map_is_refused():
-    with pytest.raises(RuntimeError, match="map is empty"):
+    with pytest.raises(ehm.EmptyMapError, match="map is empty"):
         ehm.HilbertMap().grid()

@@ -1,22 +1,89 @@
-"""KITTI Velodyne scans with poses."""
+"""KITTI Velodyne scans placed by their sequence's poses and calib.txt's Tr."""
 
 import numpy as np
 import pytest
 
+from ehm.errors import FileReadError, InputError
 from ehm.io.readers import read_scans
 
+# Frame 0 at the world origin; frame 1 turned a quarter about z and moved to (10, 20, 30);
+# frame 2 moved to (0, 0, 5).
+POSES = "1 0 0 0 0 1 0 0 0 0 1 0\n0 -1 0 10 1 0 0 20 0 0 1 30\n1 0 0 0 0 1 0 0 0 0 1 5\n"
+# Velodyne to camera: x forward, y left, z up -> x right, y down, z forward.
+TR = "Tr: 0 -1 0 0 0 0 -1 0 1 0 0 0.5\n"
+T_CAMERA_VELODYNE = np.array([[0, -1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0.5], [0, 0, 0, 1]])
 
-def test_kitti_bin_with_poses(tmp_path, cloud):
+
+@pytest.fixture
+def sequence(tmp_path, cloud):
+    """A KITTI sequence folder: velodyne/00000{0,1,2}.bin, calib.txt and poses.txt."""
+    (tmp_path / "velodyne").mkdir()
     raw = np.column_stack([cloud, np.ones(len(cloud))]).astype("<f4")
-    raw.tofile(tmp_path / "000000.bin")
-    raw.tofile(tmp_path / "000001.bin")
-    (tmp_path / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n0 -1 0 10 1 0 0 20 0 0 1 30\n")
+    for frame in range(3):
+        raw.tofile(tmp_path / "velodyne" / f"00000{frame}.bin")
+    (tmp_path / "calib.txt").write_text("P0: " + " ".join(["0"] * 12) + "\n" + TR)
+    (tmp_path / "poses.txt").write_text(POSES)
+    return tmp_path
+
+
+def expected_points(cloud, pose_line):
+    T_world_camera = np.vstack([np.array(pose_line.split(), float).reshape(3, 4), [0, 0, 0, 1]])
+    T = T_world_camera @ T_CAMERA_VELODYNE
+    return cloud @ T[:3, :3].T + T[:3, 3], T[:3, 3]
+
+
+def test_calibration_places_the_velodyne(sequence, cloud):
+    bins = sorted((sequence / "velodyne").glob("*.bin"))
+    scans = read_scans(bins, poses=sequence / "poses.txt")
+    for scan, line in zip(scans, POSES.splitlines(), strict=True):
+        points, origin = expected_points(cloud, line)
+        np.testing.assert_allclose(scan.points_world, points, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(scan.origin, origin)
+    explicit = read_scans(bins, poses=sequence / "poses.txt", calib=sequence / "calib.txt")
+    np.testing.assert_array_equal(explicit[1].points_world, scans[1].points_world)
+
+
+def test_a_subset_takes_its_own_frames_poses(sequence, cloud):
+    """Frames 2 and 1 given out of order and without frame 0 still find lines 2 and 1."""
+    velodyne = sequence / "velodyne"
     scans = read_scans(
-        [tmp_path / "000000.bin", tmp_path / "000001.bin"], poses=tmp_path / "poses.txt"
+        [velodyne / "000002.bin", velodyne / "000001.bin"], poses=sequence / "poses.txt"
     )
-    np.testing.assert_allclose(scans[0].points_world, cloud, rtol=1e-6)
+    for scan, line in zip(scans, POSES.splitlines()[1:], strict=True):
+        np.testing.assert_allclose(scan.points_world, expected_points(cloud, line)[0], rtol=1e-6)
+
+
+def test_poses_of_the_velodyne_need_no_calibration(sequence, cloud):
+    scans = read_scans(
+        [sequence / "velodyne" / "000001.bin"], poses=sequence / "poses.txt", calib="identity"
+    )
     rotated = np.column_stack([-cloud[:, 1] + 10, cloud[:, 0] + 20, cloud[:, 2] + 30])
-    np.testing.assert_allclose(scans[1].points_world, rotated, rtol=1e-6)
-    np.testing.assert_array_equal(scans[1].origin, [10, 20, 30])
-    with pytest.raises(ValueError, match="need a poses file"):
-        read_scans(tmp_path / "000000.bin")
+    np.testing.assert_allclose(scans[0].points_world, rotated, rtol=1e-6)
+    np.testing.assert_array_equal(scans[0].origin, [10, 20, 30])
+
+
+def test_kitti_mistakes_are_named(sequence):
+    bins = sorted((sequence / "velodyne").glob("*.bin"))
+    poses = sequence / "poses.txt"
+    with pytest.raises(InputError, match="need the sequence's poses file"):
+        read_scans(bins)
+    with pytest.raises(InputError, match="origin would be ignored"):
+        read_scans(bins, poses=poses, origin=[0, 0, 0])
+    (sequence / "calib.txt").unlink()
+    with pytest.raises(InputError, match=r"calib\.txt is missing: give its calib\.txt"):
+        read_scans(bins, poses=poses)
+    (sequence / "calib.txt").write_text("P0: 1 2 3\n")
+    with pytest.raises(FileReadError, match=r"calib\.txt: no 'Tr:' line"):
+        read_scans(bins, poses=poses)
+    (sequence / "velodyne" / "000007.bin").write_bytes(bytes(32))
+    with pytest.raises(FileReadError, match=r"poses\.txt: 3 poses: none for frame 7"):
+        read_scans([sequence / "velodyne" / "000007.bin"], poses=poses, calib="identity")
+    (sequence / "velodyne" / "scan.bin").write_bytes(bytes(32))
+    with pytest.raises(FileReadError, match=r"scan\.bin: the name is not a frame number"):
+        read_scans([sequence / "velodyne" / "scan.bin"], poses=poses, calib="identity")
+    (sequence / "velodyne" / "000001.bin").write_bytes(bytes(20))
+    with pytest.raises(FileReadError, match=r"000001\.bin: 20 bytes is not a whole number"):
+        read_scans(bins, poses=poses, calib="identity")
+    poses.write_text("1 0 0 0 0 2 0 0 0 0 1 0\n")
+    with pytest.raises(FileReadError, match=r"poses.txt, line 1: not a pose: its 3x3 part"):
+        read_scans(bins[:1], poses=poses, calib="identity")

@@ -103,7 +103,7 @@ def test_save_is_atomic(small_map, tmp_path, monkeypatch):
 
 
 def test_empty_map_cannot_be_saved(tmp_path):
-    with pytest.raises(RuntimeError, match="the map is empty: integrate a scan or fit before"):
+    with pytest.raises(ehm.EmptyMapError, match="the map is empty: integrate a scan or fit before"):
         ehm.HilbertMap().save(tmp_path / "x.ehm")
     assert list(tmp_path.iterdir()) == []
 

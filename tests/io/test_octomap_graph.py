@@ -5,6 +5,7 @@ import struct
 import numpy as np
 import pytest
 
+from ehm.errors import FileReadError
 from ehm.io.readers import read_scans
 
 
@@ -25,5 +26,5 @@ def test_octomap_graph(tmp_path, cloud):
     expected = np.column_stack([1 - cloud[:10, 0], 2 - cloud[:10, 1], 3 + cloud[:10, 2]])
     np.testing.assert_allclose(scans[1].points_world, expected, atol=1e-12)
     (tmp_path / "b.graph").write_bytes(data[:100])
-    with pytest.raises(ValueError, match="truncated OctoMap graph"):
+    with pytest.raises(FileReadError, match=r"b\.graph, byte 8: truncated: 50 points announced"):
         read_scans(tmp_path / "b.graph")

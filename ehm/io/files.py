@@ -1,0 +1,46 @@
+"""Reading input files whole, with errors that name the file: missing, a folder, unreadable,
+not text, or a broken bzip2 stream."""
+
+from __future__ import annotations
+
+import bz2
+from os import PathLike
+from pathlib import Path
+
+from ehm.errors import FileReadError
+
+
+def read_bytes(path: str | PathLike[str]) -> bytes:
+    """The bytes of the file at `path`; FileReadError when it is missing, a folder or cannot be
+    read."""
+    path = Path(path)
+    if path.is_dir():
+        raise FileReadError(path, "is a folder, expected a file")
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise FileReadError(path, "no such file") from None
+    except OSError as error:
+        raise FileReadError(path, f"cannot be read ({error.strerror or error})") from None
+    return data
+
+
+def read_text(path: str | PathLike[str]) -> str:
+    """The text (UTF-8) of the file at `path`, decompressed if its name ends in `.bz2`;
+    FileReadError naming the first byte that is not text."""
+    data = read_bytes(path)
+    if Path(path).suffix.lower() == ".bz2":
+        data = _bunzip(path, data)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise FileReadError(path, "not a text file", f"byte {error.start}") from None
+
+
+def _bunzip(path: str | PathLike[str], data: bytes) -> bytes:
+    try:
+        return bz2.decompress(data)
+    except (OSError, ValueError) as error:
+        raise FileReadError(path, f"not a bzip2 stream ({error})") from None
+    except EOFError:
+        raise FileReadError(path, "truncated bzip2 stream") from None
