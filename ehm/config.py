@@ -41,7 +41,17 @@ class MapConfig:
     (DEFAULT_RESOLUTION); `MapConfig.for_resolution` gives the settings for another detail.
     """
 
-    # Training samples drawn from each ray (ehm.core.samples).
+    # Which rays are learned, and the training samples drawn from each (ehm.core.samples).
+    min_range: float = 0.0
+    """Rays shorter than this are left out, metres: returns from the robot itself."""
+    max_range: float = 0.0
+    """Rays longer than this are cut here and learned as rays without return (free space up
+    to max_range, no hit), as OctoMap's maxrange does, metres; 0 for no limit. A sensor's
+    glitch far away then costs one ray, not a far cluster."""
+    max_free_samples: int = 1000
+    """Most free samples drawn along one ray: a longer ray gets them sparser, so a scan's
+    samples are bounded by its rays, never by how far one point lies (at the default
+    free_spacing, 1000 samples reach 600 m)."""
     free_spacing: float = 0.6
     """Mean distance between free samples along a ray, metres (density of free samples)."""
     surface_margin: float = 0.05
@@ -250,6 +260,7 @@ class MapConfig:
             ("memory_per_cell", 0),
             ("samples_per_cell", 0),
             ("batch_rays", 0),
+            ("max_free_samples", 1),
         )
         for name, low in integers:
             value = getattr(self, name)
@@ -269,6 +280,13 @@ class MapConfig:
             )
         if not isinstance(self.replay_ratio, int | float) or not self.replay_ratio >= 0:
             raise SettingsError(f"MapConfig.replay_ratio must be >= 0, got {self.replay_ratio!r}")
+        if not self.min_range >= 0:
+            raise SettingsError(f"MapConfig.min_range must be >= 0, got {self.min_range!r}")
+        if not (self.max_range == 0 or self.max_range > self.min_range):
+            raise SettingsError(
+                f"MapConfig.max_range must be 0 (no limit) or above min_range "
+                f"({self.min_range!r} m), got {self.max_range!r}"
+            )
         if self.l2 < 0:
             raise SettingsError(f"MapConfig.l2 must be >= 0, got {self.l2!r}")
         if self.features not in ("support", "nearest"):

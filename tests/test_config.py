@@ -1,6 +1,6 @@
 import pytest
 
-from ehm import HilbertMap, MapConfig
+from ehm import HilbertMap, MapConfig, SettingsError
 from ehm.config import DEFAULT_RESOLUTION, LENGTH_SETTINGS
 
 
@@ -45,11 +45,21 @@ def test_overrides_and_validation():
         ("batch_rays", 1e4, "batch_rays must be an integer >= 0"),
         ("replay_ratio", -0.5, "replay_ratio must be >= 0"),
         ("replay_ratio", float("nan"), "replay_ratio must be a finite number, got nan"),
+        ("min_range", -0.1, "min_range must be >= 0"),
+        ("max_range", -1.0, r"max_range must be 0 \(no limit\) or above min_range"),
+        ("max_range", float("inf"), "max_range must be a finite number"),
+        ("max_free_samples", 0, "max_free_samples must be an integer >= 1"),
     ],
 )
-def test_kernel_selection_search_and_hierarchy_settings_are_validated(setting, value, message):
-    with pytest.raises(ValueError, match=message):
+def test_settings_are_validated(setting, value, message):
+    with pytest.raises(SettingsError, match=message):
         MapConfig(**{setting: value})
+
+
+def test_max_range_lies_beyond_min_range():
+    assert MapConfig(min_range=0.5, max_range=30.0).max_range == 30.0
+    with pytest.raises(SettingsError, match=r"above min_range \(2.0 m\), got 1.0"):
+        MapConfig(min_range=2.0, max_range=1.0)
 
 
 def test_settings_for_another_resolution_scale_every_length():

@@ -63,19 +63,27 @@ class TrainingSamples:
 def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
     """Occupied and free samples along every ray of `scan`.
 
-    Around each hit: the hit and one point up to `occupied_depth` behind it are occupied; one
-    point in the band from `surface_margin` / 4 to `surface_margin` in front of it is free.
-    Along each ray, free points are drawn uniformly, `free_spacing` apart on average, up to
-    `surface_margin` before the hit, or over the whole length of a ray without return.
+    Rays shorter than `min_range` are left out; rays longer than `max_range` (if set) end there
+    without a hit. Around each hit: the hit and one point up to `occupied_depth` behind it are
+    occupied; one point in the band from `surface_margin` / 4 to `surface_margin` in front of
+    it is free. Along each ray, free points are drawn uniformly, `free_spacing` apart on
+    average (at most `max_free_samples` of them), up to `surface_margin` before the hit, or
+    over the whole length of a ray without return.
     """
     offsets = scan.points_world - scan.origin
     lengths = np.linalg.norm(offsets, axis=1)
-    usable = lengths > 0
+    usable = (lengths > 0) & (lengths >= config.min_range)
     offsets, lengths, hits = offsets[usable], lengths[usable], scan.hit_mask[usable]
+    ends = scan.points_world[usable]
+    if config.max_range > 0:
+        hits = hits & (lengths <= config.max_range)
+        scale = np.minimum(config.max_range / lengths, 1.0)
+        offsets, lengths = offsets * scale[:, None], lengths * scale
+        ends = scan.origin + offsets
     directions = offsets / lengths[:, None]
     margin = config.surface_margin
 
-    hit_points = scan.points_world[usable][hits]
+    hit_points = ends[hits]
     hit_dirs = directions[hits]
     behind_depth = config.occupied_depth * rng.random(len(hit_points))
     behind = hit_points + hit_dirs * behind_depth[:, None]
@@ -85,6 +93,7 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     free_length = np.where(hits, np.maximum(lengths - margin, 0.0), lengths)
     expected = free_length / config.free_spacing
     counts = np.floor(expected + rng.random(len(expected))).astype(np.int64)
+    counts = np.minimum(counts, config.max_free_samples)
     ray_of_sample = np.repeat(np.arange(len(counts)), counts)
     depth = free_length[ray_of_sample] * rng.random(len(ray_of_sample))
     along = scan.origin + directions[ray_of_sample] * depth[:, None]

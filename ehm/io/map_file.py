@@ -49,7 +49,10 @@ MEMORY_PREFIX = "memory_"
 # learned every sample.
 # Version 9 maps may gather small scans into batches (MapConfig.batch_rays); older files
 # learned each scan as it came.
-FORMAT_VERSION = 9
+# Version 10 maps may limit the rays' range (MapConfig.min_range, max_range) and bound the
+# free samples per ray (max_free_samples). Older files load with the defaults: no range limit,
+# and the bound, which changes nothing for rays under 600 m.
+FORMAT_VERSION = 10
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")

@@ -48,6 +48,37 @@ def test_no_return_rays_give_free_samples_only(rng):
     assert len(samples) > 30
 
 
+def test_range_limits_drop_short_rays_and_cut_long_ones(rng):
+    """Rays under min_range give no sample; rays over max_range end there without a hit."""
+    origin = np.zeros(2)
+    points = np.array([[0.2, 0.2], [3.0, 0.0], [0.0, 50.0], [0.0, -50.0]])
+    hits = np.array([True, True, True, False])
+    config = MapConfig(free_spacing=0.1, min_range=0.5, max_range=10.0)
+    samples = training_samples(Scan(points, origin, hits), config, rng)
+    distance = np.linalg.norm(samples.points, axis=1)
+    assert distance.min() > 0.0 and np.all(distance <= 10.0 + 1e-12)
+    # The 0.28 m ray is gone; of the others only the 3 m ray keeps its hit.
+    on_x = np.abs(samples.points[:, 1]) < 1e-12
+    assert not np.any(np.abs(samples.points[:, 0] - samples.points[:, 1]) < 1e-12)
+    np.testing.assert_allclose(samples.points[samples.occupied][:1], [[3.0, 0.0]])
+    assert np.all(on_x[samples.occupied])
+    # The cut rays are free along their first 10 m, about 10 / 0.1 samples each.
+    assert not samples.occupied[~on_x].any()
+    for sign in (1, -1):
+        along = samples.points[~on_x & (np.sign(samples.points[:, 1]) == sign)]
+        assert 70 < len(along) < 130
+    unlimited = training_samples(Scan(points, origin, hits), MapConfig(free_spacing=0.1), rng)
+    assert unlimited.occupied.sum() == 2 * 3
+
+
+def test_free_samples_per_ray_are_bounded(rng):
+    """One point a million kilometres away adds at most max_free_samples samples."""
+    config = MapConfig(free_spacing=0.1, max_free_samples=50)
+    far = Scan(np.array([[1e9, 0.0], [1.0, 0.0]]), np.zeros(2))
+    samples = training_samples(far, config, rng)
+    assert len(samples) <= 50 + 3 * 2 + 10
+
+
 def test_samples_of_scans_are_each_scans_samples_in_order(plan):
     config = MapConfig()
     together = samples_of_scans(plan.scans[:3], config, np.random.default_rng(4))
