@@ -1,22 +1,70 @@
 """The `ehm` command: demo, map, query, grid, mesh, render, info, eval. Heavy imports happen inside
-each command so that `ehm --help` is instant."""
+each command so that `ehm --help` is instant.
+
+A mistake in the input (ehm.EhmError: a file that cannot be read, a bad setting or option, an
+output that may not be written) ends in one line, `error: ...`, on stderr and exit status 2,
+before any work where it can be checked first. Anything else is a bug: one line and exit
+status 1, or its traceback with `ehm --debug`."""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
+from typer.core import TyperGroup
+
+from ehm.errors import EhmError, InputError
+
+
+class _Commands(TyperGroup):
+    """The command group: turns ehm's errors into one line on stderr (see the module)."""
+
+    def invoke(self, ctx: Any) -> Any:
+        try:
+            return super().invoke(ctx)
+        except EhmError as error:
+            if ctx.params.get("debug"):
+                raise
+            errors.print(f"[red]error:[/red] {escape(str(error))}")
+            raise typer.Exit(2) from None
+        except Exception as error:
+            # Exceptions that carry an exit status are typer's own ways out.
+            if (
+                ctx.params.get("debug")
+                or hasattr(error, "exit_code")
+                or isinstance(error, typer.Abort)
+            ):
+                raise
+            errors.print(
+                f"[red]error:[/red] {escape(type(error).__name__)}: {escape(str(error))}\n"
+                "This is a bug in ehm; `ehm --debug ...` shows where it happened."
+            )
+            raise typer.Exit(1) from None
+
 
 app = typer.Typer(
+    cls=_Commands,
     help="Efficient Hilbert Maps: continuous occupancy maps from range scans.",
     no_args_is_help=True,
     rich_markup_mode="rich",
 )
 console = Console()
+errors = Console(stderr=True)
+
+
+@app.callback()
+def _options(
+    debug: Annotated[
+        bool, typer.Option("--debug", help="Show the Python traceback of any error.")
+    ] = False,
+) -> None:
+    """Efficient Hilbert Maps: continuous occupancy maps from range scans."""
+
 
 Resolution = Annotated[float, typer.Option(help="Voxel side of the grid, metres.")]
 Bounds = Annotated[
@@ -27,6 +75,7 @@ Bounds = Annotated[
 ]
 MaxGiB = Annotated[float, typer.Option(help="Refuse grids larger than this, GiB.")]
 Level = Annotated[float, typer.Option(help="Occupancy probability of the surface.")]
+Force = Annotated[bool, typer.Option("--force", help="Overwrite output files that exist.")]
 
 
 def _parse_settings(settings: list[str]) -> dict:
@@ -38,57 +87,48 @@ def _parse_settings(settings: list[str]) -> dict:
     for item in settings:
         name, sep, value = item.partition("=")
         if not sep or name not in defaults:
-            raise typer.BadParameter(f"{item!r}: expected name=value with a MapConfig name")
+            raise InputError(f"--set {item!r}: expected name=value with a MapConfig name")
         kind = type(defaults[name])
         if kind is bool:
             words = {"1": True, "true": True, "yes": True, "on": True}
             words |= {"0": False, "false": False, "no": False, "off": False}
             if value.lower() not in words:
-                raise typer.BadParameter(f"{item!r}: {name} is true or false, got {value!r}")
+                raise InputError(f"--set {item!r}: {name} is true or false, got {value!r}")
             overrides[name] = words[value.lower()]
         else:
             try:
                 overrides[name] = kind(value)
             except ValueError as error:
-                raise typer.BadParameter(
-                    f"{item!r}: {name} is a{'n' if kind is int else ''} {kind.__name__}, "
+                raise InputError(
+                    f"--set {item!r}: {name} is a{'n' if kind is int else ''} {kind.__name__}, "
                     f"got {value!r}"
                 ) from error
     return overrides
 
 
-def _load_or_fail(path: Path):
-    """The map at `path`, or a one-line error and exit status 1."""
+def _load(path: Path):
+    """The map at `path` (ehm.load)."""
     from ehm.hilbert_map import load
-    from ehm.io.map_file import MapFileError
 
-    try:
-        return load(path)
-    except (MapFileError, FileNotFoundError) as error:
-        console.print(f"[red]error:[/red] {error}")
-        raise typer.Exit(1) from error
+    return load(path)
 
 
-def _grid_or_fail(
-    hilbert_map, bounds: str | None, resolution: float, max_gib: float, std: bool = False
-):
-    """The map's grid over `bounds` ('x0,y0,..' text), with the std when asked, or a usage
-    error naming the problem."""
+def _grid(hilbert_map, bounds: str | None, resolution: float, max_gib: float, std: bool = False):
+    """The map's grid over `bounds` ('x0,y0,..' text), with the std when asked."""
     import numpy as np
 
-    try:
-        box = None
-        if bounds is not None:
-            box = np.array([float(v) for v in bounds.split(",")])
-            if len(box) != 2 * hilbert_map.dim:
-                raise ValueError(
-                    f"bounds need {2 * hilbert_map.dim} numbers for a {hilbert_map.dim}D map, "
-                    f"got {len(box)}"
-                )
-            box = box.reshape(2, hilbert_map.dim)
-        return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30), std=std)
-    except ValueError as error:
-        raise typer.BadParameter(str(error)) from error
+    box = None
+    if bounds is not None:
+        box = np.array(_numbers(bounds, float, "--bounds"))
+        if len(box) != 2 * hilbert_map.dim:
+            raise InputError(
+                f"--bounds: {2 * hilbert_map.dim} numbers for a {hilbert_map.dim}D map, "
+                f"got {len(box)}"
+            )
+        box = box.reshape(2, hilbert_map.dim)
+    if not 0 < max_gib < math.inf:
+        raise InputError(f"--max-gib must be a positive number, got {max_gib}")
+    return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30), std=std)
 
 
 def _progress():
@@ -121,11 +161,13 @@ def demo(
     seed: Annotated[int, typer.Option(help="Seed of the simulation and the map.")] = 0,
 ) -> None:
     """Simulate the virtual room, map it, score the map against the exact occupancy, and write
-    the map, occupancy slices, a mesh (PLY) and a picture of the mesh."""
+    the map, occupancy slices, a mesh (PLY) and a picture of the mesh (over the demo's own
+    files from an earlier run)."""
     from ehm.eval.demo import run_demo
+    from ehm.io.outputs import check_output_folder
     from ehm.pipeline import ProgressBar
 
-    result = run_demo(out, seed, [ProgressBar(console)])
+    result = run_demo(check_output_folder(out), seed, [ProgressBar(console)])
     table = Table(title="Accuracy against the exact occupancy of the virtual room")
     for column in ("test points", "n", "occupied", "accuracy", "F1", "ROC-AUC"):
         table.add_column(column, justify="right" if column != "test points" else "left")
@@ -156,9 +198,31 @@ def map_command(
         typer.Option("--format", "-f", help="Reader: xyz ply pcd kitti graph tum carmen."),
     ] = None,
     origin: Annotated[
-        str | None, typer.Option(help="Sensor origin 'x,y,z' for single point clouds.")
+        str | None,
+        typer.Option(help="Sensor origin 'x,y,z', world frame, for point clouds (xyz ply pcd)."),
     ] = None,
-    poses: Annotated[Path | None, typer.Option(help="Poses file for KITTI .bin scans.")] = None,
+    poses: Annotated[
+        Path | None,
+        typer.Option(
+            help="Poses file: for KITTI .bin scans the sequence's (line i places frame i); for "
+            "point clouds one T_world_sensor per file in the order given (KITTI's 12 numbers "
+            "or TUM's 'time tx ty tz qx qy qz qw' per line)."
+        ),
+    ] = None,
+    calib: Annotated[
+        str | None,
+        typer.Option(
+            help="KITTI calib.txt (its Tr places the Velodyne in the camera poses); default "
+            "the sequence's; 'identity' for poses of the Velodyne itself."
+        ),
+    ] = None,
+    min_range: Annotated[
+        float | None, typer.Option(help="Leave out rays shorter than this, metres.")
+    ] = None,
+    max_range: Annotated[
+        float | None,
+        typer.Option(help="Cut rays longer than this, metres: free up to it, no hit there."),
+    ] = None,
     batch: Annotated[bool, typer.Option(help="Learn all scans at once (single batch).")] = False,
     resolution: Annotated[
         float,
@@ -170,20 +234,23 @@ def map_command(
     setting: Annotated[
         list[str] | None, typer.Option("--set", help="MapConfig override name=value.")
     ] = None,
+    force: Force = False,
 ) -> None:
     """Build a map from scans of any supported format and save it."""
     from ehm.config import MapConfig
     from ehm.hilbert_map import HilbertMap
+    from ehm.io.outputs import check_output
     from ehm.io.readers import read_scans
     from ehm.pipeline import MappingPipeline, ProgressBar
 
-    try:
-        sensor = _numbers(origin, float, "--origin") if origin else None
-        config = MapConfig.for_resolution(resolution, **_parse_settings(setting or []))
-        hilbert_map = HilbertMap(config)
-        scans = read_scans(inputs, format=format, origin=sensor, poses=poses)
-    except ValueError as error:
-        raise typer.BadParameter(str(error)) from error
+    given = [*inputs, *(p for p in (poses, calib) if p is not None)]
+    check_output(output, given, force)
+    sensor = _numbers(origin, float, "--origin") if origin else None
+    ranges = {"min_range": min_range, "max_range": max_range}
+    overrides = {k: v for k, v in ranges.items() if v is not None}
+    config = MapConfig.for_resolution(resolution, **_parse_settings(setting or []), **overrides)
+    hilbert_map = HilbertMap(config)
+    scans = read_scans(inputs, format=format, origin=sensor, poses=poses, calib=calib)
     run = MappingPipeline(scans, hilbert_map, batch, [ProgressBar(console)]).run()
     hilbert_map.save(output)
     console.print(_timings_table("Mapping, per stage", run.stage_seconds))
@@ -192,12 +259,19 @@ def map_command(
         f"{hilbert_map!r}, {hilbert_map.memory_bytes() / 1e6:.2f} MB, mapped in "
         f"{run.seconds:.1f} s; wrote {output}"
     )
+    if hilbert_map.n_clusters == 0:
+        errors.print(
+            "[yellow]warning:[/yellow] the map has no clusters: no scan gave enough samples "
+            "together, so every point reads 0.5"
+        )
 
 
 @app.command()
 def query(
     map_path: Annotated[Path, typer.Argument(help="Map file.")],
-    points: Annotated[Path, typer.Argument(help="Points: .npy (n, d) or .csv with d columns.")],
+    points: Annotated[
+        Path, typer.Argument(help="Points: .npy (n, d) or comma-separated text, d numbers a line.")
+    ],
     output: Annotated[
         Path | None, typer.Option("--output", "-o", help="Write .npy or .csv; default stdout.")
     ] = None,
@@ -205,19 +279,18 @@ def query(
     std: Annotated[
         bool, typer.Option("--std", help="Also the standard deviation: columns p, std.")
     ] = False,
+    force: Force = False,
 ) -> None:
     """Occupancy probability of each point (and with --std its standard deviation)."""
     import numpy as np
 
-    hilbert_map = _load_or_fail(map_path)
-    if points.suffix == ".npy":
-        query_points = np.load(points)
-    else:
-        query_points = np.loadtxt(points, delimiter=",", ndmin=2, comments="#")
-    try:
-        answers = hilbert_map.occupancy(query_points, mode=mode, return_std=std)
-    except ValueError as error:
-        raise typer.BadParameter(str(error)) from error
+    from ehm.io.outputs import check_output
+    from ehm.io.points import read_points
+
+    if output is not None:
+        check_output(output, [map_path, points], force)
+    hilbert_map = _load(map_path)
+    answers = hilbert_map.occupancy(read_points(points, hilbert_map.dim), mode=mode, return_std=std)
     columns = np.column_stack(answers) if std else answers
     if output is None:
         typer.echo("\n".join(",".join(f"{v:.6f}" for v in np.atleast_1d(row)) for row in columns))
@@ -237,13 +310,16 @@ def grid(
     std: Annotated[
         bool, typer.Option("--std", help="Also the standard deviation of each voxel.")
     ] = False,
+    force: Force = False,
 ) -> None:
     """Occupancy grid of a map (incremental grid reconstruction), saved as .npz with arrays
     probability, scores, origin, resolution and intercept (and with --std, std)."""
     from ehm.io.grid_file import save_grid
+    from ehm.io.outputs import check_output
 
-    hilbert_map = _load_or_fail(map_path)
-    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib, std)
+    check_output(output, [map_path], force, suffix=".npz")
+    hilbert_map = _load(map_path)
+    occupancy_grid = _grid(hilbert_map, bounds, resolution, max_gib, std)
     save_grid(occupancy_grid, output)
     console.print(f"{occupancy_grid!r}\nwrote {output}")
 
@@ -256,22 +332,23 @@ def mesh(
     bounds: Bounds = None,
     level: Level = 0.5,
     max_gib: MaxGiB = 1.0,
+    force: Force = False,
 ) -> None:
     """Surface mesh of a 3D map by marching cubes, as binary PLY coloured by height."""
+    from ehm.io.outputs import check_output
     from ehm.io.ply import write_ply_mesh
     from ehm.viz.colors import vertex_colors
 
-    hilbert_map = _load_or_fail(map_path)
+    check_output(output, [map_path], force, suffix=".ply")
+    hilbert_map = _load(map_path)
     if hilbert_map.dim != 3:
-        raise typer.BadParameter(
-            "a 2D map has no surface mesh: 'ehm render' draws it as a PNG and 'ehm grid' "
-            "saves its grid"
+        raise InputError(
+            f"{map_path}: a 2D map has no surface mesh: 'ehm render' draws it as a PNG and "
+            "'ehm grid' saves its grid"
         )
-    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
-    try:
-        vertices, faces = occupancy_grid.mesh(level)
-    except ValueError as error:
-        raise typer.BadParameter(str(error)) from error
+    vertices, faces = _grid(hilbert_map, bounds, resolution, max_gib).mesh(level)
+    if len(faces) == 0:
+        raise InputError(f"nothing to mesh: the map does not cross {level} in these bounds")
     write_ply_mesh(output, vertices, faces, vertex_colors(vertices))
     console.print(f"{len(vertices)} vertices, {len(faces)} faces\nwrote {output}")
 
@@ -299,37 +376,40 @@ def render(
         ),
     ] = None,
     max_gib: MaxGiB = 1.0,
+    force: Force = False,
 ) -> None:
     """Picture of a map, off-screen: its mesh coloured by height (3D) or its grid (2D)."""
+    from ehm.io.outputs import check_output
     from ehm.viz.pictures import grid_picture, mesh_picture, occupancy_slices
     from ehm.viz.render import Camera
 
-    hilbert_map = _load_or_fail(map_path)
-    occupancy_grid = _grid_or_fail(hilbert_map, bounds, resolution, max_gib)
-    try:
-        if occupancy_grid.dim == 2:
-            grid_picture(occupancy_grid, output, title=map_path.name)
-        else:
-            vertices, faces = occupancy_grid.mesh(level)
-            camera = Camera(azimuth=azimuth, elevation=elevation)
-            mesh_picture(vertices, faces, output, camera, cut_above, title=map_path.name)
-    except ValueError as error:
-        raise typer.BadParameter(str(error)) from error
-    written = [output]
+    written = [p for p in (output, slices, std) if p is not None]
+    if len(set(written)) < len(written):
+        raise InputError("-o, --slices and --std must name different files")
+    for path in written:
+        check_output(path, [map_path], force, suffix=".png")
+    camera = Camera(azimuth=azimuth, elevation=elevation)
+    if cut_above is not None and not math.isfinite(cut_above):
+        raise InputError(f"--cut-above must be a finite height, got {cut_above}")
+    hilbert_map = _load(map_path)
+    occupancy_grid = _grid(hilbert_map, bounds, resolution, max_gib)
+    if occupancy_grid.dim == 2:
+        grid_picture(occupancy_grid, output, title=map_path.name)
+    else:
+        vertices, faces = occupancy_grid.mesh(level)
+        mesh_picture(vertices, faces, output, camera, cut_above, title=map_path.name)
     low, high = occupancy_grid.bounds
     if slices is not None:
         occupancy_slices(hilbert_map, low, high, slices)
-        written.append(slices)
     if std is not None:
         occupancy_slices(hilbert_map, low, high, std, std=True)
-        written.append(std)
     console.print("wrote " + " and ".join(str(p) for p in written))
 
 
 @app.command()
 def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     """What a map file holds."""
-    hilbert_map = _load_or_fail(map_path)
+    hilbert_map = _load(map_path)
     table = Table(title=str(map_path))
     table.add_column("property")
     table.add_column("value")
@@ -340,9 +420,12 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     samples = hilbert_map.memory_
     table.add_row("past samples kept", f"{len(samples)} in {samples.n_cells} cells")
     table.add_row("file size", f"{map_path.stat().st_size / 1e6:.3f} MB")
-    low = hilbert_map.clusters_.means.min(axis=0)
-    high = hilbert_map.clusters_.means.max(axis=0)
-    table.add_row("cluster extent (m)", f"{low.round(2).tolist()} .. {high.round(2).tolist()}")
+    means = hilbert_map.clusters_.means
+    if len(means):
+        low, high = means.min(axis=0).round(2).tolist(), means.max(axis=0).round(2).tolist()
+        table.add_row("cluster extent (m)", f"{low} .. {high}")
+    else:
+        table.add_row("cluster extent (m)", "none: the map is empty, every point reads 0.5")
     for name, value in hilbert_map.config.to_dict().items():
         table.add_row(f"config.{name}", repr(value))
     console.print(table)
@@ -354,18 +437,18 @@ def _names(text: str, known: list[str], what: str) -> list[str]:
     if names == ["all"]:
         return list(known)
     if not names:
-        raise typer.BadParameter(f"no {what} given")
+        raise InputError(f"no {what} given")
     return names
 
 
 def _numbers(text: str, kind: type, what: str) -> list:
-    """Comma-separated finite numbers of `kind`, or a usage error naming `what` and the text."""
+    """Comma-separated finite numbers of `kind`; InputError naming `what` and the text."""
     try:
         values = [kind(v) for v in text.split(",") if v.strip()]
     except ValueError as error:
-        raise typer.BadParameter(f"{what}: {error}") from error
+        raise InputError(f"{what}: {error}") from error
     if not all(math.isfinite(v) for v in values):
-        raise typer.BadParameter(f"{what}: expected finite numbers, got {text!r}")
+        raise InputError(f"{what}: expected finite numbers, got {text!r}")
     return values
 
 
@@ -406,6 +489,7 @@ def eval_command(
             help="Folder of the real data sets (default: $EHM_DATA_DIR or ../shared/data)."
         ),
     ] = None,
+    force: Force = False,
 ) -> None:
     """Compare mapping methods on held-out rays: in each scan a train fraction of the rays
     builds every method, the rest are test points (hits occupied, one free point along each
@@ -417,26 +501,28 @@ def eval_command(
     from ehm.eval.datasets import DATASETS
     from ehm.eval.report import summary_table
     from ehm.eval.runner import evaluate_scans, plan_evaluation, summarise
+    from ehm.io.outputs import check_output, check_output_folder
 
+    if json_path is not None:
+        check_output(json_path, force=force, suffix=".json")
+    if plots is not None:
+        check_output_folder(plots)
     if data_dir is not None:
         os.environ["EHM_DATA_DIR"] = str(data_dir)
-    try:
-        fraction_list = _numbers(fractions, float, "fractions")
-        seed_list = _numbers(seeds, int, "seeds")
-        plan = plan_evaluation(
-            _names(methods, list(METHODS), "methods"),
-            _names(datasets, list(DATASETS), "data sets"),
-            fraction_list,
-            resolution,
-            skip_missing=True,
-        )
-    except ValueError as error:
-        raise typer.BadParameter(str(error)) from error
+    fraction_list = _numbers(fractions, float, "--fractions")
+    seed_list = _numbers(seeds, int, "--seeds")
+    plan = plan_evaluation(
+        _names(methods, list(METHODS), "methods"),
+        _names(datasets, list(DATASETS), "data sets"),
+        fraction_list,
+        resolution,
+        skip_missing=True,
+        seeds=seed_list,
+    )
     for message in plan.skipped:
-        console.print(f"[yellow]{message}[/yellow]")
+        errors.print(f"[yellow]{escape(message)}[/yellow]")
     if not plan.methods or not plan.datasets:
-        console.print("[red]error:[/red] nothing to evaluate")
-        raise typer.Exit(1)
+        raise InputError("nothing to evaluate: every method or data set asked for was skipped")
 
     records = []
     runs = len(plan.datasets) * len(fraction_list) * len(seed_list) * len(plan.methods)

@@ -460,7 +460,7 @@ class HilbertMap:
         date whenever the map learns (each batch of scans, see MapConfig.batch_rays, and each
         fit), for as long as it is referenced (several grids, at any resolutions, can follow
         one map); its bounds stay as they were made. max_bytes:
-        refuse larger grids (ValueError) before allocating. std: also the standard deviation
+        refuse larger grids (InputError) before allocating. std: also the standard deviation
         of each voxel's occupancy (`grid.std`, see `occupancy`), at 40 bytes a voxel instead
         of 16.
         """

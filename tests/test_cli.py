@@ -99,9 +99,13 @@ def test_bad_inputs_give_clear_errors(map_file, tmp_path):
         assert message in " ".join(result.output.split()), result.output
 
     (tmp_path / "junk.ehm").write_bytes(b"junk")
-    fails(["info", str(tmp_path / "junk.ehm")], 1, "not an ehm map file (unknown magic bytes)")
+    fails(["info", str(tmp_path / "junk.ehm")], 2, "not an ehm map file (unknown magic bytes)")
     np.save(tmp_path / "q3.npy", np.zeros((2, 3)))
-    fails(["query", str(map_file), str(tmp_path / "q3.npy")], 2, "shape (n, 2), got (2, 3)")
+    fails(
+        ["query", str(map_file), str(tmp_path / "q3.npy")],
+        2,
+        "q3.npy: expected points of shape (n, 2), got float64 (2, 3)",
+    )
     output = str(tmp_path / "x.ehm")
     fails(["map", str(tmp_path / "nothing.ply"), "-o", output], 2, "nothing.ply: no such file")
     log = str(map_file.with_suffix(".log"))
@@ -193,7 +197,7 @@ def test_grid_mesh_and_render_commands(room_map_file, map_file, tmp_path):
     ("options", "message"),
     [
         (["--resolution", "0"], "resolution must be a positive"),
-        (["--bounds", "0,0,0,1,1"], "bounds need 6 numbers"),
+        (["--bounds", "0,0,0,1,1"], "--bounds: 6 numbers for a 3D map, got 5"),
         (["--bounds", "0,0,0,1,-1,1"], "inverted"),
         (["--resolution", "0.001", "--max-gib", "0.5"], "more than the limit of 0.50 GiB"),
     ],
@@ -242,5 +246,5 @@ def test_eval_names_bad_options(monkeypatch, tmp_path):
     assert result.exit_code == 2 and "must be in (0, 1), got 1.2" in result.output
     monkeypatch.setenv("EHM_DATA_DIR", str(tmp_path))
     result = runner.invoke(app, ["eval", "--methods", "ehm", "--datasets", "intel_lab"])
-    assert result.exit_code == 1
+    assert result.exit_code == 2
     assert "skipped intel_lab" in result.output and "nothing to evaluate" in result.output

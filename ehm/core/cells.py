@@ -21,7 +21,7 @@ class CellKeys:
 
 
 def cell_keys(points: np.ndarray, cell: float) -> CellKeys:
-    """Cells of side `cell` metres of (n >= 1, d) points, metres; ValueError when the keys would
+    """Cells of side `cell` metres of (n >= 1, d) points, metres; InputError when the keys would
     overflow 64 bits."""
     cells = np.floor((points - points.min(axis=0)) / cell).astype(np.int64)
     extents = cells.max(axis=0) + 1
@@ -38,7 +38,7 @@ def packed_cell_keys(
     metres, world frame, with kind[i] (0 .. 2**kind_bits - 1) in its lowest bits: the cell's
     integer coordinates from the world origin take (63 - kind_bits) // d bits per axis.
 
-    ValueError when a point lies beyond the cells' reach; `remedy` ends the message."""
+    InputError when a point lies beyond the cells' reach; `remedy` ends the message."""
     bits = (63 - kind_bits) // points.shape[1]
     cells = np.floor(points / side[:, None])
     half = 2.0 ** (bits - 1)
@@ -46,8 +46,9 @@ def packed_cell_keys(
         outside = np.any((cells < -half) | (cells >= half), axis=1)
         far = np.max(np.abs(points[outside]))
         raise InputError(
-            f"a training sample lies {far:.0f} m from the world origin; cells of "
-            f"{side.min():g} m reach {half * side.min():.0f} m ({remedy})"
+            f"a training sample lies {far:.0f} m from the world origin, beyond the "
+            f"{half * side.min():.0f} m that cells of {side.min():g} m reach: set max_range "
+            f"(ehm map --max-range) to cut rays longer than the sensor's, or {remedy}"
         )
     keys = np.zeros(len(points), dtype=np.int64)
     for axis in range(points.shape[1]):

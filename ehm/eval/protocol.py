@@ -9,6 +9,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ehm.core.scan import Scan
+from ehm.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -32,7 +33,7 @@ def held_out_rays(
     A ray is never in both sets.
     """
     if not 0.0 < train_fraction < 1.0:
-        raise ValueError(f"train fraction must be in (0, 1), got {train_fraction}")
+        raise InputError(f"train fraction must be in (0, 1), got {train_fraction}")
     rng = np.random.default_rng(seed)
     train, points, occupied, train_rays = [], [], [], []
     for scan in scans:

@@ -22,6 +22,7 @@ import numpy as np
 
 from ehm.config import DEFAULT_RESOLUTION
 from ehm.core.scan import Scan
+from ehm.errors import InputError
 from ehm.eval.baselines import METHODS, Mapper, make_mapper, method_names
 from ehm.eval.datasets import DATASETS, DataMissingError, load_dataset
 from ehm.eval.metrics import score
@@ -128,16 +129,26 @@ def evaluate_scans(
 
 
 def check_request(
-    methods: Sequence[str], datasets: Sequence[str], fractions: Sequence[float]
+    methods: Sequence[str],
+    datasets: Sequence[str],
+    fractions: Sequence[float],
+    seeds: Sequence[int] = (0,),
+    resolution: float = DEFAULT_RESOLUTION,
 ) -> list[str]:
-    """The methods with group names expanded, once every name and fraction is checked:
-    ValueError names unknown methods or data sets and fractions outside (0, 1)."""
+    """The methods with group names expanded, once every name and number is checked:
+    InputError names unknown methods or data sets, fractions outside (0, 1), negative seeds
+    and a resolution that is not a positive number of metres."""
     unknown = [d for d in datasets if d not in DATASETS]
     if unknown:
-        raise ValueError(f"unknown data set(s) {', '.join(unknown)}; known: {', '.join(DATASETS)}")
+        raise InputError(f"unknown data set(s) {', '.join(unknown)}; known: {', '.join(DATASETS)}")
     for fraction in fractions:
         if not 0.0 < fraction < 1.0:
-            raise ValueError(f"train fractions must be in (0, 1), got {fraction}")
+            raise InputError(f"train fractions must be in (0, 1), got {fraction}")
+    for seed in seeds:
+        if not (isinstance(seed, int) and seed >= 0):
+            raise InputError(f"seeds must be integers >= 0, got {seed!r}")
+    if not 0.0 < resolution < float("inf"):
+        raise InputError(f"resolution must be a positive number of metres, got {resolution!r}")
     return method_names(list(methods))
 
 
@@ -158,6 +169,7 @@ def plan_evaluation(
     fractions: Sequence[float],
     resolution: float = DEFAULT_RESOLUTION,
     skip_missing: bool = False,
+    seeds: Sequence[int] = (0,),
 ) -> EvalPlan:
     """Check the request (see check_request), then make one mapper of each method (at
     `resolution` metres) and load each data set. A method whose bindings are missing
@@ -166,7 +178,7 @@ def plan_evaluation(
     descriptions: dict[str, str] = {}
     loaded: dict[str, list[Scan]] = {}
     skipped: list[str] = []
-    for method in check_request(methods, datasets, fractions):
+    for method in check_request(methods, datasets, fractions, seeds, resolution):
         try:
             descriptions[method] = make_mapper(method, resolution, 0).description
         except ImportError as error:
@@ -193,10 +205,11 @@ def evaluate(
     """The held-out-rays comparison of `methods` (names of ehm.eval.baselines.METHODS, or
     'hm') on `datasets` (names of ehm.eval.datasets.DATASETS) at every train fraction and seed.
 
-    Raises ValueError for unknown names or fractions outside (0, 1), DataMissingError when a
-    real data set's files are absent, ImportError when the OctoMap bindings are.
+    Raises InputError for unknown names, fractions outside (0, 1), negative seeds,
+    DataMissingError when a real data set's files are absent, ImportError when the OctoMap
+    bindings are.
     """
-    plan = plan_evaluation(methods, datasets, fractions, resolution)
+    plan = plan_evaluation(methods, datasets, fractions, resolution, seeds=seeds)
     records: list[EvalRecord] = []
     for dataset, scans in plan.datasets.items():
         records += evaluate_scans(dataset, scans, list(plan.methods), fractions, seeds, resolution)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ehm.core.snapshot import MapSnapshot
-from ehm.errors import InputError
+from ehm.errors import EmptyMapError, InputError
 
 
 def bytes_per_voxel(with_std: bool = False) -> int:
@@ -26,7 +26,7 @@ def grid_shape(
     voxel_bytes: int = bytes_per_voxel(),
 ) -> tuple[np.ndarray, tuple[int, ...]]:
     """Check grid bounds (2, dim) [low corner, high corner], metres, and a resolution, metres;
-    return the float64 low corner and the voxels per axis. ValueError for a resolution <= 0,
+    return the float64 low corner and the voxels per axis. InputError for a resolution <= 0,
     bounds of the wrong shape, not finite, inverted or empty, and for grids that would take more
     than `max_bytes` (`voxel_bytes` per voxel), before anything is allocated."""
     resolution = float(resolution)
@@ -64,7 +64,12 @@ def grid_shape(
 
 def support_bounds(snapshot: MapSnapshot) -> np.ndarray:
     """(2, d) metres: the smallest box holding every kernel's support (all of the map where
-    any kernel is non-zero); the map has at least one cluster."""
+    any kernel is non-zero). EmptyMapError for a map without clusters: it has no extent."""
+    if len(snapshot.means) == 0:
+        raise EmptyMapError(
+            "the map has no clusters (no scan gave enough samples together), so it covers "
+            "nothing: every point reads 0.5; give bounds for a grid of it anyway"
+        )
     half = support_half_widths(snapshot.transforms, snapshot.planar_kernel)
     means = snapshot.means
     return np.stack([(means - half).min(axis=0), (means + half).max(axis=0)])

@@ -77,7 +77,7 @@ class OccupancyGrid:
     ) -> OccupancyGrid:
         """The grid of a map's snapshot over `bounds` ((2, d) metres, [low corner, high
         corner]; None: the box holding every kernel's support) at `resolution` metres, with
-        the occupancy's standard deviation when with_std. ValueError for bad bounds or
+        the occupancy's standard deviation when with_std. InputError for bad bounds or
         resolutions and for grids over `max_bytes`, before allocating."""
         if bounds is None:
             bounds = support_bounds(snapshot)
@@ -100,7 +100,7 @@ class OccupancyGrid:
     @property
     def variance_sums(self) -> np.ndarray:
         """(2,) + `shape` float64 (a view), sum_m k^2 / lambda_m and sum_m k at each voxel
-        centre, from which `std` follows; ValueError for a grid made without the std."""
+        centre, from which `std` follows; InputError for a grid made without the std."""
         self._require_std()
         return self._fields[1:]
 
@@ -128,7 +128,7 @@ class OccupancyGrid:
     def std(self) -> np.ndarray:
         """Standard deviation of p(occupied) per voxel under the weights' posterior
         (ehm.core.uncertainty), float64 array of `shape` (computed once per update);
-        ValueError for a grid made without it."""
+        InputError for a grid made without it."""
         self._require_std()
         if self._std is None:
             variance = logit_variance(self._fields[1], self._fields[2], self.prior_precision)

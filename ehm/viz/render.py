@@ -27,6 +27,8 @@ class Camera:
     height: int = 900
 
     def __post_init__(self) -> None:
+        if not np.isfinite(self.azimuth):
+            raise InputError(f"camera azimuth must be a finite angle, got {self.azimuth}")
         if not -90.0 < self.elevation < 90.0:
             raise InputError(
                 f"camera elevation must lie inside (-90, 90) degrees, got {self.elevation}"

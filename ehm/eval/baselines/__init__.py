@@ -16,6 +16,7 @@ from typing import Protocol
 import numpy as np
 
 from ehm.core.scan import Scan
+from ehm.errors import InputError
 
 
 class Mapper(Protocol):
@@ -90,7 +91,7 @@ def method_names(names: list[str]) -> list[str]:
         for method in GROUPS.get(name, [name]):
             if method not in METHODS:
                 known = ", ".join([*METHODS, *GROUPS])
-                raise ValueError(f"unknown method {name!r}; known: {known}")
+                raise InputError(f"unknown method {name!r}; known: {known}")
             if method not in expanded:
                 expanded.append(method)
     return expanded
@@ -100,5 +101,5 @@ def make_mapper(name: str, resolution: float, seed: int) -> Mapper:
     """A fresh, empty mapper of method `name` (see METHODS)."""
     methods = method_names([name])
     if len(methods) != 1:
-        raise ValueError(f"{name!r} stands for {', '.join(methods)}: give one method")
+        raise InputError(f"{name!r} stands for {', '.join(methods)}: give one method")
     return METHODS[methods[0]](resolution, seed)

@@ -3,6 +3,7 @@
 from collections.abc import Callable
 
 from ehm.core.scan import Scan
+from ehm.errors import InputError
 from ehm.eval.datasets.real import REAL_DATASETS, DataMissingError
 from ehm.eval.datasets.scene import Scene
 from ehm.eval.datasets.simulated import (
@@ -26,7 +27,7 @@ def load_dataset(name: str) -> list[Scan]:
     """The scans of data set `name` (see DATASETS). ValueError for an unknown name;
     DataMissingError when a real data set's files are absent."""
     if name not in DATASETS:
-        raise ValueError(f"unknown data set {name!r}; known: {', '.join(DATASETS)}")
+        raise InputError(f"unknown data set {name!r}; known: {', '.join(DATASETS)}")
     return DATASETS[name]()
 
 
