@@ -38,9 +38,15 @@ def read_text(path: str | PathLike[str]) -> str:
 
 
 def _bunzip(path: str | PathLike[str], data: bytes) -> bytes:
-    try:
-        return bz2.decompress(data)
-    except (OSError, ValueError) as error:
-        raise FileReadError(path, f"not a bzip2 stream ({error})") from None
-    except EOFError:
-        raise FileReadError(path, "truncated bzip2 stream") from None
+    """The decompressed bzip2 streams of `data`, one after another."""
+    parts = []
+    while data:
+        stream = bz2.BZ2Decompressor()
+        try:
+            parts.append(stream.decompress(data))
+        except OSError as error:
+            raise FileReadError(path, f"not a bzip2 stream ({error})") from None
+        if not stream.eof:
+            raise FileReadError(path, "truncated bzip2 stream")
+        data = stream.unused_data
+    return b"".join(parts)

@@ -72,7 +72,7 @@ def read_scans(
     items = [paths] if isinstance(paths, str | PathLike) else list(paths)
     if not items:
         raise InputError("no input files given")
-    fmt = format or guess_format(items[0])
+    fmt = format or _one_format(items)
     if fmt not in FORMATS:
         raise InputError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
     _check_options(fmt, origin, poses, calib)
@@ -97,6 +97,19 @@ def read_scans(
         _point_cloud_scan(Path(item), fmt, origin, T_world_file)
         for item, T_world_file in zip(items, T_world_files, strict=True)
     ]
+
+
+def _one_format(items: list[str | PathLike[str]]) -> str:
+    """The format all `items` share by their names; InputError when they differ."""
+    formats = {Path(item).name: guess_format(item) for item in items}
+    first = formats[Path(items[0]).name]
+    other = next((name for name, fmt in formats.items() if fmt != first), None)
+    if other is not None:
+        raise InputError(
+            f"{other} is {formats[other]}, {Path(items[0]).name} is {first}: give files of one "
+            "format"
+        )
+    return first
 
 
 def _check_options(

@@ -1,4 +1,8 @@
-"""Fixtures of the file-format tests: a point cloud and an LZF encoder."""
+"""Fixtures of the file-format tests: a point cloud, an LZF encoder, and a small valid file
+of every input format."""
+
+import bz2
+import struct
 
 import numpy as np
 import pytest
@@ -8,6 +12,79 @@ import pytest
 def cloud(rng):
     """(50, 3) float64 points that float32 holds exactly."""
     return rng.uniform(-5, 5, (50, 3)).astype(np.float32).astype(np.float64)
+
+
+@pytest.fixture
+def input_files(tmp_path, cloud):
+    """One small valid input of each reader, by name: {name: (path, read_scans keywords)}.
+    The KITTI scan sits in a sequence folder with calib.txt and poses.txt; the TUM frames in
+    a folder with poses.txt and depth/."""
+    n = len(cloud)
+    xyz_text = "\n".join(" ".join(f"{v:.9g}" for v in p) for p in cloud) + "\n"
+    files = {
+        "a.xyz": xyz_text.encode(),
+        "a.dat.bz2": bz2.compress(xyz_text.encode()),
+        "a.ply": _ply_header("ascii 1.0", n).encode() + xyz_text.encode(),
+        "b.ply": _ply_header("binary_little_endian 1.0", n).encode()
+        + cloud.astype("<f4").tobytes(),
+        "a.pcd": _pcd_header("ascii", n) + xyz_text.encode(),
+        "b.pcd": _pcd_header("binary", n) + cloud.astype("<f4").tobytes(),
+        "a.graph": struct.pack("<I", 1) + _graph_node(cloud) + struct.pack("<I", 0),
+        "a.log": (
+            b"FLASER 4 1.0 81.83 2.0 1.5 1.0 2.0 0.0 0 0 0 0 host 0\n"
+            b"FLASER 3 1.0 2.0 1.5 1.0 2.5 0.1 0 0 0 0 host 1\n"
+        ),
+    }
+    field_major = cloud.T.astype("<f4").tobytes()
+    packed = _lzf_compress(field_major)
+    files["c.pcd"] = (
+        _pcd_header("binary_compressed", n)
+        + struct.pack("<II", len(packed), len(field_major))
+        + packed
+    )
+    found = {}
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+        found[name] = (tmp_path / name, {})
+    sequence = tmp_path / "sequence"
+    (sequence / "velodyne").mkdir(parents=True)
+    np.column_stack([cloud, np.ones(n)]).astype("<f4").tofile(sequence / "velodyne" / "000000.bin")
+    (sequence / "calib.txt").write_text("Tr: 0 -1 0 0 0 0 -1 0 1 0 0 0\n")
+    (sequence / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
+    found["000000.bin"] = (sequence / "velodyne" / "000000.bin", {"poses": sequence / "poses.txt"})
+    found["tum"] = (_tum_folder(tmp_path / "tum"), {})
+    return found
+
+
+def _ply_header(fmt: str, n: int) -> str:
+    properties = "".join(f"property float {c}\n" for c in "xyz")
+    return f"ply\nformat {fmt}\nelement vertex {n}\n{properties}end_header\n"
+
+
+def _pcd_header(kind: str, n: int) -> bytes:
+    return (
+        "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+        f"WIDTH {n}\nHEIGHT 1\nVIEWPOINT 1 2 3 1 0 0 0\nPOINTS {n}\nDATA {kind}\n"
+    ).encode()
+
+
+def _graph_node(points: np.ndarray) -> bytes:
+    body = struct.pack("<I", len(points))
+    for p in points:
+        body += struct.pack("<i3d", 3, *p)
+    body += struct.pack("<i3d", 3, 0.5, 0.0, 0.0) + struct.pack("<i4d", 4, 1.0, 0.0, 0.0, 0.0)
+    return body + struct.pack("<I", 0)
+
+
+def _tum_folder(folder):
+    from PIL import Image
+
+    (folder / "depth").mkdir(parents=True)
+    depth = np.zeros((6, 8), dtype=np.uint16)
+    depth[2:5, 3:6] = 10000
+    Image.fromarray(depth).save(folder / "depth" / "0.png")
+    (folder / "poses.txt").write_text("depth/0.png 1 2 3 0 0 0 1\n")
+    return folder
 
 
 @pytest.fixture
