@@ -28,6 +28,25 @@ def plan():
 
 
 @pytest.fixture(scope="session")
+def plan_log(tmp_path_factory, plan):
+    """The floor plan's scans as a CARMEN log of 180 beams each, from -90 to +89 degrees."""
+    lines = []
+    for scan in plan.scans:
+        offsets = scan.points_world[scan.hit_mask] - scan.origin
+        ranges = np.linalg.norm(offsets, axis=1)
+        angles = np.arctan2(offsets[:, 1], offsets[:, 0])
+        beams = np.full(180, 81.83)  # no return
+        index = np.round(np.rad2deg(angles) + 90).astype(int)
+        ok = (index >= 0) & (index < 180)
+        beams[index[ok]] = ranges[ok]
+        values = " ".join(f"{r:.4f}" for r in beams)
+        lines.append(f"FLASER 180 {values} {scan.origin[0]} {scan.origin[1]} 0.0 0 0 0 0 h 0")
+    log = tmp_path_factory.mktemp("plan_log") / "plan.log"
+    log.write_text("\n".join(lines) + "\n")
+    return log
+
+
+@pytest.fixture(scope="session")
 def room_map(room):
     """The virtual room in one fit, default settings (tests must not change it)."""
     return ehm.HilbertMap().fit(room.scans)

@@ -14,24 +14,9 @@ runner = CliRunner(env={"COLUMNS": "240"})
 
 
 @pytest.fixture(scope="module")
-def map_file(tmp_path_factory, plan):
-    folder = tmp_path_factory.mktemp("cli")
-    log = folder / "plan.log"
-    lines = []
-    for scan in plan.scans:
-        offsets = scan.points_world[scan.hit_mask] - scan.origin
-        ranges = np.linalg.norm(offsets, axis=1)
-        angles = np.arctan2(offsets[:, 1], offsets[:, 0])
-        # Resample onto 180 beams from -90 to +89 degrees around heading 0.
-        beams = np.full(180, 81.83)
-        index = np.round(np.rad2deg(angles) + 90).astype(int)
-        ok = (index >= 0) & (index < 180)
-        beams[index[ok]] = ranges[ok]
-        values = " ".join(f"{r:.4f}" for r in beams)
-        lines.append(f"FLASER 180 {values} {scan.origin[0]} {scan.origin[1]} 0.0 0 0 0 0 h 0")
-    log.write_text("\n".join(lines) + "\n")
-    output = folder / "plan.ehm"
-    result = runner.invoke(app, ["map", str(log), "-o", str(output), "--set", "neighbours=6"])
+def map_file(tmp_path_factory, plan_log):
+    output = tmp_path_factory.mktemp("cli") / "plan.ehm"
+    result = runner.invoke(app, ["map", str(plan_log), "-o", str(output), "--set", "neighbours=6"])
     assert result.exit_code == 0, result.output
     assert "5 scans" in result.output and "sgd" in result.output
     return output
@@ -92,7 +77,7 @@ def test_map_then_info_and_query(map_file, tmp_path):
     np.testing.assert_allclose(np.loadtxt(tmp_path / "s.csv", delimiter=","), with_std, atol=1e-6)
 
 
-def test_bad_inputs_give_clear_errors(map_file, tmp_path):
+def test_bad_inputs_give_clear_errors(map_file, plan_log, tmp_path):
     def fails(args: list[str], code: int, message: str) -> None:
         result = runner.invoke(app, args)
         assert result.exit_code == code, result.output
@@ -108,7 +93,7 @@ def test_bad_inputs_give_clear_errors(map_file, tmp_path):
     )
     output = str(tmp_path / "x.ehm")
     fails(["map", str(tmp_path / "nothing.ply"), "-o", output], 2, "nothing.ply: no such file")
-    log = str(map_file.with_suffix(".log"))
+    log = str(plan_log)
     fails(["map", log, "-o", output, "--set", "k=1"], 2, "'k=1': expected name=value with a")
     fails(["map", log, "-o", output, "--set", "neighbours"], 2, "expected name=value")
     fails(["map", log, "-o", output, "--set", "neighbours=0"], 2, "must be an integer >= 1")
@@ -122,8 +107,8 @@ def test_bad_inputs_give_clear_errors(map_file, tmp_path):
     assert not (tmp_path / "x.ehm").exists()
 
 
-def test_map_at_another_resolution_scales_its_settings(map_file, tmp_path):
-    log, output = str(map_file.with_suffix(".log")), tmp_path / "coarse.ehm"
+def test_map_at_another_resolution_scales_its_settings(plan_log, tmp_path):
+    log, output = str(plan_log), tmp_path / "coarse.ehm"
     result = runner.invoke(
         app, ["map", log, "-o", str(output), "--resolution", "0.1", "--set", "min_std=0.03"]
     )
