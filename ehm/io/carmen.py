@@ -16,7 +16,8 @@ def read_carmen(
 ) -> list[Scan]:
     """2D scans of a CARMEN log: each `FLASER n r_1..r_n x y theta ...` line, beam i at angle
     theta - fov/2 + i fov/n; readings >= max_range (sensor dropouts) are dropped. FileReadError
-    naming the line for a malformed FLASER line, or for a log without one."""
+    naming the line for a malformed FLASER line (a pose that is not finite, a reading that is
+    NaN or negative), or for a log without one."""
     scans, n_lines = [], 0
     for number, line in enumerate(read_text(path).splitlines(), start=1):
         words = line.split()
@@ -28,12 +29,16 @@ def read_carmen(
             if not 0 < n <= len(words) - 5:
                 raise ValueError(f"{n} readings announced, {max(len(words) - 5, 0)} given")
             ranges = np.array(words[2 : 2 + n], dtype=np.float64)
-            x, y, theta = map(float, words[2 + n : 5 + n])
-            angles = theta - fov / 2 + np.arange(n) * fov / n
+            x, y, theta = pose = np.array(words[2 + n : 5 + n], dtype=np.float64)
+            if not np.all(np.isfinite(pose)):
+                raise ValueError(f"pose x y theta {pose.tolist()} is not finite")
+            if np.any(np.isnan(ranges) | (ranges < 0)):
+                raise ValueError("readings must be numbers >= 0")
             keep = ranges < max_range
+            ranges, angles = ranges[keep], (theta - fov / 2 + np.arange(n) * fov / n)[keep]
             points = np.column_stack([x + ranges * np.cos(angles), y + ranges * np.sin(angles)])
             if keep.any():
-                scans.append(Scan(points[keep], np.array([x, y])))
+                scans.append(Scan(points, np.array([x, y])))
         except (ValueError, IndexError) as error:  # InputError too: a bad origin
             message = f"malformed FLASER line: expected 'FLASER n r_1..r_n x y theta' ({error})"
             raise FileReadError(path, message, f"line {number}") from None

@@ -15,7 +15,8 @@ def xyz_columns(records: np.ndarray, path: str | PathLike[str]) -> np.ndarray:
     missing = [f for f in "xyz" if f not in (records.dtype.names or ())]
     if missing:
         raise FileReadError(path, f"no {', '.join(missing)} field")
-    return np.column_stack([records[f].astype(np.float64) for f in "xyz"])
+    with np.errstate(invalid="ignore"):  # values that are not numbers become NaN, then dropped
+        return np.column_stack([records[f].astype(np.float64) for f in "xyz"])
 
 
 def ascii_rows(

@@ -4,7 +4,6 @@ grids with the occupancy's standard deviation, std and the variance sums it come
 from __future__ import annotations
 
 import io
-import zipfile
 from os import PathLike
 
 import numpy as np
@@ -36,25 +35,28 @@ def save_grid(grid: OccupancyGrid, path: str | PathLike[str]) -> None:
 def load_grid(path: str | PathLike[str]) -> OccupancyGrid:
     """Read a grid written by save_grid (it no longer follows any map); FileReadError for a
     file that is not one."""
+    data = read_bytes(path)
     try:
-        with np.load(io.BytesIO(read_bytes(path))) as data:
-            missing = {"scores", "intercept", "origin", "resolution"} - set(data.files)
-            if missing:
-                message = f"not an ehm grid file (no {', '.join(sorted(missing))})"
-                raise FileReadError(path, message)
-            with_std = "variance_sums" in data.files
-            if with_std and "prior_precision" not in data.files:
-                message = "not an ehm grid file (variance_sums without prior_precision)"
-                raise FileReadError(path, message)
-            shape = data["scores"].shape
-            grid = OccupancyGrid(data["origin"], float(data["resolution"]), shape, with_std)
-            grid.scores[...] = data["scores"]
-            grid.intercept = float(data["intercept"])
-            if with_std:
-                grid.variance_sums[...] = data["variance_sums"]
-                grid.prior_precision = float(data["prior_precision"])
-    except (OSError, EOFError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as error:
-        if isinstance(error, FileReadError):
-            raise
+        with np.load(io.BytesIO(data), allow_pickle=False) as archive:
+            arrays = {name: archive[name] for name in archive.files}
+    except Exception as error:
+        # NumPy's archive reader fails in many ways (zip, zlib, header parsing) on bytes that
+        # are not an .npz file.
+        raise FileReadError(path, f"not an ehm grid file ({error!r})") from None
+    missing = {"scores", "intercept", "origin", "resolution"} - set(arrays)
+    if missing:
+        raise FileReadError(path, f"not an ehm grid file (no {', '.join(sorted(missing))})")
+    with_std = "variance_sums" in arrays
+    if with_std and "prior_precision" not in arrays:
+        raise FileReadError(path, "not an ehm grid file (variance_sums without prior_precision)")
+    try:
+        shape = arrays["scores"].shape
+        grid = OccupancyGrid(arrays["origin"], float(arrays["resolution"]), shape, with_std)
+        grid.scores[...] = arrays["scores"]
+        grid.intercept = float(arrays["intercept"])
+        if with_std:
+            grid.variance_sums[...] = arrays["variance_sums"]
+            grid.prior_precision = float(arrays["prior_precision"])
+    except (TypeError, ValueError) as error:  # EhmError too
         raise FileReadError(path, f"not an ehm grid file ({error})") from None
     return grid

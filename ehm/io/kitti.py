@@ -44,8 +44,9 @@ def read_kitti(
             raise FileReadError(
                 path, f"{len(raw)} bytes is not a whole number of points (16 bytes: x y z i)"
             )
-        points_velodyne = np.frombuffer(raw, dtype="<f4").reshape(-1, 4)[:, :3]
-        points_world = transform_points(T_world_velodyne, points_velodyne.astype(np.float64))
+        with np.errstate(invalid="ignore"):  # bytes that are not numbers become NaN, dropped
+            points_velodyne = np.frombuffer(raw, "<f4").reshape(-1, 4)[:, :3].astype(np.float64)
+        points_world = transform_points(T_world_velodyne, points_velodyne)
         try:
             scans.append(Scan(points_world, T_world_velodyne[:3, 3].copy()))
         except InputError as error:

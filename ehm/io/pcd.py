@@ -14,6 +14,8 @@ from ehm.io.files import read_bytes
 from ehm.io.lzf import lzf_decompress
 
 _SIZES = {"F": (4, 8), "I": (1, 2, 4, 8), "U": (1, 2, 4, 8)}
+# The most values one field holds per point (PCL's largest descriptors hold a few hundred).
+_MAX_COUNT = 4096
 # LZF turns 3 bytes into at most 264: no valid stream expands more.
 _LZF_MAX_RATIO = 88
 
@@ -78,8 +80,10 @@ def _record_layout(header: dict, path: str | PathLike[str]) -> tuple:
                 f"field {name!r} has TYPE {kind} SIZE {size}: expected F 4/8, I 1/2/4/8 "
                 "or U 1/2/4/8",
             )
-        if count < 1:
-            raise FileReadError(path, f"field {name!r} has COUNT {count}, expected >= 1")
+        if not 1 <= count <= _MAX_COUNT:
+            raise FileReadError(
+                path, f"field {name!r} has COUNT {count}, expected 1 to {_MAX_COUNT}"
+            )
     missing = [c for c in "xyz" if c not in names]
     if missing:
         raise FileReadError(path, f"no {', '.join(missing)} field")

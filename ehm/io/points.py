@@ -19,10 +19,13 @@ def read_points(path: str | PathLike[str], dim: int) -> np.ndarray:
     or for an array of another shape."""
     path = Path(path)
     if path.suffix.lower() == ".npy":
+        data = read_bytes(path)
         try:
-            points = np.load(io.BytesIO(read_bytes(path)), allow_pickle=False)
-        except (ValueError, OSError, EOFError) as error:
-            raise FileReadError(path, f"not a NumPy array file ({error})") from None
+            points = np.load(io.BytesIO(data), allow_pickle=False)
+        except Exception as error:
+            # NumPy's header parser fails in many ways (SyntaxError, TokenError, ValueError,
+            # EOFError, ...) on bytes that are not an array file.
+            raise FileReadError(path, f"not a NumPy array file ({error!r})") from None
     else:
         try:
             with warnings.catch_warnings():

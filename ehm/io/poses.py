@@ -65,7 +65,8 @@ def read_kitti_calibration(path: str | PathLike[str]) -> np.ndarray:
 def _kitti_pose(values: np.ndarray) -> np.ndarray:
     pose = np.vstack([values.reshape(3, 4), [0.0, 0.0, 0.0, 1.0]])
     rotation = pose[:3, :3]
-    error = np.abs(rotation.T @ rotation - np.eye(3)).max()
+    with np.errstate(over="ignore", invalid="ignore"):  # huge entries: an infinite error
+        error = np.abs(rotation.T @ rotation - np.eye(3)).max()
     if error > _ROTATION_TOLERANCE or np.linalg.det(rotation) < 0:
         raise InputError(f"its 3x3 part is not a rotation (R^T R differs from I by {error:.3g})")
     return pose

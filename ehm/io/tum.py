@@ -59,14 +59,16 @@ def read_tum(
 
 def _depth_image(path: Path) -> np.ndarray:
     """(H, W) float64 raw depth values of a 16-bit PNG; FileReadError naming it otherwise."""
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
 
     data = read_bytes(path)
     try:
         with Image.open(io.BytesIO(data)) as image:
             depth = np.asarray(image)
-    except (UnidentifiedImageError, OSError, ValueError) as error:
-        raise FileReadError(path, f"not a depth image ({error})") from None
+    except Exception as error:
+        # Pillow's decoders fail in many ways (UnidentifiedImageError, OSError, SyntaxError,
+        # ValueError, ...) on bytes that are not an image.
+        raise FileReadError(path, f"not a depth image ({error!r})") from None
     if depth.ndim != 2 or depth.dtype.kind not in "ui":
         raise FileReadError(
             path, f"expected a one-channel 16-bit depth image, got {depth.dtype} {depth.shape}"

@@ -36,6 +36,8 @@ def fails(path, message, **options):
         ("none.log", b"ODOM 0 0 0\nROBOTLASER1 x\n", "no FLASER lines: not a CARMEN log"),
         ("bad.log", b"FLASER 3 1 2\n", r"line 1: malformed FLASER line"),
         ("nan.log", b"FLASER 1 1.0 nan 0 0 0 0 0 0 h 0\n", r"line 1: malformed FLASER"),
+        ("theta.log", b"FLASER 1 1.0 0 0 inf 0 0 0 0 h 0\n", r"pose x y theta .* is not finite"),
+        ("negative.log", b"FLASER 2 1.0 -2 0 0 0 0 0 0 0 h 0\n", "readings must be numbers >= 0"),
         ("a.ply", b"ply\nformat ascii 1.0\nelement vertex 1\n", "no 'ply' magic or no end_header"),
         (
             "f128.ply",
@@ -100,6 +102,11 @@ def fails(path, message, **options):
             + bytes(4),
             "compressed data of 4000000000 bytes announced, expected 1 points of 12 bytes",
         ),
+        (
+            "count.pcd",
+            b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 99999999999 1 1\nPOINTS 1\nDATA binary\n",
+            "field 'x' has COUNT 99999999999, expected 1 to 4096",
+        ),
         ("garbage.bin", bytes(range(7)) * 3, "21 bytes is not a whole number of points"),
         ("short.graph", b"\x02\x00\x00\x00\x05\x00", r"byte 4: truncated"),
     ],
@@ -118,6 +125,9 @@ def test_tum_folders_name_the_missing_or_broken_image(input_files):
     (folder / "poses.txt").write_text("depth/1.png 1 2 3 0 0 0 1\n")
     fails(folder, r"depth/1\.png: no such file")
     (folder / "depth" / "1.png").write_bytes(b"GIF89a not a png")
+    fails(folder, r"1\.png: not a depth image")
+    png = (folder / "depth" / "0.png").read_bytes()
+    (folder / "depth" / "1.png").write_bytes(png[:45] + b"\x00" * 4 + png[49:])
     fails(folder, r"1\.png: not a depth image")
     (folder / "poses.txt").write_text("depth/0.png 1 2 3 0 0 0\n")
     fails(folder, r"poses\.txt, line 1: expected 'depth/FILE tx ty tz qx qy qz qw'")
@@ -156,6 +166,23 @@ def test_options_that_would_be_ignored_are_errors(input_files, tmp_path):
         read_scans(path, calib="identity")
     with pytest.raises(InputError, match=re.escape("origin must be 3 finite numbers")):
         read_scans(path, origin=[0, np.nan, 0])
+
+
+def test_broken_grid_and_array_files_are_named(tmp_path):
+    from ehm.io.grid_file import load_grid
+    from ehm.io.points import read_points
+
+    np.savez_compressed(tmp_path / "g.npz", scores=np.zeros((40, 40)), intercept=0.0)
+    data = bytearray((tmp_path / "g.npz").read_bytes())
+    data[60:64] = b"\xff\xff\xff\xff"  # inside the first member's compressed bytes
+    (tmp_path / "broken.npz").write_bytes(bytes(data))
+    with pytest.raises(FileReadError, match=r"broken\.npz: not an ehm grid file"):
+        load_grid(tmp_path / "broken.npz")
+    with pytest.raises(FileReadError, match=r"g\.npz: not an ehm grid file \(no origin"):
+        load_grid(tmp_path / "g.npz")
+    (tmp_path / "q.npy").write_bytes(b"\x93NUMPY\x01\x00v\x00{'descr': '<f8', #shape")
+    with pytest.raises(FileReadError, match=r"q\.npy: not a NumPy array file"):
+        read_points(tmp_path / "q.npy", 3)
 
 
 def test_every_file_error_is_an_ehm_error_and_a_value_error():
