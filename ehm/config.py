@@ -71,7 +71,7 @@ class MapConfig:
 
     batch_rays: int = 20_000
     """Scans are gathered until they hold at least this many rays, then learned as one batch
-    (one set of samples, one clustering, one SGD run). A query, a grid, a save or `flush()`
+    (one set of samples, one clustering, one SGD run). A query, a grid or `flush()`
     learns the scans still waiting first, so every answer sees every scan given. Small scans
     (a 2D laser's few hundred rays) then share the fixed cost of an update and form their
     clusters together: the Intel lab's 180-ray scans map 6x faster and score held-out F1

@@ -98,7 +98,7 @@ class HilbertMap:
     @property
     def n_waiting_scans(self) -> int:
         """Scans given but not learned yet: they wait for `config.batch_rays` rays, or for
-        the next query, grid, save or `flush()`."""
+        the next query, grid or `flush()`; a save keeps them waiting."""
         return len(self._waiting)
 
     @property
@@ -138,16 +138,21 @@ class HilbertMap:
         return learned + search.nbytes
 
     def state(self) -> MapState:
-        """Everything the map has learned, as plain data (shared, not copied)."""
-        clusters = self._learned("take its state")
+        """Everything the map has learned and the scans waiting for their batch, as plain data
+        (shared, not copied). Taking it learns nothing."""
+        dim = self.dim
+        if dim is None:
+            raise EmptyMapError("the map is empty: integrate a scan or fit before you save it")
+        empty = self.clusters_ is None
         return MapState(
             self.config,
-            clusters,
+            ClusterSet.empty(dim) if empty else self.clusters_,
             self.anchors_,
             self.bias_state_,
             self.n_scans_,
             self._rng.bit_generator.state,
-            self._memory(),
+            SampleMemory.of_config(dim, self.config) if empty else self._memory(),
+            tuple(self._waiting),
         )
 
     @classmethod
@@ -163,6 +168,8 @@ class HilbertMap:
         if state.rng_state is not None:
             hilbert_map._rng.bit_generator.state = state.rng_state
         hilbert_map._relist(None)
+        hilbert_map._waiting = list(state.waiting)
+        hilbert_map._waiting_rays = sum(len(scan) for scan in state.waiting)
         return hilbert_map
 
     def snapshot(self) -> MapSnapshot:
@@ -483,8 +490,9 @@ class HilbertMap:
 
     # ------------------------------------------------------------ persistence
     def save(self, path: str | PathLike[str]) -> None:
-        """Write the map to `path` atomically (see ehm.io.map_file)."""
-        self._learned("save it")
+        """Write the map to `path` atomically (see ehm.io.map_file), with the scans waiting
+        for their batch: saving learns nothing, so a map saved and loaded along the way ends
+        where one never saved does."""
         write_map(self.state(), path)
 
 

@@ -134,6 +134,7 @@ def test_the_command_line_imports_no_numerics_until_a_command_runs():
     assert sorted(m for m in loaded if m.startswith(("numpy", "numba", "scipy", "ehm"))) == [
         "ehm",
         "ehm.cli",
+        "ehm.errors",
     ]
 
 

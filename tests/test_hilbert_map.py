@@ -214,11 +214,12 @@ def test_scans_wait_for_their_batch_and_every_answer_sees_them(plan, tmp_path):
     batched.integrate_scan(plan.scans[4])
     assert batched.n_waiting_scans == 0 and "sgd" in batched.timings_
     batched.integrate_scan(plan.scans[0])
-    batched.save(tmp_path / "plan.ehm")
-    assert batched.n_waiting_scans == 0 and batched.n_scans_ == 6
-    np.testing.assert_array_equal(
-        ehm.load(tmp_path / "plan.ehm").occupancy(points), batched.occupancy(points)
-    )
+    batched.save(tmp_path / "plan.ehm")  # with the scan that waits, learning nothing
+    assert batched.n_waiting_scans == 1 and batched.n_scans_ == 6
+    loaded = ehm.load(tmp_path / "plan.ehm")
+    assert loaded.n_waiting_scans == 1
+    np.testing.assert_array_equal(loaded.occupancy(points), batched.occupancy(points))
+    assert batched.n_waiting_scans == 0
     alone = ehm.HilbertMap(batch_rays=0)
     alone.integrate_scan(plan.scans[0])
     assert alone.n_waiting_scans == 0 and alone.n_clusters > 0

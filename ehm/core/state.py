@@ -11,6 +11,7 @@ from ehm.config import MapConfig
 from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet
 from ehm.core.memory import SampleMemory
+from ehm.core.scan import Scan
 
 
 @dataclass(frozen=True)
@@ -19,7 +20,8 @@ class MapState:
     (2,) float64, [bias, its AdaGrad accumulator]; n_scans: scans learned; rng_state: the
     state of the map's random generator (numpy's bit_generator.state), so that a restored map
     continues exactly as the saved one would; None starts it afresh from config.seed. memory:
-    the past samples it replays."""
+    the past samples it replays. waiting: scans given but not learned yet, waiting for their
+    batch (config.batch_rays), in the order given."""
 
     config: MapConfig
     clusters: ClusterSet
@@ -28,3 +30,4 @@ class MapState:
     n_scans: int
     rng_state: dict[str, Any] | None
     memory: SampleMemory
+    waiting: tuple[Scan, ...] = ()

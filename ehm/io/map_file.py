@@ -5,9 +5,9 @@ Layout (little-endian):
     4 bytes   uint32 format version
     8 bytes   uint64 length of the JSON header
     header    UTF-8 JSON: config, dim, n_scans, bias state, random generator state (from
-              version 4 on), and for each array (the clusters', the anchor layers', then the
-              sample memory's from version 5 on) its name, dtype, shape and byte offset into
-              the payload
+              version 4 on), and for each array (the clusters', the anchor layers', the
+              sample memory's from version 5 on, the scans waiting for their batch from
+              version 10 on) its name, dtype, shape and byte offset into the payload
     payload   the arrays' raw bytes, one after another
     4 bytes   uint32 CRC-32 of everything before it
 """
@@ -28,6 +28,7 @@ from ehm.config import MapConfig
 from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet
 from ehm.core.memory import SampleMemory
+from ehm.core.scan import Scan
 from ehm.core.state import MapState
 from ehm.errors import EhmError, FileReadError
 from ehm.io.files import read_bytes
@@ -36,6 +37,7 @@ MAGIC = b"EHMMAP\r\n"
 # Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
 ANCHOR_PREFIX = "anchor_"
 MEMORY_PREFIX = "memory_"
+WAITING_PREFIX = "waiting_"
 # Version 6: every update rule learns the weights' precisions (the occupancy's std); files of
 # older versions learned by SGD hold the prior's, so their std stays near the prior's until
 # they learn more.
@@ -51,7 +53,8 @@ MEMORY_PREFIX = "memory_"
 # learned each scan as it came.
 # Version 10 maps may limit the rays' range (MapConfig.min_range, max_range) and bound the
 # free samples per ray (max_free_samples). Older files load with the defaults: no range limit,
-# and the bound, which changes nothing for rays under 600 m.
+# and the bound, which changes nothing for rays under 600 m. Version 10 files also hold the
+# scans waiting for their batch; older ones learned them before saving.
 FORMAT_VERSION = 10
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
@@ -72,6 +75,9 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
         arrays[f"{ANCHOR_PREFIX}coarse_{layer}"] = coarse
     for name, array in state.memory.arrays().items():
         arrays[f"{MEMORY_PREFIX}{name}"] = np.ascontiguousarray(array)
+    if state.waiting:
+        for name, array in _waiting_arrays(state.waiting).items():
+            arrays[f"{WAITING_PREFIX}{name}"] = array
     entries, offset = [], 0
     for name, array in arrays.items():
         dtype = array.dtype.newbyteorder("<")
@@ -166,6 +172,11 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         for name in list(arrays)
         if name.startswith(MEMORY_PREFIX)
     }
+    waiting_arrays = {
+        name.removeprefix(WAITING_PREFIX): arrays.pop(name)
+        for name in list(arrays)
+        if name.startswith(WAITING_PREFIX)
+    }
     settings = header["config"]
     if version < 9:
         # Maps before format 9 learned each scan as it came.
@@ -197,4 +208,29 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         header["n_scans"],
         header.get("rng_state"),
         memory,
+        _waiting_scans(waiting_arrays),
+    )
+
+
+def _waiting_arrays(scans: tuple[Scan, ...]) -> dict[str, np.ndarray]:
+    """The scans waiting for their batch as four arrays: every ray's end point and hit flag,
+    each scan's origin and ray count."""
+    return {
+        "points": np.concatenate([scan.points_world for scan in scans]),
+        "hits": np.concatenate([scan.hit_mask for scan in scans]),
+        "origins": np.stack([scan.origin for scan in scans]),
+        "counts": np.array([len(scan) for scan in scans], dtype=np.int64),
+    }
+
+
+def _waiting_scans(arrays: dict[str, np.ndarray]) -> tuple[Scan, ...]:
+    if not arrays:
+        return ()
+    ends = np.cumsum(arrays["counts"])
+    if ends[-1] != len(arrays["points"]) or len(arrays["hits"]) != len(arrays["points"]):
+        raise ValueError("waiting scans' arrays differ in length")
+    starts = ends - arrays["counts"]
+    return tuple(
+        Scan(arrays["points"][a:b], origin, arrays["hits"][a:b])
+        for a, b, origin in zip(starts, ends, arrays["origins"], strict=True)
     )

@@ -43,17 +43,30 @@ def test_memory_bytes_counts_every_array(small_map):
 
 
 @pytest.mark.parametrize(
-    "overrides", [{}, {"features": "support"}, {"anchor_layers": 2, "merge_coplanar": True}]
+    "overrides",
+    [
+        {"batch_rays": 0},
+        {"batch_rays": 0, "features": "support"},
+        {"batch_rays": 0, "anchor_layers": 2, "merge_coplanar": True},
+        {"batch_rays": 250},  # one scan learned, the second waits when saved
+        {},  # every scan waits for its batch when saved
+    ],
 )
 def test_loaded_map_goes_on_learning_exactly_as_the_saved_one(plan, tmp_path, overrides):
+    """Saving learns nothing: the scans waiting for their batch are saved with the map."""
     original = ehm.HilbertMap(**overrides)
     for scan in plan.scans[:2]:
         original.integrate_scan(scan)
+    waiting = original.n_waiting_scans
     original.save(tmp_path / "m.ehm")
+    assert original.n_waiting_scans == waiting
     loaded = ehm.load(tmp_path / "m.ehm")
+    assert loaded.n_waiting_scans == waiting and loaded.n_scans_ == 2
     for scan in plan.scans[2:]:
         original.integrate_scan(scan)
         loaded.integrate_scan(scan)
+    original.flush()
+    loaded.flush()
     for name, array in original.clusters_.arrays().items():
         np.testing.assert_array_equal(getattr(loaded.clusters_, name), array, err_msg=name)
     for name, array in original.memory_.arrays().items():
