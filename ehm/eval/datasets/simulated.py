@@ -127,6 +127,32 @@ def warehouse(
     return SimulatedDataset("warehouse", scans, scene)
 
 
+def warehouse_drive(
+    seed: int = 0,
+    n_scans: int = 200,
+    rings: int = 16,
+    azimuths: int = 512,
+    noise_std: float = 0.01,
+) -> SimulatedDataset:
+    """`n_scans` scans of a 16-ring LiDAR (rings x azimuths rays, elevations -15 to +15
+    degrees, 30 m range) 1.5 m up, evenly spaced along a loop round the warehouse's shelving
+    (x = +-17 m, y = -10.3 and 9.5 m): a long 3D run that keeps seeing the same hall."""
+    corners = np.array([[-17.0, -10.3], [17.0, -10.3], [17.0, 9.5], [-17.0, 9.5], [-17.0, -10.3]])
+    legs = np.linalg.norm(np.diff(corners, axis=0), axis=1)
+    along = np.linspace(0.0, legs.sum(), n_scans, endpoint=False)
+    poses = np.column_stack(
+        [np.interp(along, np.r_[0.0, np.cumsum(legs)], corners[:, axis]) for axis in (0, 1)]
+    )
+    directions = lidar_directions(rings, azimuths, 15.0)
+    scene = warehouse_scene()
+    rng = np.random.default_rng(seed)
+    scans = [
+        simulate_scan(scene, np.array([x, y, 1.5]), directions, 30.0, noise_std, rng)
+        for x, y in poses
+    ]
+    return SimulatedDataset("warehouse_drive", scans, scene)
+
+
 # The street's buildings along each side: (x from, x to, height), metres; 10 m deep.
 NORTH_BUILDINGS = ((-60.0, -38.0, 12.0), (-35.0, -15.0, 9.0), (-12.0, 10.0, 15.0),
                    (13.0, 35.0, 7.0), (38.0, 60.0, 11.0))  # fmt: skip

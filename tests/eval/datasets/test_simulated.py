@@ -3,7 +3,7 @@
 import numpy as np
 
 from ehm.eval.datasets import street, warehouse
-from ehm.eval.datasets.simulated import corridor_2d
+from ehm.eval.datasets.simulated import corridor_2d, warehouse_drive
 
 
 def test_warehouse_scans_start_in_free_space_and_end_on_surfaces():
@@ -53,3 +53,17 @@ def test_corridor_scans_drive_its_length_and_end_on_its_walls():
     # Doors open on the rooms: some rays end beyond the corridor's walls at |y| = 1.1.
     hits = np.concatenate([s.points_world[s.hit_mask] for s in data.scans])
     assert np.any(np.abs(hits[:, 1]) > 4.0)
+
+
+def test_warehouse_drive_loops_round_the_shelving():
+    data = warehouse_drive(n_scans=40, rings=4, azimuths=64, noise_std=0.0)
+    origins = np.array([scan.origin for scan in data.scans])
+    assert len(data.scans) == 40 and np.all(origins[:, 2] == 1.5)
+    on_loop = np.isclose(np.abs(origins[:, 0]), 17.0) | np.isin(origins[:, 1], [-10.3, 9.5])
+    assert on_loop.all() and len(np.unique(origins, axis=0)) == 40
+    np.testing.assert_allclose(origins[0], [-17.0, -10.3, 1.5])
+    assert not data.scene.occupied(origins).any()
+    for scan in data.scans:
+        hits = scan.points_world[scan.hit_mask]
+        np.testing.assert_allclose(data.scene.surface_distance(hits), 0.0, atol=1e-6)
+        assert np.all(np.linalg.norm(scan.points_world - scan.origin, axis=1) <= 30.0 + 1e-9)
