@@ -287,6 +287,8 @@ def query(
     from ehm.io.outputs import check_output
     from ehm.io.points import read_points
 
+    if mode not in (None, "batch", "exact"):
+        raise InputError(f"--mode must be batch or exact, got {mode!r}")
     if output is not None:
         check_output(output, [map_path, points], force)
     hilbert_map = _load(map_path)

@@ -80,6 +80,7 @@ def test_options_out_of_range_are_named(map_file, plan_log, tmp_path):
     fails(["render", map_file, "-o", out, "--cut-above", "inf"], "--cut-above must be a finite")
     fails(["grid", map_file, "-o", tmp_path / "g.npz", "--max-gib", "nan"], "--max-gib must be")
     fails(["grid", map_file, "-o", tmp_path / "g.npz", "--bounds", "0,0,a,1"], "--bounds:")
+    fails(["query", map_file, tmp_path / "none.csv", "--mode", "fast"], "--mode must be batch or")
     fails(["eval", "--resolution", "0"], "resolution must be a positive number of metres")
     fails(["eval", "--seeds", "-1"], "seeds must be integers >= 0, got -1")
     fails(["eval", "--seeds", "1.5"], "--seeds: invalid literal for int()")
