@@ -130,16 +130,18 @@ def warehouse(
 def warehouse_drive(
     seed: int = 0,
     n_scans: int = 200,
+    loops: int = 2,
     rings: int = 16,
     azimuths: int = 512,
     noise_std: float = 0.01,
 ) -> SimulatedDataset:
     """`n_scans` scans of a 16-ring LiDAR (rings x azimuths rays, elevations -15 to +15
-    degrees, 30 m range) 1.5 m up, evenly spaced along a loop round the warehouse's shelving
-    (x = +-17 m, y = -10.3 and 9.5 m): a long 3D run that keeps seeing the same hall."""
+    degrees, 30 m range) 1.5 m up, evenly spaced along `loops` laps of a loop round the
+    warehouse's shelving (x = +-17 m, y = -10.3 and 9.5 m): a long 3D run that sees new parts
+    of the hall on its first lap and the same ones again after."""
     corners = np.array([[-17.0, -10.3], [17.0, -10.3], [17.0, 9.5], [-17.0, 9.5], [-17.0, -10.3]])
     legs = np.linalg.norm(np.diff(corners, axis=0), axis=1)
-    along = np.linspace(0.0, legs.sum(), n_scans, endpoint=False)
+    along = np.linspace(0.0, loops * legs.sum(), n_scans, endpoint=False) % legs.sum()
     poses = np.column_stack(
         [np.interp(along, np.r_[0.0, np.cumsum(legs)], corners[:, axis]) for axis in (0, 1)]
     )
