@@ -31,6 +31,7 @@ from ehm.core.features import (
     group_neighbours,
     training_features,
 )
+from ehm.core.gradient import logit_gradients
 from ehm.core.grouping import group_samples
 from ehm.core.index import ClusterIndex
 from ehm.core.logistic import sigmoid
@@ -407,22 +408,76 @@ class HilbertMap:
         config.query_intercept is set (Alg. 3)."""
         return self._scores(points, mode, with_variance=False)[0]
 
-    def _scores(
-        self, points: np.ndarray, mode: str | None, with_variance: bool
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(n,) log-odds at `points` and, when with_variance, (n,) their variance under the
-        weights' posterior (else an empty array); NaN for rows that are not finite."""
+    def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n, d) float64 gradient of the occupancy log-odds (`decision_function`) with
+        respect to position, 1/m, world frame, at (n, d) points, metres: it points toward
+        more occupied space, and p(1 - p) times it is the gradient of the probability. Over
+        the same kernels as `decision_function` in `mode`; planar-surface kernels are flat
+        (0 or 1) and add nothing (ehm.core.gradient). NaN rows where points are not finite."""
         clusters = self._learned("query it")
-        mode = mode or self.config.query_mode
-        if mode not in ("batch", "exact"):
-            raise InputError(f"query mode must be 'batch' or 'exact', got {mode!r}")
+        points, finite, query = self._query_points(points)
+        indptr, rows = self._query_clusters(
+            query, self._checked_mode(mode or self.config.query_mode)
+        )
+        out = np.full(points.shape, np.nan)
+        out[finite] = logit_gradients(
+            query,
+            indptr,
+            rows,
+            clusters.means,
+            clusters.transforms,
+            clusters.planar_kernel,
+            clusters.weights,
+        )
+        return out
+
+    def _query_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Checked (n, d) float64 points, which rows are finite, and those rows (contiguous)."""
         points = np.asarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != self.dim:
             raise InputError(
                 f"query points must have shape (n, {self.dim}), got {tuple(points.shape)}"
             )
         finite = np.all(np.isfinite(points), axis=1)
-        query = np.ascontiguousarray(points[finite])
+        return points, finite, np.ascontiguousarray(points[finite])
+
+    @staticmethod
+    def _checked_mode(mode: str) -> str:
+        if mode not in ("batch", "exact"):
+            raise InputError(f"query mode must be 'batch' or 'exact', got {mode!r}")
+        return mode
+
+    def _query_groups(self, query: np.ndarray, mode: str) -> PointGroups:
+        """The groups that share one neighbour search in `mode` (features 'nearest')."""
+        if mode == "batch":
+            return group_by_cell(query, self.config.query_cell)
+        return PointGroups.singletons(query)
+
+    def _query_clusters(self, query: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+        """The clusters each of (n, d) points takes in queries, as compressed rows: indptr
+        (n + 1,) and rows (nnz,) int64 (see SparseFeatures)."""
+        if self.config.features == "support":
+            found = self._supports.features(
+                query, self.clusters_.means, self.clusters_.transforms, self.clusters_.planar_kernel
+            )
+            return found.indptr, found.rows
+        groups = self._query_groups(query, mode)
+        neighbours = group_neighbours(
+            self._index, query, groups, self.config.neighbours, self.config.coarse_neighbours
+        )[groups.group_of_point]
+        kept = neighbours >= 0
+        indptr = np.zeros(len(query) + 1, dtype=np.int64)
+        np.cumsum(kept.sum(axis=1), out=indptr[1:])
+        return indptr, neighbours[kept]
+
+    def _scores(
+        self, points: np.ndarray, mode: str | None, with_variance: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) log-odds at `points` and, when with_variance, (n,) their variance under the
+        weights' posterior (else an empty array); NaN for rows that are not finite."""
+        clusters = self._learned("query it")
+        mode = self._checked_mode(mode or self.config.query_mode)
+        points, finite, query = self._query_points(points)
         kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
         learned = (
             clusters.weights,
@@ -433,10 +488,7 @@ class HilbertMap:
         if self.config.features == "support":
             found, variance_sums = self._supports.decision_values(query, *kernels, *learned)
         else:
-            if mode == "batch":
-                groups = group_by_cell(query, self.config.query_cell)
-            else:
-                groups = PointGroups.singletons(query)
+            groups = self._query_groups(query, mode)
             neighbours = group_neighbours(
                 self._index, query, groups, self.config.neighbours, self.config.coarse_neighbours
             )
