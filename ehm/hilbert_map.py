@@ -34,10 +34,12 @@ from ehm.core.features import (
 from ehm.core.gradient import logit_gradients
 from ehm.core.grouping import group_samples
 from ehm.core.index import ClusterIndex
+from ehm.core.kernels import kernel_reach
 from ehm.core.logistic import sigmoid
 from ehm.core.memory import SampleMemory
 from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
+from ehm.core.raycast import CandidateCells, first_crossings
 from ehm.core.samples import TrainingSamples, samples_of_scans
 from ehm.core.scan import Scan
 from ehm.core.sgd import loss_weights, train_weights
@@ -51,6 +53,10 @@ from ehm.errors import EmptyMapError, InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.io.map_file import read_map, write_map
+
+# Side of the cells that tell rays where the occupancy may rise above the level, in cluster
+# radii (ehm.core.raycast.CandidateCells).
+RAY_CELLS_PER_RADIUS = 4.0
 
 
 class HilbertMap:
@@ -431,6 +437,79 @@ class HilbertMap:
         )
         return out
 
+    def raycast(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        max_range: float | np.ndarray,
+        level: float = 0.5,
+        mode: str | None = None,
+    ) -> np.ndarray:
+        """(n,) distance, metres, along each ray to the first point whose occupancy rises
+        above `level`; inf where none does within `max_range`. origins: (n, d) or one (d,)
+        point, metres, world frame; directions: (n, d), any length but 0; max_range: metres,
+        one for all rays or (n,). Rays march cluster_radius / 2 apart and the crossing is
+        located to cluster_radius / 10 (ehm.core.raycast); a ray starting inside reads 0.
+        Unknown space reads 0.5: it stops no ray at the default level."""
+        clusters = self._learned("cast rays through it")
+        origins, directions, max_range = self._rays(origins, directions, max_range)
+        threshold = _log_odds_level(level)
+        mode = self._checked_mode(mode or self.config.query_mode)
+        radius = self.config.cluster_radius
+        cells = CandidateCells.of_kernels(
+            clusters.means,
+            kernel_reach(clusters.transforms, clusters.planar_kernel),
+            clusters.weights,
+            self._query_intercept(),
+            threshold,
+            RAY_CELLS_PER_RADIUS * radius,
+        )
+        return first_crossings(
+            lambda points: self._scores(points, mode, False)[0],
+            origins,
+            directions,
+            max_range,
+            threshold,
+            radius / 2.0,
+            radius / 10.0,
+            cells,
+        )
+
+    def segment_free(
+        self, starts: np.ndarray, ends: np.ndarray, level: float = 0.5, mode: str | None = None
+    ) -> np.ndarray:
+        """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
+        one (d,) point each, metres, world frame) has occupancy above `level`, as `raycast`
+        finds it. Unknown space (0.5) counts as free at the default level."""
+        starts, ends = (
+            np.atleast_2d(np.asarray(starts, float)),
+            np.atleast_2d(np.asarray(ends, float)),
+        )
+        starts, ends = np.broadcast_arrays(starts, ends)
+        lengths = np.linalg.norm(ends - starts, axis=1)
+        directions = np.where(lengths[:, None] > 0, ends - starts, 1.0)
+        return np.isinf(self.raycast(starts, directions, lengths, level, mode))
+
+    def _rays(
+        self, origins: np.ndarray, directions: np.ndarray, max_range: float | np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Checked rays: (n, d) origins, (n, d) unit directions and (n,) ranges, float64."""
+        directions = np.asarray(directions, dtype=np.float64)
+        if directions.ndim != 2 or directions.shape[1] != self.dim:
+            raise InputError(
+                f"ray directions must have shape (n, {self.dim}), got {directions.shape}"
+            )
+        origins = np.broadcast_to(np.asarray(origins, dtype=np.float64), directions.shape)
+        lengths = np.linalg.norm(directions, axis=1)
+        if not (
+            np.all(np.isfinite(origins)) and np.all(lengths > 0) and np.all(np.isfinite(lengths))
+        ):
+            raise InputError("ray origins must be finite and directions finite and not zero")
+        max_range = np.broadcast_to(np.asarray(max_range, dtype=np.float64), lengths.shape)
+        if not np.all((max_range >= 0) & np.isfinite(max_range)):
+            raise InputError("max_range must be finite metres >= 0")
+        return np.ascontiguousarray(origins), directions / lengths[:, None], max_range.copy()
+
     def _query_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Checked (n, d) float64 points, which rows are finite, and those rows (contiguous)."""
         points = np.asarray(points, dtype=np.float64)
@@ -546,6 +625,13 @@ class HilbertMap:
         for their batch: saving learns nothing, so a map saved and loaded along the way ends
         where one never saved does."""
         write_map(self.state(), path)
+
+
+def _log_odds_level(level: float) -> float:
+    """The log-odds of an occupancy probability strictly between 0 and 1."""
+    if not 0.0 < level < 1.0:
+        raise InputError(f"level must be a probability between 0 and 1, got {level}")
+    return float(np.log(level / (1.0 - level)))
 
 
 def load(path: str | PathLike[str]) -> HilbertMap:

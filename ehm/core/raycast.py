@@ -1,0 +1,302 @@
+"""Casting rays through a continuous map: the distance along each ray to the first point whose
+log-odds rise above a level, found by marching in even steps and bisecting the step that
+crosses.
+
+Most of a ray crosses space where the log-odds cannot reach the level: a kernel is at most 1,
+so at any point the log-odds are at most the intercept plus the sum of the positive weights of
+the kernels that reach it. `CandidateCells` keeps the cubic cells where that bound exceeds the
+level; a ray walks the cells it crosses (Amanatides & Woo 1987) and marches only through runs
+of candidate cells. Marching evaluates many rays at once (STEPS_PER_ROUND points of each
+still-running ray in one call of the map's log-odds). A surface thinner than `step` may be
+stepped over; the step should be below the thinnest kernel's width.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+# Points of every running ray evaluated in one call of the log-odds.
+STEPS_PER_ROUND = 32
+
+
+def first_crossings(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    max_range: np.ndarray,
+    threshold: float,
+    step: float,
+    tolerance: float,
+    cells: CandidateCells | None = None,
+) -> np.ndarray:
+    """(n,) distance, metres, along each ray to the first point where `log_odds` (a function of
+    (m, d) points) exceeds `threshold`; inf where it does not within the ray's max_range.
+    origins (n, d), metres; directions (n, d), unit; max_range (n,), metres. Points are
+    `step` apart within the runs of `cells` the ray crosses (None: all along the ray); the
+    crossing is located within `tolerance` (the midpoint of the last interval bisected)."""
+    n, d = origins.shape
+    distance = np.full(n, np.inf)
+    inside = log_odds(origins) > threshold
+    distance[inside] = 0.0
+    active = np.flatnonzero(~inside & (max_range > 0))
+    reached, run_end = np.zeros(n), max_range.copy()
+    if cells is not None:
+        reached[active], run_end[active] = cells.next_run(
+            origins[active], directions[active], reached[active], max_range[active]
+        )
+        active = active[np.isfinite(reached[active])]
+    ladder = step * np.arange(1, STEPS_PER_ROUND + 1)
+    while active.size:
+        t = np.minimum(reached[active, None] + ladder, run_end[active, None])
+        points = origins[active, None, :] + directions[active, None, :] * t[:, :, None]
+        above = log_odds(points.reshape(-1, d)).reshape(t.shape) > threshold
+        crossed = above.any(axis=1)
+        first = np.argmax(above, axis=1)
+        rays = active[crossed]
+        high = t[crossed, first[crossed]]
+        before = t[crossed, np.maximum(first[crossed] - 1, 0)]
+        low = np.where(first[crossed] > 0, before, reached[rays])
+        distance[rays] = _bisect(
+            log_odds, origins[rays], directions[rays], low, high, threshold, tolerance
+        )
+        active, t = active[~crossed], t[~crossed]
+        reached[active] = t[:, -1]
+        done = t[:, -1] >= run_end[active]
+        if cells is not None and done.any():
+            # Past this run of candidate cells: on to the next one, if the ray meets one.
+            ended = active[done]
+            reached[ended], run_end[ended] = cells.next_run(
+                origins[ended], directions[ended], run_end[ended], max_range[ended]
+            )
+            done[done] = ~np.isfinite(reached[ended])
+        active = active[~done]
+    return distance
+
+
+def _bisect(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    threshold: float,
+    tolerance: float,
+) -> np.ndarray:
+    """Midpoints of intervals [low, high] along rays, halved until shorter than `tolerance`,
+    keeping log_odds <= threshold at low and > threshold at high."""
+    while len(low) and np.max(high - low) > tolerance:
+        middle = 0.5 * (low + high)
+        above = log_odds(origins + directions * middle[:, None]) > threshold
+        high = np.where(above, middle, high)
+        low = np.where(above, low, middle)
+    return 0.5 * (low + high)
+
+
+def first_crossings_reference(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    max_range: np.ndarray,
+    threshold: float,
+    step: float,
+) -> np.ndarray:
+    """Plain twin of `first_crossings` without bisection: every ray sampled `step` apart from
+    its origin to its max_range, the first sample above `threshold` (inf where none)."""
+    distance = np.full(len(origins), np.inf)
+    for i in range(len(origins)):
+        t = np.append(np.arange(0.0, max_range[i], step), max_range[i])
+        above = log_odds(origins[i] + directions[i] * t[:, None]) > threshold
+        if above.any():
+            distance[i] = t[np.argmax(above)]
+    return distance
+
+
+@dataclass(frozen=True)
+class CandidateCells:
+    """Cubic cells of side `side` metres where the log-odds may exceed a threshold: the cells
+    a kernel of positive weight reaches (with the intercept, their weights summed, above the
+    threshold). keys: (c,) int64, sorted, packed cell coordinates (`bits` per axis, offset by
+    2**(bits - 1)); low, high: (d,) int64 corner cells of the box holding them all."""
+
+    side: float
+    bits: int
+    keys: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+    @classmethod
+    def of_kernels(
+        cls,
+        means: np.ndarray,
+        reach: np.ndarray,
+        weights: np.ndarray,
+        intercept: float,
+        threshold: float,
+        side: float,
+    ) -> CandidateCells | None:
+        """From kernel centres (M, d), metres, their reach (M,), metres, and weights (M,):
+        None when every cell is a candidate (intercept above the threshold)."""
+        if intercept > threshold:
+            return None
+        d = means.shape[1]
+        bits = 63 // d
+        positive = weights > 0
+        low = np.floor((means[positive] - reach[positive, None]) / side).astype(np.int64)
+        high = np.floor((means[positive] + reach[positive, None]) / side).astype(np.int64)
+        cells, owners = _covered_cells(low, high)
+        half = 2 ** (bits - 1)
+        if len(cells) and (cells.min() < -half or cells.max() >= half):
+            cells, owners = cells[:0], owners[:0]  # beyond the keys' reach: no skipping there
+        keys = _pack(cells, bits)
+        unique, inverse = np.unique(keys, return_inverse=True)
+        bound = intercept + np.bincount(inverse, weights[positive][owners], len(unique))
+        kept = unique[bound > threshold]
+        if len(kept) == 0:
+            return cls(side, bits, kept, np.zeros(d, np.int64), np.full(d, -1, np.int64))
+        coordinates = _unpack(kept, bits, d)
+        return cls(side, bits, kept, coordinates.min(axis=0), coordinates.max(axis=0))
+
+    def next_run(
+        self, origins: np.ndarray, directions: np.ndarray, start: np.ndarray, stop: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) distances where each ray, from distance `start` on, first enters a candidate
+        cell and where that run of candidate cells ends (capped at `stop`); inf, inf where it
+        enters none before `stop`."""
+        return _next_runs(
+            np.ascontiguousarray(origins),
+            np.ascontiguousarray(directions),
+            np.ascontiguousarray(start, dtype=np.float64),
+            np.ascontiguousarray(stop, dtype=np.float64),
+            self.keys,
+            self.side,
+            self.bits,
+            self.low,
+            self.high,
+        )
+
+
+def _covered_cells(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every cell of each box [low[m], high[m]] (inclusive, (M, d) int64) and its box."""
+    d = low.shape[1]
+    extent = high - low + 1
+    counts = np.prod(extent, axis=1)
+    owners = np.repeat(np.arange(len(low)), counts)
+    rank = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    cells = np.empty((len(owners), d), dtype=np.int64)
+    for axis in range(d):
+        cells[:, axis] = low[owners, axis] + rank % extent[owners, axis]
+        rank //= extent[owners, axis]
+    return cells, owners
+
+
+def _pack(cells: np.ndarray, bits: int) -> np.ndarray:
+    keys = np.zeros(len(cells), dtype=np.int64)
+    for axis in range(cells.shape[1]):
+        keys |= (cells[:, axis] + (1 << (bits - 1))) << (bits * axis)
+    return keys
+
+
+def _unpack(keys: np.ndarray, bits: int, d: int) -> np.ndarray:
+    mask = (1 << bits) - 1
+    return np.column_stack([((keys >> (bits * a)) & mask) - (1 << (bits - 1)) for a in range(d)])
+
+
+@numba.njit(cache=True, inline="always")
+def _is_candidate(cell, keys, bits):  # pragma: no cover - compiled
+    key = 0
+    for axis in range(cell.shape[0]):
+        key |= (cell[axis] + (1 << (bits - 1))) << (bits * axis)
+    at = np.searchsorted(keys, key)
+    return at < keys.shape[0] and keys[at] == key
+
+
+@numba.njit(cache=True, parallel=True)
+def _next_runs(
+    origins, directions, start, stop, keys, side, bits, low, high
+):  # pragma: no cover - compiled
+    """See CandidateCells.next_run: a walk through the cells each ray crosses."""
+    n, d = origins.shape
+    entry = np.full(n, np.inf)
+    leave = np.full(n, np.inf)
+    for i in numba.prange(n):
+        # Clip the ray to the box of candidate cells.
+        t0, t1 = start[i], stop[i]
+        for a in range(d):
+            lo, hi = low[a] * side, (high[a] + 1) * side
+            if directions[i, a] == 0.0:
+                if origins[i, a] < lo or origins[i, a] >= hi:
+                    t1 = -1.0
+            else:
+                ta = (lo - origins[i, a]) / directions[i, a]
+                tb = (hi - origins[i, a]) / directions[i, a]
+                t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
+        if not t0 < t1:
+            continue
+        cell = np.empty(d, dtype=np.int64)
+        step = np.empty(d, dtype=np.int64)
+        next_t = np.empty(d)
+        delta = np.empty(d)
+        for a in range(d):
+            # Nudged along the ray: a ray starting on a cell's far face starts in the next.
+            p = origins[i, a] + directions[i, a] * (t0 + 1e-7 * side)
+            cell[a] = min(max(np.int64(np.floor(p / side)), low[a]), high[a])
+            if directions[i, a] > 0.0:
+                step[a] = 1
+                next_t[a] = ((cell[a] + 1) * side - origins[i, a]) / directions[i, a]
+                delta[a] = side / directions[i, a]
+            elif directions[i, a] < 0.0:
+                step[a] = -1
+                next_t[a] = (cell[a] * side - origins[i, a]) / directions[i, a]
+                delta[a] = -side / directions[i, a]
+            else:
+                step[a] = 0
+                next_t[a] = np.inf
+                delta[a] = np.inf
+        t = t0
+        while t < t1:
+            if _is_candidate(cell, keys, bits):
+                if entry[i] == np.inf:
+                    entry[i] = t
+            elif entry[i] != np.inf:
+                leave[i] = t
+                break
+            axis = 0
+            for a in range(1, d):
+                if next_t[a] < next_t[axis]:
+                    axis = a
+            t = next_t[axis]
+            next_t[axis] += delta[axis]
+            cell[axis] += step[axis]
+        if entry[i] != np.inf and leave[i] == np.inf:
+            leave[i] = t1
+    return entry, leave
+
+
+def next_run_reference(
+    cells: CandidateCells,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    start: np.ndarray,
+    stop: np.ndarray,
+    spacing: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `CandidateCells.next_run`, by sampling each ray `spacing` apart:
+    the first sample in a candidate cell and the first one after it that is not."""
+    entry, leave = np.full(len(origins), np.inf), np.full(len(origins), np.inf)
+    for i in range(len(origins)):
+        t = np.arange(start[i], stop[i], spacing)
+        cell = np.floor((origins[i] + directions[i] * t[:, None]) / cells.side).astype(np.int64)
+        inside = np.all((cell >= cells.low) & (cell <= cells.high), axis=1)
+        candidate = inside & np.isin(
+            _pack(np.where(inside[:, None], cell, 0), cells.bits), cells.keys
+        )
+        if candidate.any():
+            first = int(np.argmax(candidate))
+            entry[i] = t[first]
+            after = np.flatnonzero(~candidate[first:])
+            leave[i] = t[first + after[0]] if len(after) else stop[i]
+    return entry, leave

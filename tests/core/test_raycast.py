@@ -1,0 +1,105 @@
+"""Ray casting: the walk through candidate cells against sampling, the march against dense
+sampling, and HilbertMap.raycast against the exact scene."""
+
+import numpy as np
+import pytest
+
+import ehm
+from ehm.core.raycast import (
+    CandidateCells,
+    first_crossings,
+    first_crossings_reference,
+    next_run_reference,
+)
+
+
+def unit_rows(rng, n, d):
+    rows = rng.normal(size=(n, d))
+    return rows / np.linalg.norm(rows, axis=1)[:, None]
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_the_cell_walk_agrees_with_sampling(rng, d):
+    means = rng.uniform(-3.0, 3.0, (60, d))
+    weights = rng.normal(size=60)
+    cells = CandidateCells.of_kernels(means, np.full(60, 0.4), weights, 0.0, 0.0, 0.5)
+    assert cells is not None and len(cells.keys) > 0
+    origins = rng.uniform(-4.0, 4.0, (300, d))
+    directions = unit_rows(rng, 300, d)
+    directions[:20, 0] = 0.0  # rays parallel to a cell face
+    directions[:20] /= np.linalg.norm(directions[:20], axis=1)[:, None]
+    start, stop = np.zeros(300), np.full(300, 10.0)
+    entry, leave = cells.next_run(origins, directions, start, stop)
+    expected = next_run_reference(cells, origins, directions, start, stop, 1e-3)
+    assert np.isfinite(entry).sum() > 100
+    np.testing.assert_array_equal(np.isfinite(entry), np.isfinite(expected[0]))
+    both = np.isfinite(entry)
+    np.testing.assert_allclose(entry[both], expected[0][both], atol=2e-3)
+    np.testing.assert_allclose(leave[both], expected[1][both], atol=2e-3)
+    # From the end of a run on, the walk finds the next run or none.
+    later, _ = cells.next_run(origins[both], directions[both], leave[both], stop[both])
+    assert np.all(~np.isfinite(later) | (later >= leave[both]))
+
+
+def test_cells_are_where_positive_kernels_reach():
+    means = np.array([[0.2, 0.2], [5.2, 0.2]])
+    cells = CandidateCells.of_kernels(means, np.full(2, 0.1), np.array([1.0, -1.0]), 0.0, 0.0, 1.0)
+    assert len(cells.keys) == 1  # only the positive kernel's cell
+    assert CandidateCells.of_kernels(means, np.full(2, 0.1), np.ones(2), 0.5, 0.0, 1.0) is None
+    # Two weights of 0.3 reach one cell: above a threshold of 0.5 together, not alone.
+    pair = CandidateCells.of_kernels(means[[0, 0]], np.full(2, 0.1), np.full(2, 0.3), 0.0, 0.5, 1.0)
+    assert len(pair.keys) == 1
+    alone = CandidateCells.of_kernels(means[:1], np.full(1, 0.1), np.full(1, 0.3), 0.0, 0.5, 1.0)
+    assert len(alone.keys) == 0
+
+
+def test_marching_finds_what_dense_sampling_finds(room):
+    hilbert_map = ehm.HilbertMap().fit(room.scans[:1])
+    rng = np.random.default_rng(5)
+    scan = room.scans[0]
+    rays = rng.choice(len(scan), 400, replace=False)
+    origins = np.broadcast_to(scan.origin, (400, 3)).copy()
+    offsets = scan.points_world[rays] - scan.origin
+    directions = offsets / np.linalg.norm(offsets, axis=1)[:, None]
+    max_range = np.full(400, 12.0)
+
+    def log_odds(points):
+        return hilbert_map.decision_function(points)
+
+    found = first_crossings(log_odds, origins, directions, max_range, 0.0, 0.06, 0.012)
+    dense = first_crossings_reference(log_odds, origins, directions, max_range, 0.0, 0.005)
+    both = np.isfinite(found) & np.isfinite(dense)
+    assert both.mean() > 0.95
+    assert np.mean(np.abs(found[both] - dense[both]) < 0.02) > 0.97
+
+
+def test_raycast_hits_the_room_where_the_scene_is(room):
+    hilbert_map = ehm.HilbertMap().fit(room.scans)
+    scan = room.scans[0]
+    rng = np.random.default_rng(6)
+    rays = rng.choice(np.flatnonzero(scan.hit_mask), 3000, replace=False)
+    offsets = scan.points_world[rays] - scan.origin
+    directions = offsets / np.linalg.norm(offsets, axis=1)[:, None]
+    exact = room.scene.raycast(scan.origin, directions)
+    distance = hilbert_map.raycast(scan.origin, directions, 20.0)
+    assert np.isfinite(distance).mean() > 0.97
+    error = np.abs(distance - exact)[np.isfinite(distance)]
+    assert np.median(error) < 0.04 and np.mean(error < 0.15) > 0.9
+    # Segments stopping short of the hits are free; those through them are not.
+    before = scan.origin + directions * (exact[:, None] - 0.3)
+    beyond = scan.origin + directions * (exact[:, None] + 0.3)
+    assert hilbert_map.segment_free(scan.origin, before).mean() > 0.9
+    assert hilbert_map.segment_free(scan.origin, beyond).mean() < 0.05
+    assert hilbert_map.segment_free(scan.origin, scan.origin)[0]
+    np.testing.assert_array_equal(hilbert_map.raycast(scan.origin, directions[:5], 0.0), np.inf)
+
+
+def test_ray_mistakes_are_named(room_map):
+    with pytest.raises(ehm.InputError, match=r"ray directions must have shape \(n, 3\)"):
+        room_map.raycast(np.zeros(3), np.ones((4, 2)), 5.0)
+    with pytest.raises(ehm.InputError, match="directions finite and not zero"):
+        room_map.raycast(np.zeros(3), np.zeros((1, 3)), 5.0)
+    with pytest.raises(ehm.InputError, match="max_range must be finite metres >= 0"):
+        room_map.raycast(np.zeros(3), np.ones((1, 3)), np.inf)
+    with pytest.raises(ehm.InputError, match="level must be a probability between 0 and 1"):
+        room_map.raycast(np.zeros(3), np.ones((1, 3)), 5.0, level=1.0)
