@@ -5,10 +5,10 @@
 
 2D: the generated corridor (2,000 laser scans of 180 rays over 100 m) driven `passes` times,
 back and forth: 20,000 scans by default. 3D: `scans_3d` LiDAR scans (16 x 512 rays) on two
-laps of a loop round the warehouse's shelving. Each run is mapped twice with the defaults: once saving the map
-every few scans and going on from the file just written, once without saving. The two final maps
-must be equal (every cluster array and the answers at 20,000 points); the map's memory after
-each pass or tenth of the run shows that it is bounded by the scene, not by the scans.
+laps of a loop round the warehouse's shelving. Each run is mapped twice with the defaults: once
+saving the map every few scans and going on from the file just written, once without saving.
+The two final maps must be equal (every cluster array and the answers at 20,000 points); the
+map's memory after each pass or tenth of the run shows whether it is bounded by the scene.
 
 Glitch: the warehouse's first full scan (89,984 rays) mapped with max_range 50 m, with and
 without one extra point at 1e9 m; the peak memory traced while integrating each.

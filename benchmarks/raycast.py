@@ -1,0 +1,112 @@
+"""Ray casting: EHM's `raycast` against OctoMap's `castRay`, on the same rays, in one process.
+
+    python benchmarks/raycast.py [--rays 100000]
+
+Each data set is mapped whole by both (EHM with the defaults, OctoMap at 0.05 m with every
+hit inserted); then up to `rays` of its own rays are cast from their sensor origins, out to
+30 m. The distance each returns is compared with the exact surface (the simulated warehouse)
+or with the range the sensor measured (OctoMap's sample scan). OctoMap is called once per ray
+through octomap-python, the way a Python planner would, twice: stopping at unknown voxels
+(`ignoreUnknownCells=False`, its default) and passing through them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from common import RESOLUTION, heading, markdown_table, octomap_mapper
+
+import ehm
+from ehm.core.scan import Scan
+from ehm.eval.datasets import DataMissingError, load_dataset, warehouse
+
+MAX_RANGE = 30.0
+
+
+def sample_rays(scans: list[Scan], n: int, rng: np.random.Generator):
+    """Origins (n, 3), unit directions (n, 3) and the measured ranges (n,) of up to `n` of
+    the scans' hit rays."""
+    origins = np.concatenate([np.broadcast_to(s.origin, (int(s.hit_mask.sum()), 3)) for s in scans])
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in scans])
+    chosen = rng.choice(len(hits), min(n, len(hits)), replace=False)
+    offsets = hits[chosen] - origins[chosen]
+    ranges = np.linalg.norm(offsets, axis=1)
+    return origins[chosen], offsets / ranges[:, None], ranges
+
+
+def octomap_cast(tree, origins, directions, ignore_unknown: bool) -> np.ndarray:
+    """(n,) distance to the voxel castRay stops at (inf where it returns False)."""
+    end = np.zeros(3)
+    distance = np.full(len(origins), np.inf)
+    for i in range(len(origins)):
+        if tree.castRay(origins[i], directions[i], end, ignore_unknown, MAX_RANGE):
+            distance[i] = np.linalg.norm(end - origins[i])
+    return distance
+
+
+def row(name: str, distance: np.ndarray, reference: np.ndarray, seconds: float, base: float):
+    hit = np.isfinite(distance)
+    error = np.abs(distance - reference)[hit]
+    return [
+        name,
+        f"{hit.mean():.3f}",
+        f"{np.median(error):.3f}" if len(error) else "",
+        f"{np.percentile(error, 90):.3f}" if len(error) else "",
+        f"{seconds:.2f}",
+        f"{seconds / base:.2f}",
+    ]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rays", type=int, default=100_000)
+    args = parser.parse_args()
+    rng = np.random.default_rng(0)
+    data_sets = {"warehouse": lambda: warehouse()}
+    data_sets["octomap_scan"] = lambda: load_dataset("octomap_scan")
+    for name, load in data_sets.items():
+        try:
+            loaded = load()
+        except DataMissingError as missing:
+            print(f"skipped {name}: {missing}")
+            continue
+        scans = loaded.scans if hasattr(loaded, "scans") else loaded
+        origins, directions, measured = sample_rays(scans, args.rays, rng)
+        reference, against = measured, "measured range"
+        if hasattr(loaded, "scene"):
+            reference = np.array(
+                [
+                    loaded.scene.raycast(o, d[None])[0]
+                    for o, d in zip(origins, directions, strict=True)
+                ]
+            )
+            against = "exact surface"
+        hilbert_map = ehm.HilbertMap().fit(scans)
+        octomap = octomap_mapper(scans[0], RESOLUTION)
+        for scan in scans[1:]:
+            octomap.insert(scan)
+        hilbert_map.raycast(origins[:100], directions[:100], MAX_RANGE)  # compile
+        start = time.perf_counter()
+        ours = hilbert_map.raycast(origins, directions, MAX_RANGE)
+        ours_s = time.perf_counter() - start
+        rows = []
+        timings = {}
+        for ignore in (False, True):
+            start = time.perf_counter()
+            cast = octomap_cast(octomap.tree, origins, directions, ignore)
+            timings[ignore] = (cast, time.perf_counter() - start)
+        base = timings[False][1]
+        rows.append(row("EHM raycast", ours, reference, ours_s, base))
+        for ignore, (cast, seconds) in timings.items():
+            label = "passing unknown" if ignore else "stopping at unknown"
+            rows.append(row(f"OctoMap castRay, {label}", cast, reference, seconds, base))
+        detail = f"{len(origins):,} of its rays, errors against the {against}"
+        print(heading(f"Ray casting: {name}", detail))
+        columns = ["method", "rays that hit", "median error m", "90 % error m", "seconds"]
+        print(markdown_table([*columns, "time / OctoMap's"], rows))
+
+
+if __name__ == "__main__":
+    main()
