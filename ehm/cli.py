@@ -113,19 +113,22 @@ def _load(path: Path):
     return load(path)
 
 
-def _grid(hilbert_map, bounds: str | None, resolution: float, max_gib: float, std: bool = False):
-    """The map's grid over `bounds` ('x0,y0,..' text), with the std when asked."""
+def _box(hilbert_map, bounds: str | None):
+    """(2, d) float64 bounds from 'x0,y0,..' text, or None."""
     import numpy as np
 
-    box = None
-    if bounds is not None:
-        box = np.array(_numbers(bounds, float, "--bounds"))
-        if len(box) != 2 * hilbert_map.dim:
-            raise InputError(
-                f"--bounds: {2 * hilbert_map.dim} numbers for a {hilbert_map.dim}D map, "
-                f"got {len(box)}"
-            )
-        box = box.reshape(2, hilbert_map.dim)
+    if bounds is None:
+        return None
+    box = np.array(_numbers(bounds, float, "--bounds"))
+    if len(box) != 2 * hilbert_map.dim:
+        raise InputError(
+            f"--bounds: {2 * hilbert_map.dim} numbers for a {hilbert_map.dim}D map, got {len(box)}"
+        )
+    return box.reshape(2, hilbert_map.dim)
+
+
+def _grid(hilbert_map, box, resolution: float, max_gib: float, std: bool = False):
+    """The map's grid over `box` ((2, d) or None: all of the map), with the std when asked."""
     if not 0 < max_gib < math.inf:
         raise InputError(f"--max-gib must be a positive number, got {max_gib}")
     return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30), std=std)
@@ -321,7 +324,7 @@ def grid(
 
     check_output(output, [map_path], force, suffix=".npz")
     hilbert_map = _load(map_path)
-    occupancy_grid = _grid(hilbert_map, bounds, resolution, max_gib, std)
+    occupancy_grid = _grid(hilbert_map, _box(hilbert_map, bounds), resolution, max_gib, std)
     save_grid(occupancy_grid, output)
     console.print(f"{occupancy_grid!r}\nwrote {output}")
 
@@ -348,7 +351,7 @@ def mesh(
             f"{map_path}: a 2D map has no surface mesh: 'ehm render' draws it as a PNG and "
             "'ehm grid' saves its grid"
         )
-    vertices, faces = _grid(hilbert_map, bounds, resolution, max_gib).mesh(level)
+    vertices, faces = _grid(hilbert_map, _box(hilbert_map, bounds), resolution, max_gib).mesh(level)
     if len(faces) == 0:
         raise InputError(f"nothing to mesh: the map does not cross {level} in these bounds")
     write_ply_mesh(output, vertices, faces, vertex_colors(vertices))
@@ -394,7 +397,7 @@ def render(
     if cut_above is not None and not math.isfinite(cut_above):
         raise InputError(f"--cut-above must be a finite height, got {cut_above}")
     hilbert_map = _load(map_path)
-    occupancy_grid = _grid(hilbert_map, bounds, resolution, max_gib)
+    occupancy_grid = _grid(hilbert_map, _box(hilbert_map, bounds), resolution, max_gib)
     if occupancy_grid.dim == 2:
         grid_picture(occupancy_grid, output, title=map_path.name)
     else:
@@ -406,6 +409,61 @@ def render(
     if std is not None:
         occupancy_slices(hilbert_map, low, high, std, std=True)
     console.print("wrote " + " and ".join(str(p) for p in written))
+
+
+@app.command()
+def export(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    output: Annotated[
+        Path,
+        typer.Option(
+            "--output",
+            "-o",
+            help="File to write, by its suffix: .ot (OctoMap, log-odds), .bt (OctoMap, "
+            "occupied or free), .pgm (+ .yaml, ROS map_server, 2D), .ply or .pcd (occupied "
+            "voxel centres).",
+        ),
+    ],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    level: Annotated[
+        float, typer.Option(help="Occupancy above which a voxel is occupied (.ply, .pcd).")
+    ] = 0.5,
+    max_gib: MaxGiB = 1.0,
+    force: Force = False,
+) -> None:
+    """Export a map's grid for robotics tools: OctoMap trees that octovis and octomap_server
+    open, map_server maps for nav2, point clouds of the occupied voxels. The bounds widen to
+    multiples of the resolution, so the voxels are OctoMap's."""
+    import numpy as np
+
+    from ehm.io import exports
+    from ehm.io.outputs import check_output
+
+    suffixes = (*exports.OCTOMAP_SUFFIXES, ".pgm", ".ply", ".pcd")
+    if output.suffix.lower() not in suffixes:
+        raise InputError(f"{output}: expected a name ending in {', '.join(suffixes)}")
+    check_output(output, [map_path], force)
+    if output.suffix == ".pgm":
+        check_output(output.with_suffix(".yaml"), [map_path], force)
+    hilbert_map = _load(map_path)
+    if not 0.0 < resolution < math.inf:
+        raise InputError(f"--resolution must be a positive number of metres, got {resolution}")
+    box = _box(hilbert_map, bounds)
+    aligned = exports.aligned_bounds(hilbert_map.snapshot(), resolution, box)
+    occupancy_grid = _grid(hilbert_map, aligned, resolution, max_gib)
+    if output.suffix in exports.OCTOMAP_SUFFIXES:
+        known = exports.write_octomap(occupancy_grid, output)
+        console.print(f"{occupancy_grid!r}: {known} known voxels\nwrote {output}")
+    elif output.suffix == ".pgm":
+        yaml_path = exports.write_map_server(occupancy_grid, output)
+        console.print(f"{occupancy_grid!r}\nwrote {output} and {yaml_path}")
+    else:
+        points = exports.occupied_voxels(occupancy_grid, level)
+        if occupancy_grid.dim == 2:
+            points = np.column_stack([points, np.zeros(len(points))])
+        exports.write_point_cloud(points, output)
+        console.print(f"{len(points)} occupied voxels\nwrote {output}")
 
 
 @app.command()

@@ -233,3 +233,27 @@ def test_eval_names_bad_options(monkeypatch, tmp_path):
     result = runner.invoke(app, ["eval", "--methods", "ehm", "--datasets", "intel_lab"])
     assert result.exit_code == 2
     assert "skipped intel_lab" in result.output and "nothing to evaluate" in result.output
+
+
+def test_export_writes_each_format(room_map_file, map_file, tmp_path):
+    octomap = pytest.importorskip("octomap")
+    bounds = ["--bounds", "-2,-2,0,2,2,2.6", "--resolution", "0.1"]
+    for name in ("room.bt", "room.ot", "room.ply", "room.pcd"):
+        result = runner.invoke(
+            app, ["export", str(room_map_file), "-o", str(tmp_path / name), *bounds]
+        )
+        assert result.exit_code == 0, result.output
+    tree = octomap.OcTree(0.1)
+    assert tree.readBinary(str(tmp_path / "room.bt").encode()) and tree.getNumLeafNodes() > 1000
+    assert len(read_ply(tmp_path / "room.ply")) > 1000
+    result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.pgm")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "plan.yaml").read_text().startswith("image: plan.pgm\n")
+    result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.bt")])
+    assert result.exit_code == 2 and "OctoMap trees are 3D" in result.stderr
+    result = runner.invoke(app, ["export", str(room_map_file), "-o", str(tmp_path / "r.pgm")])
+    assert result.exit_code == 2 and "map_server maps are 2D" in result.stderr
+    result = runner.invoke(app, ["export", str(room_map_file), "-o", str(tmp_path / "r.obj")])
+    assert result.exit_code == 2 and "expected a name ending in .ot, .bt, .pgm" in result.stderr
+    result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.pgm")])
+    assert result.exit_code == 2 and "plan.pgm exists: --force overwrites it" in result.stderr

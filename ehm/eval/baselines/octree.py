@@ -10,16 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ehm.core.scan import Scan
-
-INSTALL_HINT = "OctoMap bindings missing: pip install 'ehm[octomap]'"
-
-
-def _octomap_module():
-    try:
-        import octomap
-    except ImportError as error:
-        raise ImportError(INSTALL_HINT) from error
-    return octomap
+from ehm.io.octomap_bindings import octomap_module
 
 
 def _in_3d(points: np.ndarray) -> np.ndarray:
@@ -34,7 +25,7 @@ class OctoMapMapper:
     """OctoMap at `resolution` metres, its default sensor model and clamping."""
 
     def __init__(self, resolution: float) -> None:
-        self._octomap = _octomap_module()
+        self._octomap = octomap_module()
         self.resolution = resolution
         self.tree = None
 

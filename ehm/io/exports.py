@@ -1,0 +1,157 @@
+"""A map's grid in the formats robotics tools read: OctoMap trees (.ot, .bt), ROS map_server
+images (.pgm with its .yaml) and point clouds of the occupied voxels (.ply, .pcd).
+
+Voxels that no kernel reaches (log-odds exactly 0 before the intercept) are unknown: left out
+of OctoMap trees, grey in map_server images, never occupied.
+
+    grid = hilbert_map.grid(aligned_bounds(hilbert_map.snapshot(), 0.1), 0.1)
+    write_octomap(grid, "map.bt")
+"""
+
+from __future__ import annotations
+
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+
+from ehm.core.snapshot import MapSnapshot
+from ehm.errors import InputError, OutputError
+from ehm.grid.bounds import support_bounds
+from ehm.grid.occupancy_grid import OccupancyGrid
+from ehm.io.octomap_bindings import octomap_module
+
+OCTOMAP_SUFFIXES = (".ot", ".bt")
+# OctoMap keys hold 16 bits per axis, centred on the origin.
+OCTOMAP_KEY_HALF = 2**15
+# map_server's reading of a pixel p: occupancy (255 - p) / 255, above occupied_thresh occupied,
+# below free_thresh free, between them unknown. map_saver's thresholds and unknown grey.
+MAP_SERVER_OCCUPIED = 0.65
+MAP_SERVER_FREE = 0.196
+MAP_SERVER_UNKNOWN_PIXEL = 205
+
+
+def aligned_bounds(
+    snapshot: MapSnapshot, resolution: float, bounds: np.ndarray | None = None
+) -> np.ndarray:
+    """(2, d) `bounds` (None: every kernel's support, see support_bounds) widened outward to
+    multiples of `resolution`, metres, so that the grid's voxels are OctoMap's voxels."""
+    box = support_bounds(snapshot) if bounds is None else np.asarray(bounds, dtype=np.float64)
+    low = np.floor(box[0] / resolution - 1e-9) * resolution
+    high = np.ceil(box[1] / resolution + 1e-9) * resolution
+    return np.stack([low, high])
+
+
+def write_octomap(grid: OccupancyGrid, path: str | PathLike[str]) -> int:
+    """Write a 3D grid, aligned to multiples of its resolution (aligned_bounds), as an OctoMap
+    OcTree: `.ot` keeps each known voxel's occupancy as log-odds, `.bt` its maximum
+    likelihood (occupied above 0.5, else free), pruned. Written by OctoMap itself
+    (octomap-python), so octovis and octomap_server open it. Returns the known voxels."""
+    path = Path(path)
+    if path.suffix not in OCTOMAP_SUFFIXES:
+        raise OutputError(f"{path}: OctoMap files end in .ot or .bt")
+    tree = octree_of_grid(grid)
+    written = (
+        tree.writeBinary(str(path).encode())
+        if path.suffix == ".bt"
+        else tree.write(str(path).encode())
+    )
+    if not written:
+        raise OutputError(f"{path}: OctoMap could not write it")
+    return int(np.count_nonzero(grid.scores))
+
+
+def octree_of_grid(grid: OccupancyGrid):
+    """The octomap.OcTree holding the known voxels of a 3D grid at their log-odds (clamped by
+    OctoMap at +-13.8, probabilities 1e-6 from 0 and 1)."""
+    if grid.dim != 3:
+        raise InputError("OctoMap trees are 3D; a 2D map exports as a map_server image (.pgm)")
+    cells = grid.origin / grid.resolution
+    if not np.allclose(cells, np.round(cells), atol=1e-6):
+        raise InputError(
+            f"grid origin {grid.origin.tolist()} is not on OctoMap's voxel boundaries, "
+            f"multiples of {grid.resolution} m (see aligned_bounds)"
+        )
+    reach = OCTOMAP_KEY_HALF * grid.resolution
+    low, high = grid.bounds
+    if np.any(low < -reach) or np.any(high > reach):
+        raise InputError(
+            f"OctoMap's keys reach {reach:g} m from the origin at {grid.resolution} m; the grid "
+            f"spans {low.tolist()} .. {high.tolist()}"
+        )
+    octomap = octomap_module()
+    tree = octomap.OcTree(grid.resolution)
+    tree.setClampingThresMin(1e-6)
+    tree.setClampingThresMax(1.0 - 1e-6)
+    known = np.argwhere(grid.scores != 0.0)
+    centres = grid.origin + (known + 0.5) * grid.resolution
+    log_odds = grid.scores[tuple(known.T)] + grid.intercept
+    for centre, value in zip(centres, log_odds, strict=True):
+        tree.updateNode(centre, float(value), True)
+    tree.updateInnerOccupancy()
+    return tree
+
+
+def write_map_server(grid: OccupancyGrid, path: str | PathLike[str]) -> Path:
+    """Write a 2D grid as a ROS map_server map: `path` (.pgm, 8-bit, first row the top) with
+    pixel round(255 (1 - p)) for known cells and 205 for unknown ones, and beside it a .yaml
+    (image, resolution, origin, negate, thresholds; mode trinary), which nav2 and map_server
+    read. Returns the .yaml's path."""
+    path = Path(path)
+    if grid.dim != 2:
+        raise InputError("map_server maps are 2D; export a 3D map as .ot, .bt, .ply or .pcd")
+    if path.suffix != ".pgm":
+        raise OutputError(f"{path}: map_server images end in .pgm")
+    pixels = np.rint(255.0 * (1.0 - grid.probability)).astype(np.uint8)
+    pixels[grid.scores == 0.0] = MAP_SERVER_UNKNOWN_PIXEL
+    image = pixels.T[::-1]  # rows from the top (largest y), columns along x
+    height, width = image.shape
+    with open(path, "wb") as stream:
+        stream.write(f"P5\n# ehm occupancy map\n{width} {height}\n255\n".encode("ascii"))
+        stream.write(np.ascontiguousarray(image).tobytes())
+    yaml_path = path.with_suffix(".yaml")
+    x0, y0 = (float(v) for v in grid.origin)
+    yaml_path.write_text(
+        f"image: {path.name}\n"
+        f"resolution: {grid.resolution!r}\n"
+        f"origin: [{x0!r}, {y0!r}, 0.0]\n"
+        "negate: 0\n"
+        f"occupied_thresh: {MAP_SERVER_OCCUPIED}\n"
+        f"free_thresh: {MAP_SERVER_FREE}\n"
+        "mode: trinary\n"
+    )
+    return yaml_path
+
+
+def occupied_voxels(grid: OccupancyGrid, level: float = 0.5) -> np.ndarray:
+    """(n, d) float64 centres, metres, of the voxels whose occupancy is above `level`."""
+    if not 0.0 < level < 1.0:
+        raise InputError(f"level must be a probability between 0 and 1, got {level}")
+    occupied = np.argwhere((grid.probability > level) & (grid.scores != 0.0))
+    return grid.origin + (occupied + 0.5) * grid.resolution
+
+
+def write_point_cloud(points: np.ndarray, path: str | PathLike[str]) -> None:
+    """Write (n, 3) points, metres, as binary little-endian PLY or binary PCD (float32 x y z),
+    by the name's suffix; CloudCompare, Open3D and PCL read both."""
+    path = Path(path)
+    points = np.asarray(points, dtype="<f4")
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise InputError(f"points must have shape (n, 3), got {points.shape}")
+    if path.suffix == ".ply":
+        header = (
+            f"ply\nformat binary_little_endian 1.0\ncomment written by ehm\n"
+            f"element vertex {len(points)}\nproperty float x\nproperty float y\n"
+            "property float z\nend_header\n"
+        )
+    elif path.suffix == ".pcd":
+        header = (
+            "# .PCD v0.7 - written by ehm\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+            f"COUNT 1 1 1\nWIDTH {len(points)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n"
+            f"POINTS {len(points)}\nDATA binary\n"
+        )
+    else:
+        raise OutputError(f"{path}: point clouds end in .ply or .pcd")
+    with open(path, "wb") as stream:
+        stream.write(header.encode("ascii"))
+        stream.write(np.ascontiguousarray(points).tobytes())
