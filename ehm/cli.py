@@ -226,6 +226,10 @@ def map_command(
         float | None,
         typer.Option(help="Cut rays longer than this, metres: free up to it, no hit there."),
     ] = None,
+    every: Annotated[int, typer.Option(help="Take every Nth scan.")] = 1,
+    limit: Annotated[
+        int | None, typer.Option(help="Stop after this many scans (after --every).")
+    ] = None,
     batch: Annotated[bool, typer.Option(help="Learn all scans at once (single batch).")] = False,
     resolution: Annotated[
         float,
@@ -238,12 +242,15 @@ def map_command(
         list[str] | None, typer.Option("--set", help="MapConfig override name=value.")
     ] = None,
     force: Force = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="No progress bar, no summary: only errors.")
+    ] = False,
 ) -> None:
     """Build a map from scans of any supported format and save it."""
     from ehm.config import MapConfig
     from ehm.hilbert_map import HilbertMap
     from ehm.io.outputs import check_output
-    from ehm.io.readers import read_scans
+    from ehm.io.readers import scan_stream
     from ehm.pipeline import MappingPipeline, ProgressBar
 
     given = [*inputs, *(p for p in (poses, calib) if p is not None)]
@@ -253,19 +260,21 @@ def map_command(
     overrides = {k: v for k, v in ranges.items() if v is not None}
     config = MapConfig.for_resolution(resolution, **_parse_settings(setting or []), **overrides)
     hilbert_map = HilbertMap(config)
-    scans = read_scans(inputs, format=format, origin=sensor, poses=poses, calib=calib)
-    run = MappingPipeline(scans, hilbert_map, batch, [ProgressBar(console)]).run()
+    scans = scan_stream(inputs, format, sensor, poses, calib, every, limit)
+    observers = [] if quiet else [ProgressBar(console)]
+    run = MappingPipeline(scans, hilbert_map, batch, observers).run()
     hilbert_map.save(output)
-    console.print(_timings_table("Mapping, per stage", run.stage_seconds))
-    console.print(
-        f"{run.n_scans} scans, {run.n_rays} rays ({run.n_dropped} non-finite dropped) -> "
-        f"{hilbert_map!r}, {hilbert_map.memory_bytes() / 1e6:.2f} MB, mapped in "
-        f"{run.seconds:.1f} s; wrote {output}"
-    )
     if hilbert_map.n_clusters == 0:
         errors.print(
             "[yellow]warning:[/yellow] the map has no clusters: no scan gave enough samples "
             "together, so every point reads 0.5"
+        )
+    if not quiet:
+        console.print(_timings_table("Mapping, per stage", run.stage_seconds))
+        console.print(
+            f"{run.n_scans} scans, {run.n_rays} rays ({run.n_dropped} non-finite dropped) -> "
+            f"{hilbert_map!r}, {hilbert_map.memory_bytes() / 1e6:.2f} MB, mapped in "
+            f"{run.seconds:.1f} s; wrote {output}"
         )
 
 

@@ -257,3 +257,16 @@ def test_export_writes_each_format(room_map_file, map_file, tmp_path):
     assert result.exit_code == 2 and "expected a name ending in .ot, .bt, .pgm" in result.stderr
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.pgm")])
     assert result.exit_code == 2 and "plan.pgm exists: --force overwrites it" in result.stderr
+
+
+def test_map_takes_every_nth_scan_up_to_a_limit_quietly(plan_log, tmp_path):
+    output = tmp_path / "some.ehm"
+    args = ["map", str(plan_log), "-o", str(output), "--every", "2", "--limit", "2", "--quiet"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert result.output == ""
+    assert ehm.load(output).n_scans_ == 2  # scans 0 and 2 of 5
+    result = runner.invoke(
+        app, ["map", str(plan_log), "-o", str(tmp_path / "x.ehm"), "--every", "0"]
+    )
+    assert result.exit_code == 2 and "every must be an integer >= 1, got 0" in result.stderr

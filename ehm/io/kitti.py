@@ -4,6 +4,7 @@ T_world_camera0) and calib.txt's `Tr` (T_camera0_velodyne)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from os import PathLike
 from pathlib import Path
 
@@ -29,29 +30,41 @@ def read_kitti(
     sequence finds its own poses. T_world_velodyne = T_world_camera0 @ Tr, with Tr from
     `calib`: a calib.txt path; by default the calib.txt of the scans' sequence folder (beside
     `velodyne/`); or "identity" when the poses already place the Velodyne."""
+    return list(kitti_scans(bin_paths, poses_path, calib))
+
+
+def kitti_scans(
+    bin_paths: list[str | PathLike[str]],
+    poses_path: str | PathLike[str],
+    calib: str | PathLike[str] | None = None,
+) -> Iterator[Scan]:
+    """The scans of `read_kitti`, each read when it is asked for; the frame numbers, poses
+    and calibration are checked first, here."""
     frames = sorted((_frame_number(path), Path(path)) for path in bin_paths)
     poses = read_poses(poses_path)
     T_camera_velodyne = _calibration(frames[0][1], calib)
-    scans = []
     for frame, path in frames:
         if frame >= len(poses):
             raise FileReadError(
                 poses_path, f"{len(poses)} poses: none for frame {frame} ({path.name})"
             )
-        T_world_velodyne = poses[frame] @ T_camera_velodyne
-        raw = read_bytes(path)
-        if len(raw) % 16:
-            raise FileReadError(
-                path, f"{len(raw)} bytes is not a whole number of points (16 bytes: x y z i)"
-            )
-        with np.errstate(invalid="ignore"):  # bytes that are not numbers become NaN, dropped
-            points_velodyne = np.frombuffer(raw, "<f4").reshape(-1, 4)[:, :3].astype(np.float64)
-        points_world = transform_points(T_world_velodyne, points_velodyne)
-        try:
-            scans.append(Scan(points_world, T_world_velodyne[:3, 3].copy()))
-        except InputError as error:
-            raise FileReadError(path, str(error)) from None
-    return scans
+    return (_kitti_scan(path, poses[frame] @ T_camera_velodyne) for frame, path in frames)
+
+
+def _kitti_scan(path: Path, T_world_velodyne: np.ndarray) -> Scan:
+    """One Velodyne scan in world frame."""
+    raw = read_bytes(path)
+    if len(raw) % 16:
+        raise FileReadError(
+            path, f"{len(raw)} bytes is not a whole number of points (16 bytes: x y z i)"
+        )
+    with np.errstate(invalid="ignore"):  # bytes that are not numbers become NaN, dropped
+        points_velodyne = np.frombuffer(raw, "<f4").reshape(-1, 4)[:, :3].astype(np.float64)
+    points_world = transform_points(T_world_velodyne, points_velodyne)
+    try:
+        return Scan(points_world, T_world_velodyne[:3, 3].copy())
+    except InputError as error:
+        raise FileReadError(path, str(error)) from None
 
 
 def _frame_number(path: str | PathLike[str]) -> int:

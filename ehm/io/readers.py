@@ -8,7 +8,8 @@ scans = read_scans("tum_sequence/")                 # folder with poses.txt and 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from itertools import islice
 from os import PathLike
 from pathlib import Path
 
@@ -18,12 +19,12 @@ from ehm.core.geometry import transform_points
 from ehm.core.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.carmen import read_carmen
-from ehm.io.kitti import read_kitti
+from ehm.io.kitti import kitti_scans
 from ehm.io.octomap_graph import read_octomap_graph
 from ehm.io.pcd import read_pcd
 from ehm.io.ply import read_ply
 from ehm.io.poses import read_poses
-from ehm.io.tum import read_tum
+from ehm.io.tum import tum_scans
 from ehm.io.xyz import read_xyz
 
 FORMATS = ("xyz", "ply", "pcd", "kitti", "graph", "tum", "carmen")
@@ -57,7 +58,24 @@ def read_scans(
     poses: str | PathLike[str] | None = None,
     calib: str | PathLike[str] | None = None,
 ) -> list[Scan]:
-    """Scans from one or more files of one format, in world frame.
+    """Scans from one or more files of one format, in world frame, all read now (see
+    scan_stream for the arguments and for reading them one at a time)."""
+    return list(scan_stream(paths, format, origin, poses, calib))
+
+
+def scan_stream(
+    paths: str | PathLike[str] | Sequence[str | PathLike[str]],
+    format: str | None = None,
+    origin: Sequence[float] | None = None,
+    poses: str | PathLike[str] | None = None,
+    calib: str | PathLike[str] | None = None,
+    every: int = 1,
+    limit: int | None = None,
+) -> Iterator[Scan]:
+    """Scans from one or more files of one format, in world frame, each read when it is asked
+    for, so mapping starts with the first and memory holds one at a time. Everything that can
+    be checked before reading scans is checked here (files exist, options fit the format,
+    poses and calibration files read); a scan that cannot be read raises when it is reached.
 
     origin: sensor position (3,), metres, for point clouds (xyz, ply, pcd) in world frame,
         which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
@@ -65,6 +83,7 @@ def read_scans(
         for point clouds one T_world_sensor per file, in the order given (KITTI or TUM layout,
         ehm.io.poses), each file's points in its sensor's frame (PCD: the VIEWPOINT's frame).
     calib: KITTI's calib.txt, or "identity" (ehm.io.kitti.read_kitti).
+    every: take every `every`-th scan (1: all); limit: stop after this many (None: no limit).
 
     Raises FileReadError naming the file for anything it cannot read, InputError for options
     that do not fit the format.
@@ -76,27 +95,38 @@ def read_scans(
     if fmt not in FORMATS:
         raise InputError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
     _check_options(fmt, origin, poses, calib)
+    if not (isinstance(every, int) and every >= 1):
+        raise InputError(f"every must be an integer >= 1, got {every!r}")
+    if limit is not None and not (isinstance(limit, int) and limit >= 0):
+        raise InputError(f"limit must be an integer >= 0, got {limit!r}")
     for item in items:
         if not Path(item).exists():
             raise FileReadError(item, "no such file or folder")
     if fmt == "kitti":
         if poses is None:
             raise InputError("KITTI .bin scans need the sequence's poses file (--poses)")
-        return read_kitti(items, poses, calib)
-    scans: list[Scan] = []
-    readers = {"graph": read_octomap_graph, "tum": read_tum, "carmen": read_carmen}
-    if fmt in readers:
-        for item in items:
-            found = readers[fmt](item)
-            if not found:
-                raise FileReadError(item, "no scans")
-            scans += found
-        return scans
-    T_world_files = _file_poses(poses, len(items))
-    return [
-        _point_cloud_scan(Path(item), fmt, origin, T_world_file)
-        for item, T_world_file in zip(items, T_world_files, strict=True)
-    ]
+        scans = kitti_scans(items, poses, calib)
+    elif fmt in POSED_FORMATS:
+        scans = _posed_scans(items, fmt)
+    else:
+        T_world_files = _file_poses(poses, len(items))
+        scans = (
+            _point_cloud_scan(Path(item), fmt, origin, T_world_file)
+            for item, T_world_file in zip(items, T_world_files, strict=True)
+        )
+    return islice(scans, 0, None if limit is None else limit * every, every)
+
+
+def _posed_scans(items: list[str | PathLike[str]], fmt: str) -> Iterator[Scan]:
+    """The scans of graph, TUM or CARMEN files, one file after the other."""
+    readers = {"graph": read_octomap_graph, "tum": tum_scans, "carmen": read_carmen}
+    for item in items:
+        found = 0
+        for scan in readers[fmt](item):
+            found += 1
+            yield scan
+        if not found:
+            raise FileReadError(item, "no scans")
 
 
 def _one_format(items: list[str | PathLike[str]]) -> str:

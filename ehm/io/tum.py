@@ -4,6 +4,7 @@ camera-to-world) and 16-bit depth PNGs."""
 from __future__ import annotations
 
 import io
+from collections.abc import Iterator
 from os import PathLike
 from pathlib import Path
 
@@ -27,9 +28,21 @@ def read_tum(
     """TUM RGB-D depth frames listed in `folder`/poses.txt (`depth/<file> tx ty tz qx qy qz
     qw`, camera-to-world). Intrinsics default to Freiburg 2; depth in metres = value /
     depth_scale; 0 means no reading and is skipped. Every `pixel_stride`-th pixel is used."""
+    return list(tum_scans(folder, fx, fy, cx, cy, depth_scale, pixel_stride))
+
+
+def tum_scans(
+    folder: str | PathLike[str],
+    fx: float = 520.9,
+    fy: float = 521.0,
+    cx: float = 325.1,
+    cy: float = 249.7,
+    depth_scale: float = 5000.0,
+    pixel_stride: int = 2,
+) -> Iterator[Scan]:
+    """The frames of `read_tum`, each read when it is asked for."""
     folder = Path(folder)
     poses_path = folder / "poses.txt"
-    scans = []
     for number, line in enumerate(read_text(poses_path).splitlines(), start=1):
         if not line.strip() or line.startswith("#"):
             continue
@@ -51,10 +64,10 @@ def read_tum(
         points_camera = np.column_stack([(u - cx) * z / fx, (v - cy) * z / fy, z])
         points_world = transform_points(T_world_camera, points_camera)
         try:
-            scans.append(Scan(points_world, T_world_camera[:3, 3].copy()))
+            scan = Scan(points_world, T_world_camera[:3, 3].copy())
         except InputError as error:
             raise FileReadError(folder / name, str(error)) from None
-    return scans
+        yield scan
 
 
 def _depth_image(path: Path) -> np.ndarray:
