@@ -54,7 +54,7 @@ app = typer.Typer(
     rich_markup_mode="rich",
 )
 console = Console()
-errors = Console(stderr=True)
+errors = Console(stderr=True, soft_wrap=True)  # one line an error, however long
 
 
 @app.callback()
@@ -194,11 +194,13 @@ def demo(
 
 @app.command("map")
 def map_command(
-    inputs: Annotated[list[Path], typer.Argument(help="Scan files or a TUM folder.")],
+    inputs: Annotated[
+        list[Path], typer.Argument(help="Scan files, a TUM folder, ROS bags (.bag or folders).")
+    ],
     output: Annotated[Path, typer.Option("--output", "-o", help="Map file to write.")],
     format: Annotated[
         str | None,
-        typer.Option("--format", "-f", help="Reader: xyz ply pcd kitti graph tum carmen."),
+        typer.Option("--format", "-f", help="Reader: xyz ply pcd kitti graph tum carmen bag."),
     ] = None,
     origin: Annotated[
         str | None,
@@ -208,8 +210,8 @@ def map_command(
         Path | None,
         typer.Option(
             help="Poses file: for KITTI .bin scans the sequence's (line i places frame i); for "
-            "point clouds one T_world_sensor per file in the order given (KITTI's 12 numbers "
-            "or TUM's 'time tx ty tz qx qy qz qw' per line)."
+            "point clouds one T_world_sensor per file in the order given, for bags one per "
+            "message (KITTI's 12 numbers or TUM's 'time tx ty tz qx qy qz qw' per line)."
         ),
     ] = None,
     calib: Annotated[
@@ -218,6 +220,17 @@ def map_command(
             help="KITTI calib.txt (its Tr places the Velodyne in the camera poses); default "
             "the sequence's; 'identity' for poses of the Velodyne itself."
         ),
+    ] = None,
+    topic: Annotated[
+        str | None,
+        typer.Option(help="Bags: the PointCloud2 or LaserScan topic (default: the only one)."),
+    ] = None,
+    frame: Annotated[
+        str | None, typer.Option(help="Bags: the fixed frame /tf places the scans in.")
+    ] = None,
+    odometry: Annotated[
+        str | None,
+        typer.Option(help="Bags: a nav_msgs/Odometry topic to place the scans by instead."),
     ] = None,
     min_range: Annotated[
         float | None, typer.Option(help="Leave out rays shorter than this, metres.")
@@ -260,7 +273,7 @@ def map_command(
     overrides = {k: v for k, v in ranges.items() if v is not None}
     config = MapConfig.for_resolution(resolution, **_parse_settings(setting or []), **overrides)
     hilbert_map = HilbertMap(config)
-    scans = scan_stream(inputs, format, sensor, poses, calib, every, limit)
+    scans = scan_stream(inputs, format, sensor, poses, calib, every, limit, topic, frame, odometry)
     observers = [] if quiet else [ProgressBar(console)]
     run = MappingPipeline(scans, hilbert_map, batch, observers).run()
     hilbert_map.save(output)

@@ -18,6 +18,7 @@ import numpy as np
 from ehm.core.geometry import transform_points
 from ehm.core.scan import Scan
 from ehm.errors import FileReadError, InputError
+from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen
 from ehm.io.kitti import kitti_scans
 from ehm.io.octomap_graph import read_octomap_graph
@@ -27,18 +28,21 @@ from ehm.io.poses import read_poses
 from ehm.io.tum import tum_scans
 from ehm.io.xyz import read_xyz
 
-FORMATS = ("xyz", "ply", "pcd", "kitti", "graph", "tum", "carmen")
+FORMATS = ("xyz", "ply", "pcd", "kitti", "graph", "tum", "carmen", "bag")
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "tum", "carmen")
 _EXTENSIONS = {
     ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".bz2": "xyz", ".ply": "ply", ".pcd": "pcd",
-    ".bin": "kitti", ".graph": "graph", ".log": "carmen", ".clf": "carmen",
+    ".bin": "kitti", ".graph": "graph", ".log": "carmen", ".clf": "carmen", ".bag": "bag",
 }  # fmt: skip
 
 
 def guess_format(path: str | PathLike[str]) -> str:
-    """The reader for a path: a folder holding poses.txt is TUM, otherwise by extension."""
+    """The reader for a path: a folder holding poses.txt is TUM, one holding metadata.yaml a
+    ROS 2 bag, otherwise by extension."""
     path = Path(path)
+    if is_bag(path):
+        return "bag"
     if path.is_dir():
         if (path / "poses.txt").exists():
             return "tum"
@@ -71,6 +75,9 @@ def scan_stream(
     calib: str | PathLike[str] | None = None,
     every: int = 1,
     limit: int | None = None,
+    topic: str | None = None,
+    frame: str | None = None,
+    odometry: str | None = None,
 ) -> Iterator[Scan]:
     """Scans from one or more files of one format, in world frame, each read when it is asked
     for, so mapping starts with the first and memory holds one at a time. Everything that can
@@ -84,6 +91,9 @@ def scan_stream(
         ehm.io.poses), each file's points in its sensor's frame (PCD: the VIEWPOINT's frame).
     calib: KITTI's calib.txt, or "identity" (ehm.io.kitti.read_kitti).
     every: take every `every`-th scan (1: all); limit: stop after this many (None: no limit).
+    topic, frame, odometry: for ROS bags, the scans' topic (None: the only scan topic), the
+        fixed frame they are placed in by /tf, and an odometry topic to place them by instead
+        (see ehm.io.bags); `poses` gives one pose per message instead.
 
     Raises FileReadError naming the file for anything it cannot read, InputError for options
     that do not fit the format.
@@ -95,6 +105,8 @@ def scan_stream(
     if fmt not in FORMATS:
         raise InputError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
     _check_options(fmt, origin, poses, calib)
+    if fmt != "bag" and (topic, frame, odometry) != (None, None, None):
+        raise InputError(f"topic, frame and odometry are for ROS bags, not {fmt} files")
     if not (isinstance(every, int) and every >= 1):
         raise InputError(f"every must be an integer >= 1, got {every!r}")
     if limit is not None and not (isinstance(limit, int) and limit >= 0):
@@ -106,6 +118,9 @@ def scan_stream(
         if poses is None:
             raise InputError("KITTI .bin scans need the sequence's poses file (--poses)")
         scans = kitti_scans(items, poses, calib)
+    elif fmt == "bag":
+        bags = [BagScans(item, topic, frame, odometry, poses) for item in items]
+        scans = (scan for bag in bags for scan in bag)
     elif fmt in POSED_FORMATS:
         scans = _posed_scans(items, fmt)
     else:
@@ -154,8 +169,8 @@ def _check_options(
         raise InputError(
             f"{fmt} files hold each scan's sensor pose: {' and '.join(given)} would be ignored"
         )
-    if fmt == "kitti" and origin is not None:
-        raise InputError("KITTI scans are placed by their poses: origin would be ignored")
+    if fmt in ("kitti", "bag") and origin is not None:
+        raise InputError(f"{fmt} scans are placed by their poses: origin would be ignored")
     if origin is not None and poses is not None:
         raise InputError("give an origin or poses, not both: each pose places its sensor")
     if calib is not None and fmt != "kitti":

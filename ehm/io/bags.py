@@ -1,0 +1,227 @@
+"""ROS 1 bags (.bag) and ROS 2 bag folders (.db3 or .mcap), read with the `rosbags` library,
+no ROS install needed: sensor_msgs/PointCloud2 (3D scans) and sensor_msgs/LaserScan (2D scans,
+in the fixed frame's x-y plane) of one topic, placed in a fixed frame by /tf and /tf_static
+(the transform at each message's stamp, interpolated), by a nav_msgs/Odometry topic (with
+/tf_static from its child frame to the sensor's), or by a poses file (one T_world_sensor per
+message, in order).
+
+    bag = BagScans("run.bag", "/velodyne_points", frame="map")
+    for scan in bag: ...
+    bag.skipped            # messages without a transform at their stamp
+
+Transforms and odometry are read first, in one pass (they are small); the scans are read as
+they are asked for, so memory holds one at a time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+
+from ehm.core.frames import FrameTree
+from ehm.core.geometry import quaternion_to_matrix, transform_points
+from ehm.core.scan import Scan
+from ehm.errors import FileReadError, InputError
+from ehm.io.poses import read_poses
+
+INSTALL_HINT = "ROS bags need the rosbags library: pip install 'ehm[ros]'"
+SCAN_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan")
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+TF_TOPICS = ("/tf", "/tf_static")
+# numpy codes of sensor_msgs/PointField datatypes 1 to 8.
+FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+
+
+def is_bag(path: str | PathLike[str]) -> bool:
+    """A ROS 1 .bag file, or a ROS 2 bag folder (holding metadata.yaml)."""
+    path = Path(path)
+    return path.suffix == ".bag" or (path.is_dir() and (path / "metadata.yaml").exists())
+
+
+class BagScans:
+    """The scans of `topic` in a bag, in world frame `frame` (see the module). Opening checks
+    the topic, its type and the source of poses; iterating reads the scans."""
+
+    def __init__(
+        self,
+        path: str | PathLike[str],
+        topic: str | None,
+        frame: str | None = None,
+        odometry: str | None = None,
+        poses: str | PathLike[str] | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.skipped = 0
+        self._frame, self._odometry = frame, odometry
+        with self._reader() as reader:
+            topics = {c.topic: c.msgtype for c in reader.connections}
+        self.topic = self._scan_topic(topic, topics)
+        self.dim = 3 if topics[self.topic] == SCAN_TYPES[0] else 2
+        self._poses = read_poses(poses) if poses is not None else None
+        if self._poses is None:
+            if frame is None:
+                raise InputError(
+                    f"{self.path}: give the fixed frame the scans are placed in (--frame)"
+                )
+            if odometry is not None and topics.get(odometry) != ODOMETRY_TYPE:
+                raise InputError(
+                    f"{self.path}: {odometry!r} is not a {ODOMETRY_TYPE} topic "
+                    f"({', '.join(t for t, k in topics.items() if k == ODOMETRY_TYPE) or 'none'})"
+                )
+            if odometry is None and "/tf" not in topics and "/tf_static" not in topics:
+                raise InputError(
+                    f"{self.path}: no /tf in the bag: give an odometry topic (--odometry) or "
+                    "a poses file (--poses)"
+                )
+            self._frames = self._read_frames()
+
+    def __iter__(self) -> Iterator[Scan]:
+        with self._reader() as reader:
+            connections = [c for c in reader.connections if c.topic == self.topic]
+            for index, (connection, _, raw) in enumerate(reader.messages(connections=connections)):
+                message = reader.deserialize(raw, connection.msgtype)
+                scan = self._scan(message, index)
+                if scan is None:
+                    self.skipped += 1
+                else:
+                    yield scan
+
+    def _scan(self, message, index: int) -> Scan | None:
+        """The message as a Scan in world frame, or None without a transform at its stamp."""
+        if self._poses is not None:
+            if index >= len(self._poses):
+                raise InputError(f"{len(self._poses)} poses for more messages on {self.topic}")
+            T_world_sensor = self._poses[index]
+        else:
+            stamp = _nanoseconds(message.header.stamp)
+            T_world_sensor = self._frames.lookup(self._frame, message.header.frame_id, stamp)
+            if T_world_sensor is None:
+                return None
+        if self.dim == 3:
+            points, hits = point_cloud_points(message), None
+        else:
+            points, hits = laser_scan_points(message)
+        world = transform_points(T_world_sensor, points)
+        origin = T_world_sensor[:3, 3]
+        try:
+            if self.dim == 2:
+                return Scan(world[:, :2], origin[:2].copy(), hits)
+            return Scan(world, origin.copy())
+        except InputError as error:
+            raise FileReadError(self.path, f"message {index} on {self.topic}: {error}") from None
+
+    def _read_frames(self) -> FrameTree:
+        """Every /tf and /tf_static transform, and the odometry topic's poses."""
+        frames = FrameTree()
+        with self._reader() as reader:
+            topics = [*TF_TOPICS, *([self._odometry] if self._odometry else [])]
+            connections = [c for c in reader.connections if c.topic in topics]
+            for connection, _, raw in reader.messages(connections=connections):
+                message = reader.deserialize(raw, connection.msgtype)
+                if connection.msgtype == ODOMETRY_TYPE:
+                    stamp = _nanoseconds(message.header.stamp)
+                    pose = message.pose.pose
+                    T = _pose_matrix(pose.position, pose.orientation)
+                    frames.add(message.header.frame_id, message.child_frame_id, stamp, T)
+                    continue
+                for transform in message.transforms:
+                    t = transform.transform
+                    T = _pose_matrix(t.translation, t.rotation)
+                    parent, child = transform.header.frame_id, transform.child_frame_id
+                    if connection.topic == "/tf_static":
+                        frames.add_static(parent, child, T)
+                    else:
+                        frames.add(parent, child, _nanoseconds(transform.header.stamp), T)
+        return frames
+
+    def _scan_topic(self, topic: str | None, topics: dict[str, str]) -> str:
+        found = [t for t, kind in topics.items() if kind in SCAN_TYPES]
+        listing = ", ".join(f"{t} ({topics[t].rsplit('/', 1)[-1]})" for t in found) or "none"
+        if topic is None:
+            if len(found) != 1:
+                raise InputError(f"{self.path}: give the topic of the scans (--topic): {listing}")
+            return found[0]
+        if topics.get(topic) not in SCAN_TYPES:
+            raise InputError(
+                f"{self.path}: {topic!r} is not a PointCloud2 or LaserScan topic: {listing}"
+            )
+        return topic
+
+    def _reader(self):
+        try:
+            from rosbags.highlevel import AnyReader
+            from rosbags.typesys import Stores, get_typestore
+        except ImportError as error:
+            raise ImportError(INSTALL_HINT) from error
+        reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        return _Opened(reader, self.path)
+
+
+class _Opened:
+    """An AnyReader opened as a context, its errors naming the bag."""
+
+    def __init__(self, reader, path: Path) -> None:
+        self._reader, self._path = reader, path
+
+    def __enter__(self):
+        try:
+            self._reader.open()
+        except Exception as error:
+            # rosbags reports unreadable bags in its own exception types.
+            raise FileReadError(self._path, f"not a readable ROS bag ({error})") from None
+        return self._reader
+
+    def __exit__(self, *exc) -> None:
+        self._reader.close()
+
+
+def point_cloud_points(message) -> np.ndarray:
+    """(n, 3) float64 x, y, z of a sensor_msgs/PointCloud2, sensor frame, metres."""
+    fields = {f.name: f for f in message.fields}
+    missing = [c for c in "xyz" if c not in fields]
+    if missing:
+        raise InputError(f"PointCloud2 without {', '.join(missing)} fields")
+    order = ">" if message.is_bigendian else "<"
+    dtype = np.dtype(
+        {
+            "names": list("xyz"),
+            "formats": [order + FIELD_TYPES[fields[c].datatype] for c in "xyz"],
+            "offsets": [fields[c].offset for c in "xyz"],
+            "itemsize": message.point_step,
+        }
+    )
+    data = np.asarray(message.data, dtype=np.uint8)
+    rows = data.reshape(message.height, message.row_step)[:, : message.width * message.point_step]
+    records = np.frombuffer(np.ascontiguousarray(rows).tobytes(), dtype=dtype)
+    with np.errstate(invalid="ignore"):
+        return np.column_stack([records[c].astype(np.float64) for c in "xyz"])
+
+
+def laser_scan_points(message) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 3) float64 ray ends of a sensor_msgs/LaserScan in its frame (z = 0), metres, and
+    (n,) which returned: readings under range_min or NaN are left out; readings beyond
+    range_max (or infinite) are rays without return, ending at range_max."""
+    ranges = np.asarray(message.ranges, dtype=np.float64)
+    angles = message.angle_min + np.arange(len(ranges)) * message.angle_increment
+    kept = ~np.isnan(ranges) & (ranges >= message.range_min)
+    ranges, angles = ranges[kept], angles[kept]
+    hits = ranges <= message.range_max
+    ranges = np.where(hits, ranges, message.range_max)
+    points = np.column_stack(
+        [ranges * np.cos(angles), ranges * np.sin(angles), np.zeros(len(ranges))]
+    )
+    return points, hits
+
+
+def _pose_matrix(translation, rotation) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = quaternion_to_matrix(rotation.w, rotation.x, rotation.y, rotation.z)
+    T[:3, 3] = (translation.x, translation.y, translation.z)
+    return T
+
+
+def _nanoseconds(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)

@@ -1,0 +1,229 @@
+"""ROS bags written by the rosbags library's writers, read back as scans in the fixed frame."""
+
+import numpy as np
+import pytest
+
+from ehm.core.frames import FrameTree, interpolate_pose
+from ehm.errors import FileReadError, InputError
+from ehm.io.bags import BagScans
+
+rosbags = pytest.importorskip("rosbags")
+from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
+from rosbags.rosbag2 import StoragePlugin  # noqa: E402
+from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
+
+SECOND = 1_000_000_000
+QUARTER_TURN = (0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5))  # x y z w: 90 degrees about z
+
+
+class Messages:
+    """Builds messages of one ROS distribution's types."""
+
+    def __init__(self, store):
+        self.typestore = get_typestore(store)
+        if "tf2_msgs/msg/TFMessage" not in self.typestore.types:  # not in ROS 1's store
+            definition = "geometry_msgs/TransformStamped[] transforms"
+            self.typestore.register(get_types_from_msg(definition, "tf2_msgs/msg/TFMessage"))
+        self.types = self.typestore.types
+        self.ros1 = store == Stores.ROS1_NOETIC
+
+    def header(self, stamp, frame):
+        time = self.types["builtin_interfaces/msg/Time"](
+            sec=stamp // SECOND, nanosec=stamp % SECOND
+        )
+        if self.ros1:
+            return self.types["std_msgs/msg/Header"](seq=0, stamp=time, frame_id=frame)
+        return self.types["std_msgs/msg/Header"](stamp=time, frame_id=frame)
+
+    def transform(self, stamp, parent, child, xyz, quaternion=(0.0, 0.0, 0.0, 1.0)):
+        t = self.types
+        transform = t["geometry_msgs/msg/Transform"](
+            translation=t["geometry_msgs/msg/Vector3"](*xyz),
+            rotation=t["geometry_msgs/msg/Quaternion"](*quaternion),
+        )
+        stamped = t["geometry_msgs/msg/TransformStamped"](
+            header=self.header(stamp, parent), child_frame_id=child, transform=transform
+        )
+        return t["tf2_msgs/msg/TFMessage"](transforms=[stamped])
+
+    def cloud(self, stamp, frame, points):
+        t = self.types
+        fields = [
+            t["sensor_msgs/msg/PointField"](name=c, offset=4 * i, datatype=7, count=1)
+            for i, c in enumerate("xyz")
+        ]
+        # 16 bytes a point: x y z and 4 bytes of padding.
+        records = np.zeros((len(points), 4), dtype="<f4")
+        records[:, :3] = points
+        data = np.frombuffer(records.tobytes(), dtype=np.uint8)
+        return t["sensor_msgs/msg/PointCloud2"](
+            header=self.header(stamp, frame), height=1, width=len(points), fields=fields,
+            is_bigendian=False, point_step=16, row_step=16 * len(points), data=data,
+            is_dense=True,
+        )  # fmt: skip
+
+    def laser(self, stamp, frame, ranges):
+        return self.types["sensor_msgs/msg/LaserScan"](
+            header=self.header(stamp, frame), angle_min=0.0, angle_max=np.pi,
+            angle_increment=np.pi / 2, time_increment=0.0, scan_time=0.1, range_min=0.1,
+            range_max=10.0, ranges=np.array(ranges, dtype=np.float32),
+            intensities=np.zeros(0, dtype=np.float32),
+        )  # fmt: skip
+
+    def odometry(self, stamp, parent, child, xyz, quaternion):
+        t = self.types
+        pose = t["geometry_msgs/msg/Pose"](
+            position=t["geometry_msgs/msg/Point"](*xyz),
+            orientation=t["geometry_msgs/msg/Quaternion"](*quaternion),
+        )
+        zero = t["geometry_msgs/msg/Vector3"](0.0, 0.0, 0.0)
+        return t["nav_msgs/msg/Odometry"](
+            header=self.header(stamp, parent), child_frame_id=child,
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+            twist=t["geometry_msgs/msg/TwistWithCovariance"](
+                twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
+                covariance=np.zeros(36),
+            ),
+        )  # fmt: skip
+
+    def serialize(self, message):
+        if self.ros1:
+            return self.typestore.serialize_ros1(message, message.__msgtype__)
+        return self.typestore.serialize_cdr(message, message.__msgtype__)
+
+
+def write_bag(path, store, messages, storage=None):
+    """Write (topic, stamp, message) triples, in order, to a ROS 1 bag or a ROS 2 folder."""
+    build = Messages(store)
+    writer = Writer1(path) if build.ros1 else Writer2(path, version=9, storage_plugin=storage)
+    with writer:
+        connections = {}
+        for topic, stamp, make in messages:
+            message = make(build)
+            if topic not in connections:
+                connections[topic] = writer.add_connection(
+                    topic, message.__msgtype__, typestore=build.typestore
+                )
+            writer.write(connections[topic], stamp, build.serialize(message))
+    return path
+
+
+@pytest.fixture
+def lidar_bag(tmp_path, cloud):
+    """A ROS 1 bag: base_link moves from the origin (0 s) to (2, 0, 0) turned a quarter about
+    z (2 s); the Velodyne sits 1 m above base_link; clouds at 1 s and 3 s."""
+    return write_bag(
+        tmp_path / "lidar.bag",
+        Stores.ROS1_NOETIC,
+        [
+            ("/tf_static", 0, lambda m: m.transform(0, "base_link", "velodyne", (0, 0, 1))),
+            ("/tf", 0, lambda m: m.transform(0, "map", "base_link", (0, 0, 0))),
+            ("/points", SECOND, lambda m: m.cloud(SECOND, "velodyne", cloud)),
+            ("/tf", 2 * SECOND, lambda m: m.transform(
+                2 * SECOND, "map", "base_link", (2, 0, 0), QUARTER_TURN)),
+            ("/points", 3 * SECOND, lambda m: m.cloud(3 * SECOND, "velodyne", cloud)),
+        ],
+    )  # fmt: skip
+
+
+def test_clouds_are_placed_by_tf_at_their_stamp(lidar_bag, cloud):
+    bag = BagScans(lidar_bag, "/points", frame="map")
+    scans = list(bag)
+    assert len(scans) == 1 and bag.skipped == 1  # the cloud at 3 s is past the last /tf
+    eighth = np.pi / 4  # halfway through the quarter turn
+    R = np.array(
+        [[np.cos(eighth), -np.sin(eighth), 0], [np.sin(eighth), np.cos(eighth), 0], [0, 0, 1]]
+    )
+    expected = (cloud + np.array([0, 0, 1])) @ R.T + [1, 0, 0]
+    np.testing.assert_allclose(scans[0].points_world, expected, atol=1e-5)
+    np.testing.assert_allclose(scans[0].origin, [1, 0, 1], atol=1e-12)
+
+
+def test_a_poses_file_places_each_message(lidar_bag, cloud, tmp_path):
+    (tmp_path / "poses.txt").write_text("1 0 0 5 0 1 0 0 0 0 1 0\n1 0 0 6 0 1 0 0 0 0 1 0\n")
+    scans = list(BagScans(lidar_bag, "/points", poses=tmp_path / "poses.txt"))
+    np.testing.assert_allclose(scans[1].points_world, cloud + np.array([6, 0, 0]), atol=1e-5)
+
+
+@pytest.mark.parametrize("storage", [StoragePlugin.SQLITE3, StoragePlugin.MCAP])
+def test_laser_scans_placed_by_odometry_in_ros2_bags(tmp_path, storage):
+    """A ROS 2 bag of LaserScans (beams at 0, 90 and 180 degrees; one beyond range_max, one
+    under range_min) placed by /odom and the laser's static offset."""
+    bag = write_bag(
+        tmp_path / "run",
+        Stores.ROS2_HUMBLE,
+        [
+            ("/tf_static", 0, lambda m: m.transform(0, "base_link", "laser", (0.5, 0, 0))),
+            ("/odom", 0, lambda m: m.odometry(0, "odom", "base_link", (1, 2, 0), QUARTER_TURN)),
+            ("/scan", SECOND, lambda m: m.laser(SECOND, "laser", [2.0, 30.0, 0.05])),
+            ("/odom", 2 * SECOND, lambda m: m.odometry(
+                2 * SECOND, "odom", "base_link", (1, 2, 0), QUARTER_TURN)),
+        ],
+        storage,
+    )  # fmt: skip
+    (scan,) = list(BagScans(bag, "/scan", frame="odom", odometry="/odom"))
+    # The laser at (1, 2.5) facing +y: its 0-degree beam hits 2 m ahead; its 90-degree beam
+    # is a ray without return to range_max, 10 m toward -x; the 0.05 m reading is dropped.
+    np.testing.assert_allclose(scan.origin, [1.0, 2.5], atol=1e-12)
+    # (float32 angles: to 1e-6 m)
+    np.testing.assert_allclose(scan.points_world, [[1.0, 4.5], [-9.0, 2.5]], atol=1e-6)
+    np.testing.assert_array_equal(scan.hit_mask, [True, False])
+
+
+def test_bag_mistakes_are_named(lidar_bag, tmp_path):
+    with pytest.raises(
+        InputError,
+        match=r"'/nothing' is not a PointCloud2 or LaserScan topic: /points \(PointCloud2\)",
+    ):
+        BagScans(lidar_bag, "/nothing", frame="map")
+    with pytest.raises(InputError, match="give the fixed frame"):
+        BagScans(lidar_bag, "/points")
+    with pytest.raises(InputError, match="no transforms involve frame 'world'"):
+        list(BagScans(lidar_bag, "/points", frame="world"))
+    with pytest.raises(InputError, match="'/tf' is not a nav_msgs/msg/Odometry topic"):
+        BagScans(lidar_bag, "/points", frame="map", odometry="/tf")
+    (tmp_path / "junk.bag").write_bytes(b"#ROSBAG V2.0\n garbage")
+    with pytest.raises(FileReadError, match=r"junk\.bag: not a readable ROS bag"):
+        BagScans(tmp_path / "junk.bag", "/points", frame="map")
+
+
+def test_frame_trees_chain_invert_and_interpolate():
+    frames = FrameTree()
+    turn = np.eye(4)
+    turn[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    frames.add("map", "odom", 0, np.eye(4))
+    frames.add("map", "odom", 10, turn)
+    shift = np.eye(4)
+    shift[:3, 3] = [1, 0, 0]
+    frames.add_static("odom", "base", shift)
+    np.testing.assert_allclose(frames.lookup("map", "base", 10), turn @ shift)
+    np.testing.assert_allclose(frames.lookup("base", "map", 10), np.linalg.inv(turn @ shift))
+    np.testing.assert_allclose(
+        frames.lookup("map", "base", 5), interpolate_pose(np.eye(4), turn, 0.5) @ shift
+    )
+    half = interpolate_pose(np.eye(4), turn, 0.5)
+    np.testing.assert_allclose(
+        half[:3, :3] @ [1, 0, 0], [np.sqrt(0.5), np.sqrt(0.5), 0], atol=1e-12
+    )
+    assert frames.lookup("map", "base", 11) is None
+    frames.add_static("elsewhere", "island", np.eye(4))
+    with pytest.raises(InputError, match="no chain of transforms joins frame 'map' to 'island'"):
+        frames.lookup("map", "island", 0)
+
+
+def test_ehm_map_reads_a_bag(lidar_bag, tmp_path):
+    from typer.testing import CliRunner
+
+    import ehm
+    from ehm.cli import app
+
+    output = tmp_path / "lidar.ehm"
+    args = ["map", str(lidar_bag), "--topic", "/points", "--frame", "map", "-o", str(output)]
+    result = CliRunner().invoke(app, [*args, "--set", "min_cluster_size=1"])
+    assert result.exit_code == 0, result.output
+    assert ehm.load(output).n_scans_ == 1
+    result = CliRunner().invoke(app, [*args[:2], "--frame", "map", "-o", str(tmp_path / "x.ehm")])
+    assert result.exit_code == 0, result.output  # /points is the only scan topic
+    result = CliRunner().invoke(app, ["map", str(lidar_bag), "-o", str(tmp_path / "y.ehm")])
+    assert result.exit_code == 2 and "give the fixed frame" in result.stderr
