@@ -200,11 +200,13 @@ def map_command(
     output: Annotated[Path, typer.Option("--output", "-o", help="Map file to write.")],
     format: Annotated[
         str | None,
-        typer.Option("--format", "-f", help="Reader: xyz ply pcd kitti graph tum carmen bag."),
+        typer.Option("--format", "-f", help="Reader: xyz ply pcd las kitti graph tum carmen bag."),
     ] = None,
     origin: Annotated[
         str | None,
-        typer.Option(help="Sensor origin 'x,y,z', world frame, for point clouds (xyz ply pcd)."),
+        typer.Option(
+            help="Sensor origin 'x,y,z', world frame, for point clouds (xyz ply pcd las)."
+        ),
     ] = None,
     poses: Annotated[
         Path | None,

@@ -21,6 +21,7 @@ from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen
 from ehm.io.kitti import kitti_scans
+from ehm.io.las import read_las
 from ehm.io.octomap_graph import read_octomap_graph
 from ehm.io.pcd import read_pcd
 from ehm.io.ply import read_ply
@@ -28,12 +29,13 @@ from ehm.io.poses import read_poses
 from ehm.io.tum import tum_scans
 from ehm.io.xyz import read_xyz
 
-FORMATS = ("xyz", "ply", "pcd", "kitti", "graph", "tum", "carmen", "bag")
+FORMATS = ("xyz", "ply", "pcd", "las", "kitti", "graph", "tum", "carmen", "bag")
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "tum", "carmen")
 _EXTENSIONS = {
     ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".bz2": "xyz", ".ply": "ply", ".pcd": "pcd",
-    ".bin": "kitti", ".graph": "graph", ".log": "carmen", ".clf": "carmen", ".bag": "bag",
+    ".las": "las", ".laz": "las", ".bin": "kitti", ".graph": "graph", ".log": "carmen",
+    ".clf": "carmen", ".bag": "bag",
 }  # fmt: skip
 
 
@@ -84,7 +86,7 @@ def scan_stream(
     be checked before reading scans is checked here (files exist, options fit the format,
     poses and calibration files read); a scan that cannot be read raises when it is reached.
 
-    origin: sensor position (3,), metres, for point clouds (xyz, ply, pcd) in world frame,
+    origin: sensor position (3,), metres, world frame, for point clouds (xyz, ply, pcd, las),
         which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
     poses: a poses file. For KITTI .bin scans the sequence's poses (line i places frame i);
         for point clouds one T_world_sensor per file, in the order given (KITTI or TUM layout,
@@ -197,7 +199,7 @@ def _point_cloud_scan(
     if fmt == "pcd":
         points, viewpoint = read_pcd(path)
     else:
-        points = read_xyz(path) if fmt == "xyz" else read_ply(path)
+        points = {"xyz": read_xyz, "ply": read_ply, "las": read_las}[fmt](path)
         viewpoint = np.zeros(3)
     sensor = viewpoint if origin is None else np.asarray(origin, dtype=np.float64)
     if T_world_file is not None:
