@@ -33,6 +33,31 @@ def read_kitti(
     return list(kitti_scans(bin_paths, poses_path, calib))
 
 
+def kitti_files(
+    items: list[str | PathLike[str]], poses: str | PathLike[str] | None
+) -> tuple[list[Path], Path]:
+    """The .bin scans of `items` (files, or sequence folders holding velodyne/) and the poses
+    file: `poses`, or for one sequence folder NN the odometry layout's poses/NN.txt beside
+    sequences/ (dataset/sequences/NN and dataset/poses/NN.txt)."""
+    scans: list[Path] = []
+    for item in map(Path, items):
+        if item.is_dir():
+            found = sorted((item / "velodyne").glob("*.bin"))
+            if not found:
+                raise FileReadError(item, "a KITTI sequence folder without velodyne/*.bin")
+            scans += found
+        else:
+            scans.append(item)
+    if poses is not None:
+        return scans, Path(poses)
+    folders = [Path(item) for item in items if Path(item).is_dir()]
+    if len(folders) == 1:
+        beside = folders[0].resolve().parent.parent / "poses" / f"{folders[0].name}.txt"
+        if beside.exists():
+            return scans, beside
+    raise InputError("KITTI scans need the sequence's poses file (--poses)")
+
+
 def kitti_scans(
     bin_paths: list[str | PathLike[str]],
     poses_path: str | PathLike[str],

@@ -20,7 +20,7 @@ from ehm.core.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen
-from ehm.io.kitti import kitti_scans
+from ehm.io.kitti import kitti_files, kitti_scans
 from ehm.io.las import read_las
 from ehm.io.octomap_graph import read_octomap_graph
 from ehm.io.pcd import read_pcd
@@ -41,10 +41,12 @@ _EXTENSIONS = {
 
 def guess_format(path: str | PathLike[str]) -> str:
     """The reader for a path: a folder holding poses.txt is TUM, one holding metadata.yaml a
-    ROS 2 bag, otherwise by extension."""
+    ROS 2 bag, one holding velodyne/ a KITTI sequence, otherwise by extension."""
     path = Path(path)
     if is_bag(path):
         return "bag"
+    if path.is_dir() and (path / "velodyne").is_dir():
+        return "kitti"
     if path.is_dir():
         if (path / "poses.txt").exists():
             return "tum"
@@ -117,8 +119,7 @@ def scan_stream(
         if not Path(item).exists():
             raise FileReadError(item, "no such file or folder")
     if fmt == "kitti":
-        if poses is None:
-            raise InputError("KITTI .bin scans need the sequence's poses file (--poses)")
+        items, poses = kitti_files(items, poses)
         scans = kitti_scans(items, poses, calib)
     elif fmt == "bag":
         bags = [BagScans(item, topic, frame, odometry, poses) for item in items]

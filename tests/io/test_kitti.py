@@ -87,3 +87,23 @@ def test_kitti_mistakes_are_named(sequence):
     poses.write_text("1 0 0 0 0 2 0 0 0 0 1 0\n")
     with pytest.raises(FileReadError, match=r"poses.txt, line 1: not a pose: its 3x3 part"):
         read_scans(bins[:1], poses=poses, calib="identity")
+
+
+def test_a_sequence_folder_finds_its_scans_and_poses(tmp_path, cloud):
+    """The odometry layout: dataset/sequences/07/{velodyne,calib.txt} and dataset/poses/07.txt."""
+    sequence = tmp_path / "dataset" / "sequences" / "07"
+    (sequence / "velodyne").mkdir(parents=True)
+    raw = np.column_stack([cloud, np.ones(len(cloud))]).astype("<f4")
+    for frame in range(3):
+        raw.tofile(sequence / "velodyne" / f"00000{frame}.bin")
+    (sequence / "calib.txt").write_text(TR)
+    (tmp_path / "dataset" / "poses").mkdir()
+    (tmp_path / "dataset" / "poses" / "07.txt").write_text(POSES)
+    scans = read_scans(sequence)
+    assert len(scans) == 3
+    np.testing.assert_allclose(
+        scans[2].points_world, expected_points(cloud, POSES.splitlines()[2])[0], rtol=1e-6
+    )
+    (tmp_path / "dataset" / "poses" / "07.txt").unlink()
+    with pytest.raises(InputError, match=r"need the sequence's poses file \(--poses\)"):
+        read_scans(sequence)
