@@ -3,10 +3,11 @@
     python benchmarks/bag_stream.py [--scans 1000]
 
 Writes a ROS 2 bag (MCAP) of `scans` PointCloud2 messages (a 8-ring LiDAR of 256 azimuths
-driven twice round the warehouse, `ehm.eval.datasets.simulated.warehouse_drive`) with /tf
-placing each, one message at a time; then runs `ehm map BAG --frame map --limit N` in a fresh
-process for growing N and reports its peak resident memory against the bag's size, the
-decoded scans' size (what reading them all first would hold) and the map's memory.
+driven `laps` times round the warehouse, `ehm.eval.datasets.simulated.warehouse_drive`: the
+bag grows with every lap, the map mostly with the first) with /tf placing each; then runs
+`ehm map BAG --frame map --limit N` in a fresh process for growing N and reports its peak
+resident memory against the bag's size, the decoded scans' size (what reading them all first
+would hold) and the map's memory.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from ehm.eval.datasets.simulated import warehouse_drive
 SECOND = 1_000_000_000
 
 
-def write_bag(path: Path, n_scans: int) -> int:
+def write_bag(path: Path, n_scans: int, laps: int) -> int:
     """Write the bag; returns the bytes of its decoded points (float64 x y z and hit flags)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -39,7 +40,7 @@ def write_bag(path: Path, n_scans: int) -> int:
         for i, c in enumerate("xyz")
     ]
     decoded = 0
-    scans = warehouse_drive(n_scans=n_scans, rings=8, azimuths=256).scans
+    scans = warehouse_drive(n_scans=n_scans, loops=laps, rings=8, azimuths=256).scans
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         points_topic = writer.add_connection(
             "/points", "sensor_msgs/msg/PointCloud2", typestore=typestore
@@ -93,10 +94,11 @@ def peak_of_map(bag: Path, limit: int, output: Path) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scans", type=int, default=1000)
+    parser.add_argument("--laps", type=int, default=10)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         bag = Path(folder) / "drive"
-        decoded = write_bag(bag, args.scans)
+        decoded = write_bag(bag, args.scans, args.laps)
         bag_bytes = sum(f.stat().st_size for f in bag.iterdir())
         rows = []
         for limit in (args.scans // 4, args.scans // 2, args.scans):
@@ -113,7 +115,8 @@ def main() -> None:
                     f"{seconds:.0f}",
                 ]
             )
-    print(heading("Streaming a ROS 2 bag", f"{args.scans:,} PointCloud2 scans, MCAP"))
+    detail = f"{args.scans:,} PointCloud2 scans on {args.laps} laps, MCAP"
+    print(heading("Streaming a ROS 2 bag", detail))
     columns = ["scans", "bag MB", "decoded scans MB", "map MB", "peak RSS MB", "seconds"]
     print(markdown_table(columns, rows))
 

@@ -82,7 +82,13 @@ class BagScans:
         with self._reader() as reader:
             connections = [c for c in reader.connections if c.topic == self.topic]
             for index, (connection, _, raw) in enumerate(reader.messages(connections=connections)):
-                message = reader.deserialize(raw, connection.msgtype)
+                try:
+                    message = reader.deserialize(raw, connection.msgtype)
+                except Exception as error:
+                    # rosbags reports undecodable messages in its own exception types.
+                    raise FileReadError(
+                        self.path, f"message {index} on {self.topic} cannot be decoded ({error})"
+                    ) from None
                 scan = self._scan(message, index)
                 if scan is None:
                     self.skipped += 1
@@ -100,13 +106,13 @@ class BagScans:
             T_world_sensor = self._frames.lookup(self._frame, message.header.frame_id, stamp)
             if T_world_sensor is None:
                 return None
-        if self.dim == 3:
-            points, hits = point_cloud_points(message), None
-        else:
-            points, hits = laser_scan_points(message)
-        world = transform_points(T_world_sensor, points)
-        origin = T_world_sensor[:3, 3]
         try:
+            if self.dim == 3:
+                points, hits = point_cloud_points(message), None
+            else:
+                points, hits = laser_scan_points(message)
+            world = transform_points(T_world_sensor, points)
+            origin = T_world_sensor[:3, 3]
             if self.dim == 2:
                 return Scan(world[:, :2], origin[:2].copy(), hits)
             return Scan(world, origin.copy())
@@ -184,6 +190,17 @@ def point_cloud_points(message) -> np.ndarray:
     missing = [c for c in "xyz" if c not in fields]
     if missing:
         raise InputError(f"PointCloud2 without {', '.join(missing)} fields")
+    for c in "xyz":
+        kind = FIELD_TYPES.get(fields[c].datatype)
+        if kind is None or fields[c].offset + int(kind[1]) > message.point_step:
+            raise InputError(f"PointCloud2 field {c} of datatype {fields[c].datatype} does not fit")
+    if message.row_step < message.width * message.point_step or len(message.data) < (
+        message.height * message.row_step
+    ):
+        raise InputError(
+            f"PointCloud2 of {message.height} x {message.width} points of {message.point_step} "
+            f"bytes in rows of {message.row_step} holds {len(message.data)} bytes"
+        )
     order = ">" if message.is_bigendian else "<"
     dtype = np.dtype(
         {
@@ -193,7 +210,7 @@ def point_cloud_points(message) -> np.ndarray:
             "itemsize": message.point_step,
         }
     )
-    data = np.asarray(message.data, dtype=np.uint8)
+    data = np.asarray(message.data, dtype=np.uint8)[: message.height * message.row_step]
     rows = data.reshape(message.height, message.row_step)[:, : message.width * message.point_step]
     records = np.frombuffer(np.ascontiguousarray(rows).tobytes(), dtype=dtype)
     with np.errstate(invalid="ignore"):

@@ -227,3 +227,21 @@ def test_ehm_map_reads_a_bag(lidar_bag, tmp_path):
     assert result.exit_code == 0, result.output  # /points is the only scan topic
     result = CliRunner().invoke(app, ["map", str(lidar_bag), "-o", str(tmp_path / "y.ehm")])
     assert result.exit_code == 2 and "give the fixed frame" in result.stderr
+
+
+def test_a_cloud_whose_layout_does_not_fit_is_named(tmp_path, cloud):
+    def short_cloud(m):
+        message = m.cloud(SECOND, "velodyne", cloud)
+        message.data = message.data[:100]
+        return message
+
+    bag = write_bag(
+        tmp_path / "short.bag",
+        Stores.ROS1_NOETIC,
+        [
+            ("/tf_static", 0, lambda m: m.transform(0, "map", "velodyne", (0, 0, 0))),
+            ("/points", SECOND, short_cloud),
+        ],
+    )
+    with pytest.raises(FileReadError, match=r"message 0 on /points: PointCloud2 of 1 x 50 points"):
+        list(BagScans(bag, "/points", frame="map"))
