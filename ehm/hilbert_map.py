@@ -481,10 +481,16 @@ class HilbertMap:
         """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
         one (d,) point each, metres, world frame) has occupancy above `level`, as `raycast`
         finds it. Unknown space (0.5) counts as free at the default level."""
-        starts, ends = (
-            np.atleast_2d(np.asarray(starts, float)),
-            np.atleast_2d(np.asarray(ends, float)),
-        )
+        starts, ends = np.atleast_2d(starts).astype(float), np.atleast_2d(ends).astype(float)
+        if (
+            starts.shape[1:] != (self.dim,)
+            or ends.shape[1:] != (self.dim,)
+            or (len(starts) != len(ends) and 1 not in (len(starts), len(ends)))
+        ):
+            raise InputError(
+                f"segment ends must be (n, {self.dim}) or ({self.dim},) points, got "
+                f"{starts.shape} and {ends.shape}"
+            )
         starts, ends = np.broadcast_arrays(starts, ends)
         lengths = np.linalg.norm(ends - starts, axis=1)
         directions = np.where(lengths[:, None] > 0, ends - starts, 1.0)
@@ -499,7 +505,13 @@ class HilbertMap:
             raise InputError(
                 f"ray directions must have shape (n, {self.dim}), got {directions.shape}"
             )
-        origins = np.broadcast_to(np.asarray(origins, dtype=np.float64), directions.shape)
+        origins = np.asarray(origins, dtype=np.float64)
+        if origins.shape not in ((self.dim,), directions.shape):
+            raise InputError(
+                f"ray origins must have shape ({self.dim},) or {directions.shape}, "
+                f"got {origins.shape}"
+            )
+        origins = np.broadcast_to(origins, directions.shape)
         lengths = np.linalg.norm(directions, axis=1)
         if not (
             np.all(np.isfinite(origins)) and np.all(lengths > 0) and np.all(np.isfinite(lengths))

@@ -103,3 +103,7 @@ def test_ray_mistakes_are_named(room_map):
         room_map.raycast(np.zeros(3), np.ones((1, 3)), np.inf)
     with pytest.raises(ehm.InputError, match="level must be a probability between 0 and 1"):
         room_map.raycast(np.zeros(3), np.ones((1, 3)), 5.0, level=1.0)
+    with pytest.raises(ehm.InputError, match=r"ray origins must have shape \(3,\) or \(4, 3\)"):
+        room_map.raycast(np.zeros((2, 3)), np.ones((4, 3)), 5.0)
+    with pytest.raises(ehm.InputError, match="segment ends must be"):
+        room_map.segment_free(np.zeros((2, 3)), np.ones((3, 3)))
