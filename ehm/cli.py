@@ -1,5 +1,5 @@
-"""The `ehm` command: demo, map, query, grid, mesh, render, info, eval. Heavy imports happen inside
-each command so that `ehm --help` is instant.
+"""The `ehm` command: demo, map, query, grid, mesh, render, export, info, eval. Heavy imports happen
+inside each command so that `ehm --help` is instant.
 
 A mistake in the input (ehm.EhmError: a file that cannot be read, a bad setting or option, an
 output that may not be written) ends in one line, `error: ...`, on stderr and exit status 2,
