@@ -175,7 +175,8 @@ class MappingPipeline:
 
 
 class ProgressBar(NullObserver):
-    """A Rich progress bar over the scans: scans learned, their rate and the time elapsed."""
+    """A Rich progress bar over the scans: scans learned, how many a second are read and how
+    many learned (each rate over the time spent on it alone), and the time elapsed."""
 
     def __init__(self, console=None, description: str = "mapping") -> None:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
@@ -190,16 +191,27 @@ class ProgressBar(NullObserver):
         )
         self._description = description
         self._task = None
-        self._start = 0.0
+        self._last = 0.0
+        self._reading = self._learning = 0.0
 
     def started(self, total: int | None) -> None:
-        self._start = time.perf_counter()
+        self._last = time.perf_counter()
         self._task = self._progress.add_task(self._description, total=total, rate="")
         self._progress.start()
 
+    def scan_read(self, index: int, scan: Scan) -> None:
+        now = time.perf_counter()
+        self._reading += now - self._last
+        self._last = now
+
     def scan_learned(self, index: int, scan: Scan, hilbert_map: HilbertMap) -> None:
-        rate = (index + 1) / max(time.perf_counter() - self._start, 1e-9)
-        self._progress.update(self._task, completed=index + 1, rate=f"{rate:.1f} scans/s")
+        now = time.perf_counter()
+        self._learning += now - self._last
+        self._last = now
+        read = (index + 1) / max(self._reading, 1e-9)
+        learned = (index + 1) / max(self._learning, 1e-9)
+        rate = f"read {read:.1f}, learn {learned:.1f} scans/s"
+        self._progress.update(self._task, completed=index + 1, rate=rate)
 
     def finished(self, run: MappingRun) -> None:
         self._progress.update(self._task, total=run.n_scans, completed=run.n_scans)

@@ -100,3 +100,31 @@ def test_observers_hear_of_the_end_when_mapping_fails(plan):
     with pytest.raises(ValueError, match=r"scan 1: expected ehm\.Scan, got str"):
         pipeline.run()
     assert recorder.events[-1] == ("finished", 1)
+
+
+def test_the_progress_bar_rates_reading_and_learning_apart(plan):
+    """Reading a scan takes at least 200 ms here, learning one of 180 rays far less."""
+    import io
+
+    from rich.console import Console
+
+    from ehm.pipeline import ProgressBar
+
+    def slow_scans():
+        for scan in plan.scans:
+            time.sleep(0.2)
+            yield scan
+
+    output = io.StringIO()
+    bar = ProgressBar(Console(file=output, width=200, force_terminal=False))
+    MappingPipeline(slow_scans(), ehm.HilbertMap(batch_rays=0), observers=[bar]).run()
+    read, learned = (float(v) for v in _rates(output.getvalue()))
+    assert read <= 5.0 < learned
+
+
+def _rates(text: str) -> tuple[str, str]:
+    import re
+
+    found = re.findall(r"read ([\d.]+), learn ([\d.]+) scans/s", text)
+    assert found, text
+    return found[-1]
