@@ -72,7 +72,7 @@ class FrameTree:
         """(4, 4) T_target_source at `stamp` (ns): points in `source` frame to `target` frame;
         None where a transform on the way has no stamps around `stamp`. InputError when the
         frames are not connected."""
-        path = self._path(target, source)
+        path = self._path(_name(target), _name(source))
         T = np.eye(4)
         for a, b in pairwise(path):
             if (a, b) in self._edges:
@@ -86,6 +86,7 @@ class FrameTree:
         return T
 
     def _edge(self, parent: str, child: str) -> _Edge:
+        parent, child = _name(parent), _name(child)
         if (child, parent) in self._edges:
             raise InputError(f"transforms given both from {parent} to {child} and back")
         self._neighbours.setdefault(parent, set()).add(child)
@@ -112,6 +113,11 @@ class FrameTree:
         while path[-1] != target:
             path.append(previous[path[-1]])
         return path[::-1]
+
+
+def _name(frame: str) -> str:
+    """A frame's name without the leading slash ROS 1 allowed ("/base_link" is "base_link")."""
+    return frame.lstrip("/")
 
 
 def invert_pose(T: np.ndarray) -> np.ndarray:

@@ -198,6 +198,7 @@ def test_frame_trees_chain_invert_and_interpolate():
     shift[:3, 3] = [1, 0, 0]
     frames.add_static("odom", "base", shift)
     np.testing.assert_allclose(frames.lookup("map", "base", 10), turn @ shift)
+    np.testing.assert_allclose(frames.lookup("/map", "/base", 10), turn @ shift)  # ROS 1 names
     np.testing.assert_allclose(frames.lookup("base", "map", 10), np.linalg.inv(turn @ shift))
     np.testing.assert_allclose(
         frames.lookup("map", "base", 5), interpolate_pose(np.eye(4), turn, 0.5) @ shift
