@@ -39,7 +39,12 @@ from ehm.core.logistic import sigmoid
 from ehm.core.memory import SampleMemory
 from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
-from ehm.core.raycast import CandidateCells, first_crossings
+from ehm.core.raycast import (
+    CandidateCells,
+    first_crossings,
+    grid_crossings,
+    refine_guesses,
+)
 from ehm.core.samples import TrainingSamples, samples_of_scans
 from ehm.core.scan import Scan
 from ehm.core.sgd import loss_weights, train_weights
@@ -57,6 +62,9 @@ from ehm.io.map_file import read_map, write_map
 # Side of the cells that tell rays where the occupancy may rise above the level, in cluster
 # radii (ehm.core.raycast.CandidateCells).
 RAY_CELLS_PER_RADIUS = 4.0
+# The grid of log-odds rays march first: voxels of one cluster radius, at most this large
+# (a larger map's rays march the exact log-odds all the way).
+RAY_GRID_MAX_BYTES = 2**28
 
 
 class HilbertMap:
@@ -94,6 +102,10 @@ class HilbertMap:
         self._rng = np.random.default_rng(self.config.seed)
         # Snapshots carry this token, so grids tell a map that was refitted from one that grew.
         self._lineage = object()
+        # What rays march (raycast): a grid of the log-odds, and the cells where they can pass
+        # each level; made when first needed, dropped when the map learns.
+        self._ray_grid: OccupancyGrid | None = None
+        self._ray_cells: dict[float, CandidateCells | None] = {}
 
     # ------------------------------------------------------------------ state
     @property
@@ -456,24 +468,70 @@ class HilbertMap:
         threshold = _log_odds_level(level)
         mode = self._checked_mode(mode or self.config.query_mode)
         radius = self.config.cluster_radius
-        cells = CandidateCells.of_kernels(
-            clusters.means,
-            kernel_reach(clusters.transforms, clusters.planar_kernel),
-            clusters.weights,
-            self._query_intercept(),
-            threshold,
-            RAY_CELLS_PER_RADIUS * radius,
-        )
-        return first_crossings(
-            lambda points: self._scores(points, mode, False)[0],
-            origins,
-            directions,
-            max_range,
+
+        def log_odds(points: np.ndarray) -> np.ndarray:
+            return self._scores(points, mode, False)[0]
+
+        distance = np.full(len(origins), np.nan)
+        ray_grid = self._ray_grid_of(radius)
+        if ray_grid is not None:
+            guess = grid_crossings(
+                origins,
+                directions,
+                max_range,
+                np.ascontiguousarray(ray_grid.scores + ray_grid.intercept),
+                ray_grid.origin,
+                ray_grid.resolution,
+                threshold,
+                radius / 2.0,
+            )
+            guided = np.flatnonzero(np.isfinite(guess))
+            # The exact crossing, looked for from two voxels before the grid's to two after.
+            low = np.maximum(guess[guided] - 2.0 * radius, 0.0)
+            high = np.minimum(guess[guided] + 2.0 * radius, max_range[guided])
+            distance[guided] = refine_guesses(
+                log_odds,
+                origins[guided],
+                directions[guided],
+                low,
+                high,
+                threshold,
+                radius / 2.0,
+                radius / 10.0,
+            )
+        rest = np.flatnonzero(np.isnan(distance))
+        if threshold not in self._ray_cells:
+            self._ray_cells[threshold] = CandidateCells.of_kernels(
+                clusters.means,
+                kernel_reach(clusters.transforms, clusters.planar_kernel),
+                clusters.weights,
+                self._query_intercept(),
+                threshold,
+                RAY_CELLS_PER_RADIUS * radius,
+            )
+        distance[rest] = first_crossings(
+            log_odds,
+            origins[rest],
+            directions[rest],
+            max_range[rest],
             threshold,
             radius / 2.0,
             radius / 10.0,
-            cells,
+            self._ray_cells[threshold],
         )
+        return distance
+
+    def _ray_grid_of(self, resolution: float) -> OccupancyGrid | None:
+        """The grid of the map's log-odds at `resolution` that rays march first (kept until
+        the map learns), or None for a map whose grid would pass RAY_GRID_MAX_BYTES."""
+        if self._ray_grid is None or self._ray_grid.resolution != resolution:
+            try:
+                self._ray_grid = OccupancyGrid.of(
+                    self.snapshot(), None, resolution, RAY_GRID_MAX_BYTES
+                )
+            except InputError:
+                return None
+        return self._ray_grid
 
     def segment_free(
         self, starts: np.ndarray, ends: np.ndarray, level: float = 0.5, mode: str | None = None
@@ -621,7 +679,10 @@ class HilbertMap:
         return grid
 
     def _update_followers(self) -> None:
-        """Bring every following grid up to date, timed as the stage 'grids'."""
+        """Bring every following grid up to date, timed as the stage 'grids'; drop the grid
+        rays march, now out of date."""
+        self._ray_grid = None
+        self._ray_cells = {}
         if len(self._followers) == 0:
             return
         timer = StageTimer()

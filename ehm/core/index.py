@@ -34,6 +34,10 @@ _KDTREE_NODE_BYTES = 80
 _KDTREE_LEAF_SIZE = 16
 
 
+# Searches for fewer points than this run on one thread: starting the others costs more.
+PARALLEL_SEARCH_POINTS = 4096
+
+
 @dataclass(frozen=True)
 class KernelRanking:
     """Anisotropic search: `factor` times k nearest centres are re-ranked by the radius each
@@ -159,7 +163,8 @@ class ClusterIndex:
             candidates = tree.nearest(points, wanted, bound)
         else:
             kk = min(wanted, len(rows))
-            _, idx = tree.query(points, k=kk, workers=-1, distance_upper_bound=bound)
+            workers = -1 if n >= PARALLEL_SEARCH_POINTS else 1
+            _, idx = tree.query(points, k=kk, workers=workers, distance_upper_bound=bound)
             idx = np.asarray(idx).reshape(n, kk)
             missing = idx >= len(rows)
             candidates = np.where(missing, -1, rows[np.where(missing, 0, idx)])

@@ -2,7 +2,11 @@
 log-odds rise above a level, found by marching in even steps and bisecting the step that
 crosses.
 
-Most of a ray crosses space where the log-odds cannot reach the level: a kernel is at most 1,
+A map's log-odds on a grid (local grids, Sec. 3.5, far cheaper a point than queries) tell each
+ray where to look: `grid_crossings` marches the grid, interpolated, and `refine_guesses`
+bisects the exact log-odds around where it crosses. Rays the grid misleads or sees no crossing
+on are marched with the exact log-odds. Most of such a ray crosses space where the log-odds
+cannot reach the level: a kernel is at most 1,
 so at any point the log-odds are at most the intercept plus the sum of the positive weights of
 the kernels that reach it. `CandidateCells` keeps the cubic cells where that bound exceeds the
 level; a ray walks the cells it crosses (Amanatides & Woo 1987) and marches only through runs
@@ -74,6 +78,41 @@ def first_crossings(
             )
             done[done] = ~np.isfinite(reached[ended])
         active = active[~done]
+    return distance
+
+
+def refine_guesses(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    threshold: float,
+    step: float,
+    tolerance: float,
+) -> np.ndarray:
+    """(n,) distance, metres, of the first crossing of `threshold` between `low` and `high`
+    (n,) along each ray: samples `step` apart from low, the step that crosses bisected to
+    `tolerance`; NaN where the log-odds are above the threshold at low already or never
+    within [low, high] (the guess was wrong)."""
+    n = len(low)
+    count = int(np.ceil(np.max(high - low, initial=0.0) / step)) + 1
+    t = np.minimum(low[:, None] + step * np.arange(count), high[:, None])
+    points = origins[:, None, :] + directions[:, None, :] * t[:, :, None]
+    above = log_odds(points.reshape(-1, origins.shape[1])).reshape(t.shape) > threshold
+    first = np.argmax(above, axis=1)
+    settled = above.any(axis=1) & (first > 0)
+    rows = np.flatnonzero(settled)
+    distance = np.full(n, np.nan)
+    distance[rows] = _bisect(
+        log_odds,
+        origins[rows],
+        directions[rows],
+        t[rows, first[rows] - 1],
+        t[rows, first[rows]],
+        threshold,
+        tolerance,
+    )
     return distance
 
 
@@ -300,3 +339,77 @@ def next_run_reference(
             after = np.flatnonzero(~candidate[first:])
             leave[i] = t[first + after[0]] if len(after) else stop[i]
     return entry, leave
+
+
+@numba.njit(cache=True, parallel=True)
+def grid_crossings(
+    origins, directions, max_range, scores, grid_origin, resolution, threshold, step
+):  # pragma: no cover - compiled
+    """(n,) distance of the first sample, `step` apart along each ray from its origin, where
+    a grid's log-odds (scores, `d`-dimensional, voxels of `resolution` metres from corner
+    grid_origin) interpolated linearly between voxel centres exceed `threshold`; inf where
+    none does within max_range. Outside the voxel centres' box the log-odds count as 0."""
+    n, d = origins.shape
+    shape = np.array(scores.shape)
+    flat = scores.ravel()
+    strides = np.ones(d, dtype=np.int64)
+    for a in range(d - 2, -1, -1):
+        strides[a] = strides[a + 1] * shape[a + 1]
+    found = np.full(n, np.inf)
+    for i in numba.prange(n):
+        index = np.empty(d, dtype=np.int64)
+        share = np.empty(d)
+        t = 0.0
+        while t <= max_range[i]:
+            inside = True
+            for a in range(d):
+                f = (origins[i, a] + directions[i, a] * t - grid_origin[a]) / resolution - 0.5
+                if not (0.0 <= f < shape[a] - 1):
+                    inside = False
+                    break
+                index[a] = np.int64(f)
+                share[a] = f - index[a]
+            if inside:
+                value = 0.0
+                for corner in range(1 << d):
+                    weight = 1.0
+                    at = 0
+                    for a in range(d):
+                        if (corner >> a) & 1:
+                            weight *= share[a]
+                            at += (index[a] + 1) * strides[a]
+                        else:
+                            weight *= 1.0 - share[a]
+                            at += index[a] * strides[a]
+                    value += weight * flat[at]
+                if value > threshold:
+                    found[i] = t
+                    break
+            t += step
+    return found
+
+
+def grid_crossings_reference(
+    origins: np.ndarray,
+    directions: np.ndarray,
+    max_range: np.ndarray,
+    scores: np.ndarray,
+    grid_origin: np.ndarray,
+    resolution: float,
+    threshold: float,
+    step: float,
+) -> np.ndarray:
+    """Plain NumPy twin of `grid_crossings`, with scipy's linear interpolation."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    axes = [grid_origin[a] + (np.arange(n) + 0.5) * resolution for a, n in enumerate(scores.shape)]
+    interpolate = RegularGridInterpolator(axes, scores, bounds_error=False, fill_value=0.0)
+    found = np.full(len(origins), np.inf)
+    for i in range(len(origins)):
+        t = np.arange(0.0, max_range[i] + 1e-12, step)
+        points = origins[i] + directions[i] * t[:, None]
+        inside = np.all((points >= [a[0] for a in axes]) & (points < [a[-1] for a in axes]), axis=1)
+        above = inside & (interpolate(points) > threshold)
+        if above.any():
+            found[i] = t[np.argmax(above)]
+    return found

@@ -107,3 +107,37 @@ def test_ray_mistakes_are_named(room_map):
         room_map.raycast(np.zeros((2, 3)), np.ones((4, 3)), 5.0)
     with pytest.raises(ehm.InputError, match="segment ends must be"):
         room_map.segment_free(np.zeros((2, 3)), np.ones((3, 3)))
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_grid_marching_agrees_with_scipy_interpolation(rng, d):
+    from ehm.core.raycast import grid_crossings, grid_crossings_reference
+
+    scores = rng.normal(-2.0, 1.0, (12,) * d)
+    scores[tuple(rng.integers(0, 12, (d, 40)))] = 3.0  # a few occupied voxels
+    grid_origin = np.full(d, -0.6)
+    origins = rng.uniform(-0.5, 0.5, (200, d))
+    directions = unit_rows(rng, 200, d)
+    max_range = np.full(200, 1.2)
+    arguments = (origins, directions, max_range, scores, grid_origin, 0.1, 0.0, 0.02)
+    found = grid_crossings(*arguments)
+    expected = grid_crossings_reference(*arguments)
+    assert np.isfinite(found).sum() > 20
+    np.testing.assert_array_equal(np.isfinite(found), np.isfinite(expected))
+    np.testing.assert_allclose(
+        found[np.isfinite(found)], expected[np.isfinite(expected)], atol=1e-9
+    )
+
+
+def test_guesses_are_refined_or_refused():
+    from ehm.core.raycast import refine_guesses
+
+    def log_odds(points):  # occupied from x = 1 to x = 1.2
+        return np.where((points[:, 0] > 1.0) & (points[:, 0] < 1.2), 1.0, -1.0)
+
+    origins, directions = np.zeros((3, 2)), np.tile([1.0, 0.0], (3, 1))
+    low, high = np.array([0.8, 1.1, 1.3]), np.array([1.3, 1.5, 1.6])
+    found = refine_guesses(log_odds, origins, directions, low, high, 0.0, 0.1, 0.001)
+    assert abs(found[0] - 1.0) < 0.001
+    assert np.isnan(found[1])  # already inside at low: the crossing is before the window
+    assert np.isnan(found[2])  # nothing in the window
