@@ -460,9 +460,11 @@ class HilbertMap:
         """(n,) distance, metres, along each ray to the first point whose occupancy rises
         above `level`; inf where none does within `max_range`. origins: (n, d) or one (d,)
         point, metres, world frame; directions: (n, d), any length but 0; max_range: metres,
-        one for all rays or (n,). Rays march cluster_radius / 2 apart and the crossing is
-        located to cluster_radius / 10 (ehm.core.raycast); a ray starting inside reads 0.
-        Unknown space reads 0.5: it stops no ray at the default level."""
+        one for all rays or (n,). Rays march cluster_radius / 2 apart through a grid of the
+        log-odds (made on the first call, kept until the map learns), and the crossing near
+        the grid's is found in the exact log-odds and located to cluster_radius / 10
+        (ehm.core.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it stops
+        no ray at the default level."""
         clusters = self._learned("cast rays through it")
         origins, directions, max_range = self._rays(origins, directions, max_range)
         threshold = _log_odds_level(level)

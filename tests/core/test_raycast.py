@@ -141,3 +141,20 @@ def test_guesses_are_refined_or_refused():
     assert abs(found[0] - 1.0) < 0.001
     assert np.isnan(found[1])  # already inside at low: the crossing is before the window
     assert np.isnan(found[2])  # nothing in the window
+
+
+def test_rays_see_what_the_map_learns_after_their_first_cast():
+    """The grid rays march first is dropped when the map learns: a wall learned later stops
+    the same ray sooner."""
+    angles = np.linspace(-0.6, 0.6, 400)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+
+    def wall_scan(x):  # a wall across the rays at distance x along the axis
+        return directions * (x / directions[:, :1])
+
+    hilbert_map = ehm.HilbertMap(batch_rays=0).integrate(wall_scan(4.0), np.zeros(2))
+    first = hilbert_map.raycast(np.zeros(2), np.array([[1.0, 0.0]]), 10.0)[0]
+    assert abs(first - 4.0) < 0.1
+    hilbert_map.integrate(wall_scan(2.0), np.zeros(2))
+    second = hilbert_map.raycast(np.zeros(2), np.array([[1.0, 0.0]]), 10.0)[0]
+    assert abs(second - 2.0) < 0.1
