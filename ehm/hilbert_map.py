@@ -148,13 +148,16 @@ class HilbertMap:
 
     def memory_bytes(self) -> int:
         """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
-        sample memory, anchor layers and the search structure over cluster centres."""
+        sample memory, anchor layers, the search structure over cluster centres, and while
+        kept, the grid and cells rays march (`raycast`)."""
         self.flush()
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
         memory = 0 if self.memory_ is None else self.memory_.nbytes
         learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
         search = self._supports if self.config.features == "support" else self._index
-        return learned + search.nbytes
+        rays = 0 if self._ray_grid is None else self._ray_grid.scores.nbytes
+        rays += sum(cells.keys.nbytes for cells in self._ray_cells.values() if cells is not None)
+        return learned + search.nbytes + rays
 
     def state(self) -> MapState:
         """Everything the map has learned and the scans waiting for their batch, as plain data
