@@ -4,11 +4,11 @@ crosses.
 
 A map's log-odds on a grid (local grids, Sec. 3.5, far cheaper a point than queries) tell each
 ray where to look: `grid_crossings` marches the grid, interpolated, and `refine_guesses`
-bisects the exact log-odds around where it crosses. Rays the grid misleads or sees no crossing
-on are marched with the exact log-odds. Most of such a ray crosses space where the log-odds
-cannot reach the level: a kernel is at most 1,
-so at any point the log-odds are at most the intercept plus the sum of the positive weights of
-the kernels that reach it. `CandidateCells` keeps the cubic cells where that bound exceeds the
+finds the exact log-odds' crossing around the grid's and bisects it. Rays the grid misleads or
+sees no crossing on march the exact log-odds (`first_crossings`). Most of such a ray crosses
+space where the log-odds cannot reach the level: a kernel is at most 1, so at any point the
+log-odds are at most the intercept plus the sum of the positive weights of the kernels that
+reach it. `CandidateCells` keeps the cubic cells where that bound exceeds the
 level; a ray walks the cells it crosses (Amanatides & Woo 1987) and marches only through runs
 of candidate cells. Marching evaluates many rays at once (STEPS_PER_ROUND points of each
 still-running ray in one call of the map's log-odds). A surface thinner than `step` may be
