@@ -493,6 +493,8 @@ def export(
 @app.command()
 def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     """What a map file holds."""
+    import numpy as np
+
     hilbert_map = _load(map_path)
     table = Table(title=str(map_path))
     table.add_column("property")
@@ -500,6 +502,9 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     table.add_row("dimensions", str(hilbert_map.dim))
     table.add_row("clusters", str(hilbert_map.n_clusters))
     table.add_row("scans", str(hilbert_map.n_scans_))
+    path = hilbert_map.sensor_path
+    length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) else 0.0
+    table.add_row("sensor path", f"{len(path)} poses, {length:.2f} m long")
     table.add_row("memory", f"{hilbert_map.memory_bytes() / 1e6:.3f} MB")
     samples = hilbert_map.memory_
     table.add_row("past samples kept", f"{len(samples)} in {samples.n_cells} cells")

@@ -92,6 +92,8 @@ class HilbertMap:
         self._waiting_rays = 0
         self.bias_state_ = np.zeros(2)
         self.n_scans_ = 0
+        # The origin of every scan given, in order (see sensor_path).
+        self._origins: list[np.ndarray] = []
         self.timings_: dict[str, float] = {}
         self.last_update_: dict[str, int] = {}
         self.anchors_ = AnchorLayers()
@@ -119,6 +121,14 @@ class HilbertMap:
         """Scans given but not learned yet: they wait for `config.batch_rays` rays, or for
         the next query, grid or `flush()`; a save keeps them waiting."""
         return len(self._waiting)
+
+    @property
+    def sensor_path(self) -> np.ndarray:
+        """(n, d) float64, metres, world frame: the origin of every scan given, in order (for
+        maps loaded from files older than format 11, only the scans given since)."""
+        if not self._origins:
+            return np.zeros((0, self.dim or 3))
+        return np.stack(self._origins)
 
     @property
     def bias_(self) -> float:
@@ -175,6 +185,7 @@ class HilbertMap:
             self._rng.bit_generator.state,
             SampleMemory.of_config(dim, self.config) if empty else self._memory(),
             tuple(self._waiting),
+            self.sensor_path,
         )
 
     @classmethod
@@ -191,6 +202,8 @@ class HilbertMap:
             hilbert_map._rng.bit_generator.state = state.rng_state
         hilbert_map._relist(None)
         hilbert_map._waiting = list(state.waiting)
+        if state.sensor_path is not None:
+            hilbert_map._origins = list(state.sensor_path)
         hilbert_map._waiting_rays = sum(len(scan) for scan in state.waiting)
         return hilbert_map
 
@@ -276,6 +289,7 @@ class HilbertMap:
             raise InputError(f"scan points are {scan.dim}D, the map is {self.dim}D")
         self._waiting.append(scan)
         self._waiting_rays += len(scan)
+        self._origins.append(scan.origin)
         self.n_scans_ += 1
         self.timings_ = {}
         if self._waiting_rays >= self.config.batch_rays:
@@ -311,6 +325,7 @@ class HilbertMap:
             samples = samples_of_scans(scans, self.config, self._rng)
         self._learn(samples, timer)
         self.n_scans_ = len(scans)
+        self._origins = [scan.origin for scan in scans]
         self._update_followers()
         return self
 

@@ -46,6 +46,9 @@ def test_map_then_info_and_query(map_file, tmp_path):
     assert table_row(info.output, "config.coarse_neighbours") == ["4"]
     assert table_row(info.output, "dimensions") == ["2"]
     assert table_row(info.output, "scans") == ["5"]
+    path = hilbert_map.sensor_path
+    length = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
+    assert table_row(info.output, "sensor path") == [f"5 poses, {length:.2f} m long"]
     assert table_row(info.output, "clusters") == [str(hilbert_map.n_clusters)]
     assert table_row(info.output, "memory") == [f"{hilbert_map.memory_bytes() / 1e6:.3f} MB"]
     kept = hilbert_map.memory_

@@ -21,7 +21,8 @@ class MapState:
     state of the map's random generator (numpy's bit_generator.state), so that a restored map
     continues exactly as the saved one would; None starts it afresh from config.seed. memory:
     the past samples it replays. waiting: scans given but not learned yet, waiting for their
-    batch (config.batch_rays), in the order given."""
+    batch (config.batch_rays), in the order given. sensor_path: (n, d) float64, metres, world
+    frame, the origin of every scan given, in order (empty for maps saved before it was kept)."""
 
     config: MapConfig
     clusters: ClusterSet
@@ -31,3 +32,4 @@ class MapState:
     rng_state: dict[str, Any] | None
     memory: SampleMemory
     waiting: tuple[Scan, ...] = ()
+    sensor_path: np.ndarray | None = None

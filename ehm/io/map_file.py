@@ -7,7 +7,8 @@ Layout (little-endian):
     header    UTF-8 JSON: config, dim, n_scans, bias state, random generator state (from
               version 4 on), and for each array (the clusters', the anchor layers', the
               sample memory's from version 5 on, the scans waiting for their batch from
-              version 10 on) its name, dtype, shape and byte offset into the payload
+              version 10 on, the sensor path from version 11 on) its name, dtype, shape and
+              byte offset into the payload
     payload   the arrays' raw bytes, one after another
     4 bytes   uint32 CRC-32 of everything before it
 """
@@ -38,6 +39,7 @@ MAGIC = b"EHMMAP\r\n"
 ANCHOR_PREFIX = "anchor_"
 MEMORY_PREFIX = "memory_"
 WAITING_PREFIX = "waiting_"
+SENSOR_PATH = "sensor_path"
 # Version 6: every update rule learns the weights' precisions (the occupancy's std); files of
 # older versions learned by SGD hold the prior's, so their std stays near the prior's until
 # they learn more.
@@ -55,7 +57,9 @@ WAITING_PREFIX = "waiting_"
 # free samples per ray (max_free_samples). Older files load with the defaults: no range limit,
 # and the bound, which changes nothing for rays under 600 m. Version 10 files also hold the
 # scans waiting for their batch; older ones learned them before saving.
-FORMAT_VERSION = 10
+# Version 11 maps keep the origin of every scan given (the sensor path); older files load
+# with none.
+FORMAT_VERSION = 11
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -78,6 +82,8 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
     if state.waiting:
         for name, array in _waiting_arrays(state.waiting).items():
             arrays[f"{WAITING_PREFIX}{name}"] = array
+    if state.sensor_path is not None:
+        arrays[SENSOR_PATH] = np.ascontiguousarray(state.sensor_path, dtype=np.float64)
     entries, offset = [], 0
     for name, array in arrays.items():
         dtype = array.dtype.newbyteorder("<")
@@ -114,7 +120,7 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 9); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 11); MapFileError
     names what is wrong otherwise."""
     data = read_bytes(path)
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
@@ -172,6 +178,7 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         for name in list(arrays)
         if name.startswith(MEMORY_PREFIX)
     }
+    sensor_path = arrays.pop(SENSOR_PATH, None)
     waiting_arrays = {
         name.removeprefix(WAITING_PREFIX): arrays.pop(name)
         for name in list(arrays)
@@ -209,6 +216,7 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         header.get("rng_state"),
         memory,
         _waiting_scans(waiting_arrays),
+        sensor_path,
     )
 
 

@@ -125,14 +125,16 @@ def test_empty_map_cannot_be_saved(tmp_path):
 def test_maps_of_format_3_load_and_answer_as_they_did(name):
     """Files written in format 3, before the random generator's state was stored: a 2D plan
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
-    They answer as when they were written (to rounding), and a map built now from the same
-    scans with the same settings (no sample memory then, the nearest clusters' features,
-    no thinning, each scan learned as it came) classifies nearly every point the same: SGD
-    has visited the samples in another random order since (measured: the same class at
-    97.6 % of the room's points and 99.2 % of the plan's, 0.04 apart on average)."""
+    They answer as when they were written (to rounding), hold no sensor path, and a map built
+    now from the same scans with the same settings (no sample memory then, the nearest
+    clusters' features, no thinning, each scan learned as it came) classifies nearly every
+    point the same: SGD has visited the samples in another random order since (measured: the
+    same class at 97.6 % of the room's points and 99.2 % of the plan's, 0.04 apart on
+    average)."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
+    assert loaded.sensor_path.shape == (0, loaded.dim)
     points = recorded[f"{name}_points"]
     rebuilt = rebuild_v3_map(name)
     assert loaded.config == rebuilt.config
@@ -168,3 +170,19 @@ def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     for scan in scans:
         hilbert_map.integrate_scan(scan)
     return hilbert_map
+
+
+def test_the_sensor_path_is_kept_and_saved(plan, tmp_path):
+    hilbert_map = ehm.HilbertMap()
+    for scan in plan.scans[:3]:
+        hilbert_map.integrate_scan(scan)
+    expected = np.stack([scan.origin for scan in plan.scans[:3]])
+    np.testing.assert_array_equal(hilbert_map.sensor_path, expected)
+    hilbert_map.save(tmp_path / "m.ehm")
+    loaded = ehm.load(tmp_path / "m.ehm")
+    np.testing.assert_array_equal(loaded.sensor_path, expected)
+    loaded.integrate_scan(plan.scans[3])
+    assert len(loaded.sensor_path) == 4
+    refit = ehm.HilbertMap().fit(plan.scans)
+    np.testing.assert_array_equal(refit.sensor_path, [scan.origin for scan in plan.scans])
+    assert ehm.HilbertMap().sensor_path.shape == (0, 3)
