@@ -158,8 +158,8 @@ class HilbertMap:
 
     def memory_bytes(self) -> int:
         """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
-        sample memory, anchor layers, the search structure over cluster centres, and while
-        kept, the grid and cells rays march (`raycast`)."""
+        sample memory, anchor layers, the search structure over cluster centres, the sensor
+        path, and while kept, the grid and cells rays march (`raycast`)."""
         self.flush()
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
         memory = 0 if self.memory_ is None else self.memory_.nbytes
@@ -167,7 +167,8 @@ class HilbertMap:
         search = self._supports if self.config.features == "support" else self._index
         rays = 0 if self._ray_grid is None else self._ray_grid.scores.nbytes
         rays += sum(cells.keys.nbytes for cells in self._ray_cells.values() if cells is not None)
-        return learned + search.nbytes + rays
+        path = sum(origin.nbytes for origin in self._origins)
+        return learned + search.nbytes + rays + path
 
     def state(self) -> MapState:
         """Everything the map has learned and the scans waiting for their batch, as plain data
