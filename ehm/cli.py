@@ -27,8 +27,11 @@ class _Commands(TyperGroup):
     def invoke(self, ctx: Any) -> Any:
         try:
             return super().invoke(ctx)
-        except EhmError as error:
-            if ctx.params.get("debug"):
+        except (EhmError, ImportError) as error:
+            # An ImportError is a mistake only where an optional part is missing (its message
+            # names the extra to install); any other is a bug.
+            optional = isinstance(error, ImportError) and "pip install 'ehm[" in str(error)
+            if ctx.params.get("debug") or not (isinstance(error, EhmError) or optional):
                 raise
             errors.print(f"[red]error:[/red] {escape(str(error))}")
             raise typer.Exit(2) from None
@@ -488,6 +491,35 @@ def export(
             points = np.column_stack([points, np.zeros(len(points))])
         exports.write_point_cloud(points, output)
         console.print(f"{len(points)} occupied voxels\nwrote {output}")
+
+
+@app.command()
+def view(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    port: Annotated[int, typer.Option(help="Port of the web page.")] = 8080,
+    host: Annotated[
+        str, typer.Option(help="Address to serve on (0.0.0.0: every interface).")
+    ] = "127.0.0.1",
+    resolution: Annotated[float, typer.Option(help="Voxel side of the surface, metres.")] = 0.1,
+) -> None:
+    """Look at a map in the browser (pip install 'ehm[viewer]'): its surface at an occupancy
+    level coloured by height or uncertainty, a slice of the occupancy, the samples it keeps,
+    the sensor path. Ctrl-C stops the server."""
+    import time
+
+    from ehm.viz.viewer import MapViewer, viser_module
+
+    if not 0 < port < 65536:
+        raise InputError(f"--port must be 1 to 65535, got {port}")
+    viser_module()
+    hilbert_map = _load(map_path)
+    viewer = MapViewer(hilbert_map, resolution, port, host)
+    console.print(f"{map_path} at {viewer.url} (Ctrl-C stops)")
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        viewer.server.stop()
 
 
 @app.command()

@@ -147,3 +147,8 @@ def test_only_the_pipeline_loops_over_scans():
             if isinstance(node, ast.Attribute) and node.attr == "integrate_scan":
                 callers.add(name)
     assert callers == {"ehm.pipeline", "ehm.hilbert_map"}
+
+
+def test_only_the_command_line_imports_the_viewer():
+    importers = sorted(name for name, imports in GRAPH.items() if "ehm.viz.viewer" in imports)
+    assert importers == ["ehm.cli"]

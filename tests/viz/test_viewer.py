@@ -1,0 +1,70 @@
+"""The browser viewer's server: the scene it serves and what its controls do."""
+
+import socket
+
+import numpy as np
+import pytest
+
+import ehm
+
+viser = pytest.importorskip("viser")
+from ehm.viz.viewer import MapViewer  # noqa: E402
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture
+def room_viewer(room_map):
+    viewer = MapViewer(room_map, resolution=0.1, port=free_port())
+    yield viewer
+    viewer.server.stop()
+
+
+def test_the_level_slider_remeshes_the_surface(room_viewer):
+    before = room_viewer.n_faces
+    vertices = np.asarray(room_viewer.mesh.vertices)
+    assert before > 10_000
+    # At the level, to the grid's interpolation and its difference from point queries.
+    assert np.median(np.abs(room_viewer.map.occupancy(vertices[::100]) - 0.5)) < 0.1
+    room_viewer.level.value = 0.8  # as a client moving the slider
+    assert 0 < room_viewer.n_faces != before
+    higher = np.asarray(room_viewer.mesh.vertices)
+    assert np.median(room_viewer.map.occupancy(higher[::100])) > 0.6
+
+
+def test_colouring_by_uncertainty_and_the_slice(room_viewer):
+    by_height = np.asarray(room_viewer.mesh.visual.vertex_colors).copy()
+    room_viewer.coloring.value = "uncertainty (std)"
+    by_std = np.asarray(room_viewer.mesh.visual.vertex_colors)
+    assert by_std.shape == by_height.shape and not np.array_equal(by_std, by_height)
+    room_viewer.show_slice.value = True
+    room_viewer.slice_height.value = 1.0
+    assert room_viewer.url.startswith("http://127.0.0.1:")
+
+
+def test_a_plan_shows_as_an_image(plan):
+    plan_map = ehm.HilbertMap().fit(plan.scans)
+    viewer = MapViewer(plan_map, resolution=0.1, port=free_port())
+    try:
+        assert viewer.surface is None and len(plan_map.sensor_path) == len(plan.scans)
+    finally:
+        viewer.server.stop()
+
+
+def test_ehm_view_names_its_mistakes(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from ehm.cli import app
+
+    result = CliRunner().invoke(app, ["view", str(tmp_path / "none.ehm")])
+    assert result.exit_code == 2 and "none.ehm: no such file" in result.stderr
+    result = CliRunner().invoke(app, ["view", str(tmp_path / "none.ehm"), "--port", "0"])
+    assert result.exit_code == 2 and "--port must be 1 to 65535, got 0" in result.stderr
+    monkeypatch.setitem(__import__("sys").modules, "viser", None)  # as if not installed
+    (tmp_path / "m.ehm").write_bytes(b"")
+    result = CliRunner().invoke(app, ["view", str(tmp_path / "m.ehm")])
+    assert result.exit_code == 2 and "pip install 'ehm[viewer]'" in result.stderr
