@@ -3,7 +3,10 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench clean chromium
+
+# The viewer's tests look at it in a real browser: Debian's headless Chromium.
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 $(BIN)/ehm: pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
@@ -14,8 +17,12 @@ $(BIN)/ehm: pyproject.toml
 demo: $(BIN)/ehm
 	$(BIN)/ehm demo
 
-test: $(BIN)/ehm
+test: $(BIN)/ehm chromium
 	$(BIN)/python -m pytest -q
+
+chromium:
+	command -v chromium >/dev/null || ($(SUDO) apt-get update -qq && \
+		DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq chromium >/dev/null)
 
 lint: $(BIN)/ehm
 	$(BIN)/ruff check ehm tests benchmarks

@@ -42,6 +42,7 @@ class MapViewer:
         self.surface = None
         self.mesh = None
         self.n_faces = 0
+        self._aim_camera()
         self._show_axes_and_path()
         if hilbert_map.dim == 2:
             self._show_plane()
@@ -66,6 +67,15 @@ class MapViewer:
     @property
     def url(self) -> str:
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+    def _aim_camera(self) -> None:
+        """Start every browser looking down at the whole map from outside its box."""
+        low, high = self.grid.bounds
+        centre = np.zeros(3)
+        centre[: self.map.dim] = (low + high) / 2
+        extent = float(np.max(high - low))
+        self.server.initial_camera.look_at = tuple(centre)
+        self.server.initial_camera.position = tuple(centre + extent * np.array([-0.6, -0.8, 0.9]))
 
     def show_surface(self) -> None:
         """(Re)draw the surface at the slider's level, coloured as the dropdown says."""
@@ -124,8 +134,17 @@ class MapViewer:
         points = memory.points[memory.occupied & kept]
         if len(points):
             self.server.scene.add_point_cloud(
-                "/samples", points.astype(np.float32), SAMPLE_COLOR, point_size=0.02
-            )
+                "/samples", points.astype(np.float32), SAMPLE_COLOR, point_size=0.01,
+                visible=False,
+            )  # fmt: skip
+            samples = self.server.gui.add_checkbox("show kept samples", False)
+
+            @samples.on_update
+            def _(_) -> None:
+                self.server.scene.add_point_cloud(
+                    "/samples", points.astype(np.float32), SAMPLE_COLOR, point_size=0.01,
+                    visible=samples.value,
+                )  # fmt: skip
 
     def _show_axes_and_path(self) -> None:
         """Axes at the origin (1 m long) and a grid of 1 m cells on the floor; the sensor path."""

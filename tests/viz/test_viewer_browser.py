@@ -1,0 +1,51 @@
+"""The viewer in a real browser: Debian's headless Chromium (`make test` installs it) opens the
+page, and its screenshot must show the map."""
+
+import shutil
+import socket
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+from PIL import Image
+
+pytest.importorskip("viser")
+from ehm.viz.viewer import MapViewer
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def test_the_page_shows_the_map(room_map, tmp_path):
+    assert CHROMIUM, "chromium is missing: `make test` installs Debian's chromium package"
+    viewer = MapViewer(room_map, resolution=0.1, port=free_port())
+    connected = threading.Event()
+    viewer.server.on_client_connect(lambda client: connected.set())
+    shot = tmp_path / "viewer.png"
+    try:
+        # Chromium's virtual time runs the page (websocket, scene, WebGL in software) as fast
+        # as it can, up to the budget, then takes the screenshot.
+        subprocess.run(
+            [CHROMIUM, "--headless=new", "--no-sandbox", "--hide-scrollbars",
+             "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
+             "--window-size=1200,800", "--virtual-time-budget=20000",
+             f"--screenshot={shot}", viewer.url],
+            check=True, capture_output=True, timeout=180,
+        )  # fmt: skip
+    finally:
+        viewer.server.stop()
+    assert connected.is_set()  # the page reached the server
+    image = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+    assert image.shape == (800, 1200, 3)
+    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 2000  # a picture, not a blank page
+    # Where the camera looks (the map's centre), the surface: coloured pixels, not the white
+    # background or the grey floor grid.
+    centre = image[300:500, 500:700]
+    saturation = centre.max(axis=2) - centre.min(axis=2)
+    assert np.mean(saturation > 60) > 0.5
