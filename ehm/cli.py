@@ -263,6 +263,15 @@ def map_command(
     quiet: Annotated[
         bool, typer.Option("--quiet", "-q", help="No progress bar, no summary: only errors.")
     ] = False,
+    view: Annotated[
+        bool,
+        typer.Option(
+            "--view",
+            help="Show the map growing in the browser (pip install 'ehm[viewer]'), and keep "
+            "showing it after, until Ctrl-C.",
+        ),
+    ] = False,
+    port: Annotated[int, typer.Option(help="Port of the --view page.")] = 8080,
 ) -> None:
     """Build a map from scans of any supported format and save it."""
     from ehm.config import MapConfig
@@ -280,6 +289,13 @@ def map_command(
     hilbert_map = HilbertMap(config)
     scans = scan_stream(inputs, format, sensor, poses, calib, every, limit, topic, frame, odometry)
     observers = [] if quiet else [ProgressBar(console)]
+    live = None
+    if view:
+        from ehm.viz.viewer import LiveView
+
+        live = LiveView(port=port)
+        observers.append(live)
+        console.print(f"watch the map grow at {live.url}")
     run = MappingPipeline(scans, hilbert_map, batch, observers).run()
     hilbert_map.save(output)
     if hilbert_map.n_clusters == 0:
@@ -294,6 +310,8 @@ def map_command(
             f"{hilbert_map!r}, {hilbert_map.memory_bytes() / 1e6:.2f} MB, mapped in "
             f"{run.seconds:.1f} s; wrote {output}"
         )
+    if live is not None:
+        _serve_until_stopped(live.server, f"the map at {live.url}")
 
 
 @app.command()
@@ -493,6 +511,18 @@ def export(
         console.print(f"{len(points)} occupied voxels\nwrote {output}")
 
 
+def _serve_until_stopped(server, what: str) -> None:
+    """Keep a viewer's server running until Ctrl-C."""
+    import time
+
+    console.print(f"showing {what} (Ctrl-C stops)")
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        server.stop()
+
+
 @app.command()
 def view(
     map_path: Annotated[Path, typer.Argument(help="Map file.")],
@@ -505,8 +535,6 @@ def view(
     """Look at a map in the browser (pip install 'ehm[viewer]'): its surface at an occupancy
     level coloured by height or uncertainty, a slice of the occupancy, the samples it keeps,
     the sensor path. Ctrl-C stops the server."""
-    import time
-
     from ehm.viz.viewer import MapViewer, viser_module
 
     if not 0 < port < 65536:
@@ -514,12 +542,7 @@ def view(
     viser_module()
     hilbert_map = _load(map_path)
     viewer = MapViewer(hilbert_map, resolution, port, host)
-    console.print(f"{map_path} at {viewer.url} (Ctrl-C stops)")
-    try:
-        while True:
-            time.sleep(1.0)
-    except KeyboardInterrupt:
-        viewer.server.stop()
+    _serve_until_stopped(viewer.server, f"{map_path} at {viewer.url}")
 
 
 @app.command()

@@ -12,9 +12,12 @@ Nothing else in the package imports this module.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from ehm.hilbert_map import HilbertMap
+from ehm.pipeline import MappingRun, NullObserver
 from ehm.viz.colors import height_colors
 
 INSTALL_HINT = "the viewer needs viser: pip install 'ehm[viewer]'"
@@ -79,8 +82,6 @@ class MapViewer:
 
     def show_surface(self) -> None:
         """(Re)draw the surface at the slider's level, coloured as the dropdown says."""
-        import trimesh
-
         vertices, faces = self.grid.mesh(self.level.value)
         self.n_faces = len(faces)
         if self.surface is not None:
@@ -89,13 +90,12 @@ class MapViewer:
         if len(faces) == 0:
             return
         if self.coloring.value == "height":
-            colors = height_colors(vertices[:, 2], (vertices[:, 2].min(), vertices[:, 2].max()))
+            values = vertices[:, 2]
+            span = (float(values.min()), float(values.max()))
         else:
-            _, std = self.map.occupancy(vertices, return_std=True)
-            colors = height_colors(std, (0.0, max(float(std.max()), 1e-9)))
-        self.mesh = trimesh.Trimesh(
-            vertices, faces, vertex_colors=np.round(255 * colors).astype(np.uint8), process=False
-        )
+            _, values = self.map.occupancy(vertices, return_std=True)
+            span = (0.0, max(float(values.max()), 1e-9))
+        self.mesh = colored_mesh(vertices, faces, values, span)
         self.surface = self.server.scene.add_mesh_trimesh("/surface", self.mesh)
 
     def show_slice_plane(self) -> None:
@@ -108,22 +108,11 @@ class MapViewer:
             0, self.grid.shape[2] - 1,
         ))  # fmt: skip
         image = _heat_map(self.grid.probability[:, :, k])
-        self._add_plane_image("/slice", image, self.grid.axis_centers(2)[k])
+        add_plane_image(self.server, "/slice", self.grid, image, self.grid.axis_centers(2)[k])
 
     def _show_plane(self) -> None:
         """A 2D map: its grid as an image on the plane z = 0."""
-        self._add_plane_image("/grid", _heat_map(self.grid.probability), 0.0)
-
-    def _add_plane_image(self, name: str, image: np.ndarray, z: float) -> None:
-        """An (nx, ny, 3) image over the grid's x-y extent at height z, metres."""
-        (x0, y0), (x1, y1) = self.grid.bounds[0][:2], self.grid.bounds[1][:2]
-        self.server.scene.add_image(
-            name,
-            np.ascontiguousarray(np.transpose(image, (1, 0, 2))[::-1]),  # rows from +y down
-            render_width=float(x1 - x0),
-            render_height=float(y1 - y0),
-            position=((x0 + x1) / 2, (y0 + y1) / 2, z),
-        )
+        add_plane_image(self.server, "/grid", self.grid, _heat_map(self.grid.probability), 0.0)
 
     def _show_samples(self) -> None:
         """The occupied samples the map keeps near surfaces, as points."""
@@ -160,9 +149,34 @@ class MapViewer:
         )  # fmt: skip
         path = self.map.sensor_path
         if len(path) >= 2:
-            path3 = path if path.shape[1] == 3 else np.column_stack([path, np.zeros(len(path))])
-            segments = np.stack([path3[:-1], path3[1:]], axis=1).astype(np.float32)
-            self.server.scene.add_line_segments("/sensor_path", segments, PATH_COLOR)
+            self.server.scene.add_line_segments("/sensor_path", path_segments(path), PATH_COLOR)
+
+
+def add_plane_image(server, name: str, grid, image: np.ndarray, z: float) -> None:
+    """An (nx, ny, 3) image of a grid's cells over its x-y extent at height z, metres."""
+    (x0, y0), (x1, y1) = grid.bounds[0][:2], grid.bounds[1][:2]
+    server.scene.add_image(
+        name,
+        np.ascontiguousarray(np.transpose(image, (1, 0, 2))[::-1]),  # rows from +y down
+        render_width=float(x1 - x0),
+        render_height=float(y1 - y0),
+        position=((x0 + x1) / 2, (y0 + y1) / 2, z),
+    )
+
+
+def colored_mesh(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray, span: tuple):
+    """A trimesh.Trimesh of the surface, each vertex coloured by its value (n,) over `span`."""
+    import trimesh
+
+    colors = np.round(255 * height_colors(values, span)).astype(np.uint8)
+    return trimesh.Trimesh(vertices, faces, vertex_colors=colors, process=False)
+
+
+def path_segments(path: np.ndarray) -> np.ndarray:
+    """(n - 1, 2, 3) float32 segments joining the (n, d) poses of a sensor path (z = 0 in 2D)."""
+    if path.shape[1] == 2:
+        path = np.column_stack([path, np.zeros(len(path))])
+    return np.stack([path[:-1], path[1:]], axis=1).astype(np.float32)
 
 
 def viser_module():
@@ -179,3 +193,82 @@ def _heat_map(probability: np.ndarray) -> np.ndarray:
     import matplotlib
 
     return np.round(255 * matplotlib.colormaps["coolwarm"](probability)[..., :3]).astype(np.uint8)
+
+
+class LiveView(NullObserver):
+    """A pipeline observer (ehm.pipeline.MappingObserver) that shows a map growing in the
+    browser: every `refresh_seconds` of mapping, once the map has learned its waiting scans,
+    the surface is re-meshed from a fresh grid; the last scan's points and the sensor path
+    are drawn, and a readout gives scans and scans per second. The refresh runs on the mapping
+    thread, so it costs what re-meshing costs, `refresh_seconds` apart."""
+
+    def __init__(
+        self,
+        resolution: float = 0.1,
+        port: int = 8080,
+        host: str = "127.0.0.1",
+        refresh_seconds: float = 2.0,
+        level: float = 0.5,
+    ) -> None:
+        viser = viser_module()
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.resolution, self.refresh_seconds, self.level = resolution, refresh_seconds, level
+        self.refreshes = 0
+        self._readout = self.server.gui.add_markdown("waiting for the first scan")
+        self._last_refresh = 0.0
+        self._start = 0.0
+        self._scans = 0
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+    @property
+    def readout(self) -> str:
+        """The text the page shows: scans so far, their rate, the clusters."""
+        return self._readout.content
+
+    def started(self, total: int | None) -> None:
+        self._start = self._last_refresh = time.perf_counter()
+        self.server.scene.add_frame("/axes", axes_length=1.0, axes_radius=0.02)
+
+    def scan_learned(self, index: int, scan, hilbert_map: HilbertMap) -> None:
+        self._scans = index + 1
+        now = time.perf_counter()
+        if now - self._last_refresh >= self.refresh_seconds and hilbert_map.n_waiting_scans == 0:
+            self.refresh(hilbert_map, scan)
+            self._last_refresh = time.perf_counter()
+
+    def finished(self, run: MappingRun) -> None:
+        if run.n_scans:
+            self.refresh(run.hilbert_map, None)
+
+    def refresh(self, hilbert_map: HilbertMap, scan) -> None:
+        """Draw the map as it stands (and `scan`'s points, if given)."""
+        self.refreshes += 1
+        seconds = max(time.perf_counter() - self._start, 1e-9)
+        self._readout.content = (
+            f"**{self._scans} scans**, {self._scans / seconds:.1f} scans/s, "
+            f"{hilbert_map.n_clusters} clusters"
+        )
+        if hilbert_map.n_clusters == 0:
+            return
+        grid = hilbert_map.grid(resolution=self.resolution)
+        if hilbert_map.dim == 3:
+            vertices, faces = grid.mesh(self.level)
+            if len(faces):
+                z = vertices[:, 2]
+                mesh = colored_mesh(vertices, faces, z, (float(z.min()), float(z.max())))
+                self.server.scene.add_mesh_trimesh("/surface", mesh)
+        else:
+            add_plane_image(self.server, "/grid", grid, _heat_map(grid.probability), 0.0)
+        path = hilbert_map.sensor_path
+        if len(path) >= 2:
+            self.server.scene.add_line_segments("/sensor_path", path_segments(path), PATH_COLOR)
+        if scan is not None:
+            points = scan.points_world[scan.hit_mask][:: max(len(scan) // 20_000, 1)]
+            if points.shape[1] == 2:
+                points = np.column_stack([points, np.zeros(len(points))])
+            self.server.scene.add_point_cloud(
+                "/current_scan", points.astype(np.float32), (255, 150, 0), point_size=0.03
+            )

@@ -68,3 +68,20 @@ def test_ehm_view_names_its_mistakes(tmp_path, monkeypatch):
     (tmp_path / "m.ehm").write_bytes(b"")
     result = CliRunner().invoke(app, ["view", str(tmp_path / "m.ehm")])
     assert result.exit_code == 2 and "pip install 'ehm[viewer]'" in result.stderr
+
+
+@pytest.mark.parametrize("scans", ["plan", "room"])
+def test_a_live_view_shows_the_map_as_it_grows(request, scans):
+    from ehm.pipeline import MappingPipeline
+    from ehm.viz.viewer import LiveView
+
+    data = request.getfixturevalue(scans)
+    live = LiveView(port=free_port(), refresh_seconds=0.0)
+    try:
+        hilbert_map = ehm.HilbertMap(batch_rays=0)
+        run = MappingPipeline(data.scans, hilbert_map, observers=[live]).run()
+        # Every learned scan, and once more at the end.
+        assert live.refreshes == run.n_scans + 1
+        assert f"**{run.n_scans} scans**" in live.readout
+    finally:
+        live.server.stop()
