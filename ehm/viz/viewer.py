@@ -2,7 +2,8 @@
 surface at an occupancy level (a slider re-meshes it) coloured by height or by the occupancy's
 standard deviation, a horizontal slice of the occupancy as a heat map at a chosen height, the
 surface samples the map keeps, the sensor path and axes in metres; for a 2D map its grid as an
-image with the sensor path.
+image with the sensor path. A cut-above slider leaves out the surface above a height, to look
+into rooms.
 
     viewer = MapViewer(hilbert_map, resolution=0.1, port=8080)   # http://localhost:8080
     viewer.level.value = 0.7                                     # what the slider does
@@ -37,6 +38,7 @@ class MapViewer:
         resolution: float = 0.1,
         port: int = 8080,
         host: str = "127.0.0.1",
+        cut_above: float | None = None,
     ) -> None:
         viser = viser_module()
         self.map = hilbert_map
@@ -59,9 +61,14 @@ class MapViewer:
             "slice height (m)", float(low[2]), float(high[2]), self.grid.resolution,
             float(np.clip(1.0, low[2], high[2])),
         )  # fmt: skip
+        self.cut_above = self.server.gui.add_slider(
+            "cut above (m)", float(low[2]), float(high[2]), self.grid.resolution,
+            float(high[2] if cut_above is None else np.clip(cut_above, low[2], high[2])),
+        )  # fmt: skip
         self.show_slice = self.server.gui.add_checkbox("show slice", False)
         self.level.on_update(lambda _: self.show_surface())
         self.coloring.on_update(lambda _: self.show_surface())
+        self.cut_above.on_update(lambda _: self.show_surface())
         self.slice_height.on_update(lambda _: self.show_slice_plane())
         self.show_slice.on_update(lambda _: self.show_slice_plane())
         self._show_samples()
@@ -83,6 +90,7 @@ class MapViewer:
     def show_surface(self) -> None:
         """(Re)draw the surface at the slider's level, coloured as the dropdown says."""
         vertices, faces = self.grid.mesh(self.level.value)
+        faces = faces[vertices[faces, 2].min(axis=1) <= self.cut_above.value]
         self.n_faces = len(faces)
         if self.surface is not None:
             self.surface.remove()

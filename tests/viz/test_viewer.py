@@ -85,3 +85,12 @@ def test_a_live_view_shows_the_map_as_it_grows(request, scans):
         assert f"**{run.n_scans} scans**" in live.readout
     finally:
         live.server.stop()
+
+
+def test_cutting_above_a_height_leaves_out_the_ceiling(room_viewer):
+    whole = room_viewer.n_faces
+    room_viewer.cut_above.value = 2.0
+    vertices = np.asarray(room_viewer.mesh.vertices)
+    faces = np.asarray(room_viewer.mesh.faces)
+    assert 0 < room_viewer.n_faces < whole
+    assert np.all(vertices[faces, 2].min(axis=1) <= 2.0)
