@@ -37,6 +37,10 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/online_mapping.py
 	$(BIN)/python benchmarks/scan_times.py
 	$(BIN)/python benchmarks/startup.py
+	$(BIN)/python benchmarks/soak.py
+	$(BIN)/python benchmarks/raycast.py
+	$(BIN)/python benchmarks/bag_stream.py
+	$(BIN)/python benchmarks/viewer.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
