@@ -1,9 +1,9 @@
 """A map in the browser, served with viser (`pip install 'ehm[viewer]'`): for a 3D map its
 surface at an occupancy level (a slider re-meshes it) coloured by height or by the occupancy's
-standard deviation, a horizontal slice of the occupancy as a heat map at a chosen height, the
-surface samples the map keeps, the sensor path and axes in metres; for a 2D map its grid as an
-image with the sensor path. A cut-above slider leaves out the surface above a height, to look
-into rooms.
+standard deviation, a slider that leaves out the surface above a height (to look into rooms), a
+horizontal slice of the occupancy or its std as a heat map at a chosen height, the occupied
+samples the map keeps near surfaces (where its scans hit), the sensor path and axes in metres;
+for a 2D map its grid as an image with the sensor path.
 
     viewer = MapViewer(hilbert_map, resolution=0.1, port=8080)   # http://localhost:8080
     viewer.level.value = 0.7                                     # what the slider does
@@ -66,11 +66,15 @@ class MapViewer:
             float(high[2] if cut_above is None else np.clip(cut_above, low[2], high[2])),
         )  # fmt: skip
         self.show_slice = self.server.gui.add_checkbox("show slice", False)
+        self.slice_of = self.server.gui.add_dropdown(
+            "slice of", ("occupancy", "uncertainty (std)"), initial_value="occupancy"
+        )
         self.level.on_update(lambda _: self.show_surface())
         self.coloring.on_update(lambda _: self.show_surface())
         self.cut_above.on_update(lambda _: self.show_surface())
         self.slice_height.on_update(lambda _: self.show_slice_plane())
         self.show_slice.on_update(lambda _: self.show_slice_plane())
+        self.slice_of.on_update(lambda _: self.show_slice_plane())
         self._show_samples()
         self.show_surface()
 
@@ -115,7 +119,11 @@ class MapViewer:
             (self.slice_height.value - self.grid.origin[2]) / self.grid.resolution,
             0, self.grid.shape[2] - 1,
         ))  # fmt: skip
-        image = _heat_map(self.grid.probability[:, :, k])
+        if self.slice_of.value == "occupancy":
+            image = _heat_map(self.grid.probability[:, :, k])
+        else:  # the std of the occupancy, from 0 (blue) to its largest (red)
+            std = self.grid.std[:, :, k]
+            image = _heat_map(std / max(float(self.grid.std.max()), 1e-9))
         add_plane_image(self.server, "/slice", self.grid, image, self.grid.axis_centers(2)[k])
 
     def _show_plane(self) -> None:

@@ -43,6 +43,7 @@ def test_colouring_by_uncertainty_and_the_slice(room_viewer):
     assert by_std.shape == by_height.shape and not np.array_equal(by_std, by_height)
     room_viewer.show_slice.value = True
     room_viewer.slice_height.value = 1.0
+    room_viewer.slice_of.value = "uncertainty (std)"
     assert room_viewer.url.startswith("http://127.0.0.1:")
 
 
