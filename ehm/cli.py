@@ -36,11 +36,12 @@ class _Commands(TyperGroup):
             errors.print(f"[red]error:[/red] {escape(str(error))}")
             raise typer.Exit(2) from None
         except Exception as error:
-            # Exceptions that carry an exit status are typer's own ways out.
+            # Exceptions that carry an exit status are typer's own ways out; a closed pipe
+            # (`ehm query ... | head`) typer ends quietly.
             if (
                 ctx.params.get("debug")
                 or hasattr(error, "exit_code")
-                or isinstance(error, typer.Abort)
+                or isinstance(error, typer.Abort | BrokenPipeError)
             ):
                 raise
             errors.print(

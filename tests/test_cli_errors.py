@@ -183,3 +183,14 @@ def test_debug_shows_the_traceback_and_bugs_say_so(tmp_path, monkeypatch):
     assert "This is a bug in ehm; `ehm --debug ...` shows where it happened." in result.stderr
     result = runner.invoke(app, ["--debug", "info", str(tmp_path / "junk.ehm")])
     assert isinstance(result.exception, ZeroDivisionError)
+
+
+def test_a_closed_pipe_is_not_called_a_bug(tmp_path, monkeypatch):
+    """`ehm query MAP POINTS | head` closes the pipe early: a quiet end, not a bug report."""
+
+    def closed(path):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr("ehm.hilbert_map.load", closed)
+    result = runner.invoke(app, ["info", str(tmp_path / "m.ehm")])
+    assert result.exit_code == 1 and "bug" not in result.output
