@@ -183,10 +183,7 @@ def street_scene() -> Scene:
         solids.append(([x - 0.15, y - 0.15, 0.0], [x + 0.15, y + 0.15, 3.0]))
     for x in (-36.0, -8.0, 5.0, 30.0):  # parked cars in the north lane
         solids.append(([x, 4.0, 0.0], [x + 4.4, 5.8, 1.5]))
-    box_min = np.array([b[0] for b in solids])
-    box_max = np.array([b[1] for b in solids])
-    crowns = np.array([[x, y, 4.8] for x, y in trees])
-    return Scene(box_min, box_max, crowns, np.full(len(crowns), 2.0))
+    return scene_of(solids, [(x, y, 4.8) for x, y in trees], 2.0)
 
 
 def street(
@@ -290,15 +287,76 @@ def corridor_2d(
     rng = np.random.default_rng(seed)
     scans = []
     for pose in poses:
-        # Only the solids within range can be hit: ray-cast against those alone.
-        gap = np.maximum(np.maximum(scene.box_min - pose, pose - scene.box_max), 0.0)
-        near = np.linalg.norm(gap, axis=1) <= max_range
-        balls = np.linalg.norm(scene.ball_centres - pose, axis=1) <= max_range + scene.ball_radii
-        local = Scene(
-            scene.box_min[near],
-            scene.box_max[near],
-            scene.ball_centres[balls],
-            scene.ball_radii[balls],
-        )
+        local = solids_in_range(scene, pose, max_range)
         scans.append(simulate_scan(local, pose, directions, max_range, noise_std, rng))
     return SimulatedDataset("corridor_2d", scans, scene)
+
+
+def scene_of(boxes: list, balls: list, radius: float) -> Scene:
+    """A 3D Scene of boxes ([low corner], [high corner]) and balls (x, y, z) of one radius."""
+    return Scene(
+        np.array([box[0] for box in boxes], dtype=np.float64),
+        np.array([box[1] for box in boxes], dtype=np.float64),
+        np.array(balls, dtype=np.float64).reshape(-1, 3),
+        np.full(len(balls), radius),
+    )
+
+
+def solids_in_range(scene: Scene, origin: np.ndarray, max_range: float) -> Scene:
+    """The solids of `scene` within `max_range` metres of `origin`: the only ones a scan from
+    there can hit, so ray-casting against them alone gives the same ranges, faster."""
+    gap = np.maximum(np.maximum(scene.box_min - origin, origin - scene.box_max), 0.0)
+    near = np.linalg.norm(gap, axis=1) <= max_range
+    balls = np.linalg.norm(scene.ball_centres - origin, axis=1) <= max_range + scene.ball_radii
+    return Scene(
+        scene.box_min[near], scene.box_max[near], scene.ball_centres[balls], scene.ball_radii[balls]
+    )
+
+
+def city_scene(length: float = 1000.0, seed: int = 0) -> Scene:
+    """A straight city street `length` metres long along +x: ground in 50 m tiles, buildings
+    8-30 m tall in blocks of 60-100 m on both sides (facades 9 m from the axis), cross streets
+    14 m wide between blocks, lamp posts every 25 m and trees every 40 m on the sidewalks."""
+    rng = np.random.default_rng(seed)
+    solids = []
+    for x in np.arange(0.0, length, 50.0):  # ground tiles, so scans see only those near
+        solids.append(([x, -60.0, -0.5], [x + 50.0, 60.0, 0.0]))
+    for side in (1.0, -1.0):
+        x = 0.0
+        while x < length:
+            block = rng.uniform(60.0, 100.0)
+            for start in np.arange(x, min(x + block, length), 20.0):
+                end = min(start + rng.uniform(14.0, 20.0), x + block, length)
+                y0, y1 = sorted((side * 9.0, side * 24.0))
+                solids.append(([start, y0, 0.0], [end, y1, rng.uniform(8.0, 30.0)]))
+            x += block + 14.0  # a cross street
+        for x in np.arange(12.5, length, 25.0):  # lamp posts
+            y = side * 7.5
+            solids.append(([x - 0.05, y - 0.05, 0.0], [x + 0.05, y + 0.05, 6.0]))
+    trees = [(x, side * 7.0) for x in np.arange(20.0, length, 40.0) for side in (1.0, -1.0)]
+    for x, y in trees:
+        solids.append(([x - 0.15, y - 0.15, 0.0], [x + 0.15, y + 0.15, 3.0]))
+    return scene_of(solids, [(x, y, 4.5) for x, y in trees], 1.8)
+
+
+def city_drive(
+    seed: int = 0,
+    length: float = 1000.0,
+    n_scans: int = 1000,
+    rings: int = 16,
+    azimuths: int = 512,
+    noise_std: float = 0.02,
+    max_range: float = 40.0,
+) -> SimulatedDataset:
+    """`n_scans` scans of a 16-ring LiDAR (rings x azimuths rays, elevations -15 to +10
+    degrees, 1.8 m up, `max_range` metres) evenly spaced down the right lane of
+    `city_scene(length)`: a large scene, made on the fly, for tiled maps."""
+    scene = city_scene(length, seed)
+    directions = lidar_directions(rings, azimuths, 10.0, -15.0)
+    rng = np.random.default_rng(seed)
+    scans = []
+    for x in np.linspace(1.0, length - 1.0, n_scans):
+        origin = np.array([x, -2.0, 1.8])
+        local = solids_in_range(scene, origin, max_range)
+        scans.append(simulate_scan(local, origin, directions, max_range, noise_std, rng))
+    return SimulatedDataset("city_drive", scans, scene)

@@ -3,7 +3,7 @@
 import numpy as np
 
 from ehm.eval.datasets import street, warehouse
-from ehm.eval.datasets.simulated import corridor_2d, warehouse_drive
+from ehm.eval.datasets.simulated import city_drive, corridor_2d, warehouse_drive
 
 
 def test_warehouse_scans_start_in_free_space_and_end_on_surfaces():
@@ -68,3 +68,19 @@ def test_warehouse_drive_loops_round_the_shelving():
         hits = scan.points_world[scan.hit_mask]
         np.testing.assert_allclose(data.scene.surface_distance(hits), 0.0, atol=1e-6)
         assert np.all(np.linalg.norm(scan.points_world - scan.origin, axis=1) <= 30.0 + 1e-9)
+
+
+def test_city_drive_runs_down_a_long_street():
+    data = city_drive(length=300.0, n_scans=12, rings=4, azimuths=128, noise_std=0.0)
+    origins = np.array([scan.origin for scan in data.scans])
+    np.testing.assert_allclose(origins[[0, -1], 0], [1.0, 299.0])
+    assert np.all(origins[:, 1:] == [-2.0, 1.8]) and not data.scene.occupied(origins).any()
+    for scan in data.scans:
+        hits = scan.points_world[scan.hit_mask]
+        # Cast against the solids in range only, the hits lie on the whole scene's surfaces.
+        np.testing.assert_allclose(data.scene.surface_distance(hits), 0.0, atol=1e-6)
+        assert 0.3 < scan.hit_mask.mean() < 1.0  # ground and facades; sky, and past the ends
+    again = city_drive(length=300.0, n_scans=12, rings=4, azimuths=128, noise_std=0.0)
+    np.testing.assert_array_equal(again.scans[5].points_world, data.scans[5].points_world)
+    heights = data.scene.box_max[:, 2]
+    assert heights.max() > 20.0 and np.sum(heights > 7.0) > 10  # buildings along the street
