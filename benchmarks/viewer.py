@@ -12,9 +12,7 @@ into benchmarks/figures/viewer.png.
 
 from __future__ import annotations
 
-import shutil
 import socket
-import subprocess
 import time
 from pathlib import Path
 
@@ -23,7 +21,7 @@ from common import heading, markdown_table
 import ehm
 from ehm.eval.datasets import DataMissingError, load_dataset, virtual_room
 from ehm.pipeline import MappingPipeline
-from ehm.viz.viewer import LiveView, MapViewer
+from ehm.viz.viewer import LiveView, MapViewer, browser_screenshot
 
 
 def free_port() -> int:
@@ -69,13 +67,7 @@ def take_picture(hilbert_map: ehm.HilbertMap, path: Path) -> None:
     """A screenshot of the map in headless Chromium, 1200 x 800 pixels."""
     viewer = MapViewer(hilbert_map, resolution=0.1, port=free_port(), cut_above=2.2)
     try:
-        subprocess.run(
-            [shutil.which("chromium") or "chromium", "--headless=new", "--no-sandbox",
-             "--hide-scrollbars", "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
-             "--window-size=1200,800", "--virtual-time-budget=20000",
-             f"--screenshot={path}", viewer.url],
-            check=True, capture_output=True, timeout=180,
-        )  # fmt: skip
+        browser_screenshot(viewer.url, path)
     finally:
         viewer.server.stop()
 

@@ -39,12 +39,7 @@ from ehm.core.logistic import sigmoid
 from ehm.core.memory import SampleMemory
 from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
-from ehm.core.raycast import (
-    CandidateCells,
-    first_crossings,
-    grid_crossings,
-    refine_guesses,
-)
+from ehm.core.raycast import CandidateCells, GridLogOdds, first_crossings, refine_guesses
 from ehm.core.samples import TrainingSamples, samples_of_scans
 from ehm.core.scan import Scan
 from ehm.core.sgd import loss_weights, train_weights
@@ -106,7 +101,8 @@ class HilbertMap:
         self._lineage = object()
         # What rays march (raycast): a grid of the log-odds, and the cells where they can pass
         # each level; made when first needed, dropped when the map learns.
-        self._ray_grid: OccupancyGrid | None = None
+        self._ray_grid: GridLogOdds | None = None
+        self._ray_grid_made = False
         self._ray_cells: dict[float, CandidateCells | None] = {}
 
     # ------------------------------------------------------------------ state
@@ -165,7 +161,7 @@ class HilbertMap:
         memory = 0 if self.memory_ is None else self.memory_.nbytes
         learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
         search = self._supports if self.config.features == "support" else self._index
-        rays = 0 if self._ray_grid is None else self._ray_grid.scores.nbytes
+        rays = 0 if self._ray_grid is None else self._ray_grid.values.nbytes
         rays += sum(cells.keys.nbytes for cells in self._ray_cells.values() if cells is not None)
         path = sum(origin.nbytes for origin in self._origins)
         return learned + search.nbytes + rays + path
@@ -494,18 +490,9 @@ class HilbertMap:
             return self._scores(points, mode, False)[0]
 
         distance = np.full(len(origins), np.nan)
-        ray_grid = self._ray_grid_of(radius)
+        ray_grid = self._ray_grid_of()
         if ray_grid is not None:
-            guess = grid_crossings(
-                origins,
-                directions,
-                max_range,
-                np.ascontiguousarray(ray_grid.scores + ray_grid.intercept),
-                ray_grid.origin,
-                ray_grid.resolution,
-                threshold,
-                radius / 2.0,
-            )
+            guess = ray_grid.crossings(origins, directions, max_range, threshold, radius / 2.0)
             guided = np.flatnonzero(np.isfinite(guess))
             # The exact crossing, looked for from two voxels before the grid's to two after.
             low = np.maximum(guess[guided] - 2.0 * radius, 0.0)
@@ -542,16 +529,19 @@ class HilbertMap:
         )
         return distance
 
-    def _ray_grid_of(self, resolution: float) -> OccupancyGrid | None:
-        """The grid of the map's log-odds at `resolution` that rays march first (kept until
-        the map learns), or None for a map whose grid would pass RAY_GRID_MAX_BYTES."""
-        if self._ray_grid is None or self._ray_grid.resolution != resolution:
+    def _ray_grid_of(self) -> GridLogOdds | None:
+        """The map's log-odds on a grid of cluster_radius voxels that rays march first (made
+        once, kept until the map learns), or None where that grid would pass
+        RAY_GRID_MAX_BYTES."""
+        if not self._ray_grid_made:
+            self._ray_grid_made = True
+            resolution = self.config.cluster_radius
             try:
-                self._ray_grid = OccupancyGrid.of(
-                    self.snapshot(), None, resolution, RAY_GRID_MAX_BYTES
-                )
+                grid = OccupancyGrid.of(self.snapshot(), None, resolution, RAY_GRID_MAX_BYTES)
             except InputError:
                 return None
+            values = np.ascontiguousarray(grid.scores + grid.intercept)
+            self._ray_grid = GridLogOdds(values, grid.origin, grid.resolution)
         return self._ray_grid
 
     def segment_free(
@@ -702,7 +692,7 @@ class HilbertMap:
     def _update_followers(self) -> None:
         """Bring every following grid up to date, timed as the stage 'grids'; drop the grid
         rays march, now out of date."""
-        self._ray_grid = None
+        self._ray_grid, self._ray_grid_made = None, False
         self._ray_cells = {}
         if len(self._followers) == 0:
             return

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -42,7 +43,7 @@ def first_crossings(
     origins (n, d), metres; directions (n, d), unit; max_range (n,), metres. Points are
     `step` apart within the runs of `cells` the ray crosses (None: all along the ray); the
     crossing is located within `tolerance` (the midpoint of the last interval bisected)."""
-    n, d = origins.shape
+    n = len(origins)
     distance = np.full(n, np.inf)
     inside = log_odds(origins) > threshold
     distance[inside] = 0.0
@@ -56,17 +57,10 @@ def first_crossings(
     ladder = step * np.arange(1, STEPS_PER_ROUND + 1)
     while active.size:
         t = np.minimum(reached[active, None] + ladder, run_end[active, None])
-        points = origins[active, None, :] + directions[active, None, :] * t[:, :, None]
-        above = log_odds(points.reshape(-1, d)).reshape(t.shape) > threshold
-        crossed = above.any(axis=1)
-        first = np.argmax(above, axis=1)
-        rays = active[crossed]
-        high = t[crossed, first[crossed]]
-        before = t[crossed, np.maximum(first[crossed] - 1, 0)]
-        low = np.where(first[crossed] > 0, before, reached[rays])
-        distance[rays] = _bisect(
-            log_odds, origins[rays], directions[rays], low, high, threshold, tolerance
+        crossed, found = _ladder_crossings(
+            log_odds, origins[active], directions[active], reached[active], t, threshold, tolerance
         )
+        distance[active[crossed]] = found[crossed]
         active, t = active[~crossed], t[~crossed]
         reached[active] = t[:, -1]
         done = t[:, -1] >= run_end[active]
@@ -95,25 +89,43 @@ def refine_guesses(
     (n,) along each ray: samples `step` apart from low, the step that crosses bisected to
     `tolerance`; NaN where the log-odds are above the threshold at low already or never
     within [low, high] (the guess was wrong)."""
-    n = len(low)
-    count = int(np.ceil(np.max(high - low, initial=0.0) / step)) + 1
-    t = np.minimum(low[:, None] + step * np.arange(count), high[:, None])
+    distance = np.full(len(low), np.nan)
+    below = np.flatnonzero(log_odds(origins + directions * low[:, None]) <= threshold)
+    count = int(np.ceil(np.max(high - low, initial=0.0) / step))
+    t = np.minimum(low[below, None] + step * np.arange(1, count + 1), high[below, None])
+    crossed, found = _ladder_crossings(
+        log_odds, origins[below], directions[below], low[below], t, threshold, tolerance
+    )
+    distance[below[crossed]] = found[crossed]
+    return distance
+
+
+def _ladder_crossings(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    start: np.ndarray,
+    t: np.ndarray,
+    threshold: float,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rays sampled at distances t (n, k), metres, beyond `start` (n,), where the log-odds
+    are at most the threshold: (n,) bool, whether a sample is above it, and (n,) the
+    crossing bisected to `tolerance` between the first such sample and the one before (or
+    `start`); NaN where none is."""
+    found = np.full(len(t), np.nan)
+    if t.size == 0:
+        return np.zeros(len(t), dtype=bool), found
     points = origins[:, None, :] + directions[:, None, :] * t[:, :, None]
     above = log_odds(points.reshape(-1, origins.shape[1])).reshape(t.shape) > threshold
-    first = np.argmax(above, axis=1)
-    settled = above.any(axis=1) & (first > 0)
-    rows = np.flatnonzero(settled)
-    distance = np.full(n, np.nan)
-    distance[rows] = _bisect(
-        log_odds,
-        origins[rows],
-        directions[rows],
-        t[rows, first[rows] - 1],
-        t[rows, first[rows]],
-        threshold,
-        tolerance,
+    crossed = above.any(axis=1)
+    first = np.argmax(above, axis=1)[crossed]
+    rows = np.flatnonzero(crossed)
+    low = np.where(first > 0, t[rows, np.maximum(first - 1, 0)], start[rows])
+    found[rows] = _bisect(
+        log_odds, origins[rows], directions[rows], low, t[rows, first], threshold, tolerance
     )
-    return distance
+    return crossed, found
 
 
 def _bisect(
@@ -339,6 +351,29 @@ def next_run_reference(
             after = np.flatnonzero(~candidate[first:])
             leave[i] = t[first + after[0]] if len(after) else stop[i]
     return entry, leave
+
+
+class GridLogOdds(NamedTuple):
+    """A map's log-odds at voxel centres: values (d-dimensional, float64, C order), the grid's
+    low corner `origin` (d,) and voxel side `resolution`, metres."""
+
+    values: np.ndarray
+    origin: np.ndarray
+    resolution: float
+
+    def crossings(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        max_range: np.ndarray,
+        threshold: float,
+        step: float,
+    ) -> np.ndarray:
+        """(n,) the first sample along each ray where they exceed `threshold` (grid_crossings)."""
+        return grid_crossings(
+            origins, directions, max_range, self.values, self.origin, self.resolution, threshold,
+            step,
+        )  # fmt: skip
 
 
 @numba.njit(cache=True, parallel=True)

@@ -16,19 +16,9 @@ from ehm.errors import FileReadError, InputError
 from ehm.io.files import read_bytes, read_text
 
 
-def read_tum(
-    folder: str | PathLike[str],
-    fx: float = 520.9,
-    fy: float = 521.0,
-    cx: float = 325.1,
-    cy: float = 249.7,
-    depth_scale: float = 5000.0,
-    pixel_stride: int = 2,
-) -> list[Scan]:
-    """TUM RGB-D depth frames listed in `folder`/poses.txt (`depth/<file> tx ty tz qx qy qz
-    qw`, camera-to-world). Intrinsics default to Freiburg 2; depth in metres = value /
-    depth_scale; 0 means no reading and is skipped. Every `pixel_stride`-th pixel is used."""
-    return list(tum_scans(folder, fx, fy, cx, cy, depth_scale, pixel_stride))
+def read_tum(folder: str | PathLike[str], **camera: float) -> list[Scan]:
+    """Every frame of `tum_scans` (same arguments), read now."""
+    return list(tum_scans(folder, **camera))
 
 
 def tum_scans(
@@ -40,7 +30,10 @@ def tum_scans(
     depth_scale: float = 5000.0,
     pixel_stride: int = 2,
 ) -> Iterator[Scan]:
-    """The frames of `read_tum`, each read when it is asked for."""
+    """TUM RGB-D depth frames listed in `folder`/poses.txt (`depth/<file> tx ty tz qx qy qz
+    qw`, camera-to-world), each read when it is asked for. Intrinsics default to Freiburg 2;
+    depth in metres = value / depth_scale; 0 means no reading and is skipped. Every
+    `pixel_stride`-th pixel is used."""
     folder = Path(folder)
     poses_path = folder / "poses.txt"
     for number, line in enumerate(read_text(poses_path).splitlines(), start=1):

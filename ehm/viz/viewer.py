@@ -13,10 +13,14 @@ Nothing else in the package imports this module.
 
 from __future__ import annotations
 
+import shutil
+import subprocess
 import time
+from os import PathLike
 
 import numpy as np
 
+from ehm.errors import InputError
 from ehm.hilbert_map import HilbertMap
 from ehm.pipeline import MappingRun, NullObserver
 from ehm.viz.colors import height_colors
@@ -47,6 +51,7 @@ class MapViewer:
         self.surface = None
         self.mesh = None
         self.n_faces = 0
+        self.samples = self.show_samples = None  # a map that keeps samples shows them
         self._aim_camera()
         self._show_axes_and_path()
         if hilbert_map.dim == 2:
@@ -138,18 +143,14 @@ class MapViewer:
         kept = np.arange(memory.points.shape[1]) < memory.filled[:, None]
         points = memory.points[memory.occupied & kept]
         if len(points):
-            self.server.scene.add_point_cloud(
+            self.samples = self.server.scene.add_point_cloud(
                 "/samples", points.astype(np.float32), SAMPLE_COLOR, point_size=0.01,
                 visible=False,
             )  # fmt: skip
-            samples = self.server.gui.add_checkbox("show kept samples", False)
-
-            @samples.on_update
-            def _(_) -> None:
-                self.server.scene.add_point_cloud(
-                    "/samples", points.astype(np.float32), SAMPLE_COLOR, point_size=0.01,
-                    visible=samples.value,
-                )  # fmt: skip
+            self.show_samples = self.server.gui.add_checkbox("show kept samples", False)
+            self.show_samples.on_update(
+                lambda _: setattr(self.samples, "visible", self.show_samples.value)
+            )
 
     def _show_axes_and_path(self) -> None:
         """Axes at the origin (1 m long) and a grid of 1 m cells on the floor; the sensor path."""
@@ -178,6 +179,24 @@ def add_plane_image(server, name: str, grid, image: np.ndarray, z: float) -> Non
         render_height=float(y1 - y0),
         position=((x0 + x1) / 2, (y0 + y1) / 2, z),
     )
+
+
+def browser_screenshot(
+    url: str, path: str | PathLike[str], width: int = 1200, height: int = 800
+) -> None:
+    """Write a PNG of the page at `url` as headless Chromium draws it (Debian's chromium
+    package, which `make test` installs; WebGL in software). Chromium's virtual time runs the
+    page as fast as it can, up to 20 s of page time, then takes the picture."""
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        raise InputError("headless screenshots need Chromium: apt-get install chromium")
+    subprocess.run(
+        [chromium, "--headless=new", "--no-sandbox", "--hide-scrollbars",
+         "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
+         f"--window-size={width},{height}", "--virtual-time-budget=20000",
+         f"--screenshot={path}", url],
+        check=True, capture_output=True, timeout=180,
+    )  # fmt: skip
 
 
 def colored_mesh(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray, span: tuple):

@@ -44,6 +44,9 @@ def test_colouring_by_uncertainty_and_the_slice(room_viewer):
     room_viewer.show_slice.value = True
     room_viewer.slice_height.value = 1.0
     room_viewer.slice_of.value = "uncertainty (std)"
+    assert not room_viewer.samples.visible
+    room_viewer.show_samples.value = True
+    assert room_viewer.samples.visible
     assert room_viewer.url.startswith("http://127.0.0.1:")
 
 

@@ -3,7 +3,6 @@ page, and its screenshot must show the map."""
 
 import shutil
 import socket
-import subprocess
 import threading
 
 import numpy as np
@@ -11,7 +10,7 @@ import pytest
 from PIL import Image
 
 pytest.importorskip("viser")
-from ehm.viz.viewer import MapViewer
+from ehm.viz.viewer import MapViewer, browser_screenshot
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
@@ -29,15 +28,7 @@ def test_the_page_shows_the_map(room_map, tmp_path):
     viewer.server.on_client_connect(lambda client: connected.set())
     shot = tmp_path / "viewer.png"
     try:
-        # Chromium's virtual time runs the page (websocket, scene, WebGL in software) as fast
-        # as it can, up to the budget, then takes the screenshot.
-        subprocess.run(
-            [CHROMIUM, "--headless=new", "--no-sandbox", "--hide-scrollbars",
-             "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
-             "--window-size=1200,800", "--virtual-time-budget=20000",
-             f"--screenshot={shot}", viewer.url],
-            check=True, capture_output=True, timeout=180,
-        )  # fmt: skip
+        browser_screenshot(viewer.url, shot)
     finally:
         viewer.server.stop()
     assert connected.is_set()  # the page reached the server
