@@ -48,6 +48,12 @@ class MapConfig:
     """Rays longer than this are cut here and learned as rays without return (free space up
     to max_range, no hit), as OctoMap's maxrange does, metres; 0 for no limit. A sensor's
     glitch far away then costs one ray, not a far cluster."""
+    learn_box: tuple[float, ...] = ()
+    """Learn only inside this box: its low corner then its high corner, metres, world frame
+    (4 numbers in 2D, 6 in 3D); empty, everywhere. Samples outside it are left out and free
+    samples are drawn only along the part of each ray inside it, as densely as along the
+    whole ray, so a map of a box learns what a map of everything learns there. The tiles of
+    a TiledMap are such maps."""
     max_free_samples: int = 1000
     """Most free samples drawn along one ray: a longer ray gets them sparser, so a scan's
     samples are bounded by its rays, never by how far one point lies (at the default
@@ -218,6 +224,7 @@ class MapConfig:
                 raise SettingsError(
                     f"MapConfig.{field.name} must be a finite number, got {value!r}"
                 )
+        self._check_learn_box()
         for name in LENGTH_SETTINGS:
             if 0 < getattr(self, name) < SMALLEST_LENGTH:
                 raise SettingsError(
@@ -309,6 +316,28 @@ class MapConfig:
             raise SettingsError(
                 f"MapConfig.query_mode must be 'batch' or 'exact', got {self.query_mode!r}"
             )
+
+    def _check_learn_box(self) -> None:
+        """SettingsError unless learn_box is empty or a box's corners; stored as floats."""
+        try:
+            box = tuple(float(v) for v in self.learn_box)
+        except (TypeError, ValueError):
+            box = None
+        if box is not None and not box:
+            object.__setattr__(self, "learn_box", ())
+            return
+        half = len(box) // 2 if box is not None else 0
+        if (
+            box is None
+            or len(box) not in (4, 6)
+            or not all(math.isfinite(v) for v in box)
+            or not all(box[i] < box[half + i] for i in range(half))
+        ):
+            raise SettingsError(
+                "MapConfig.learn_box must be empty or a low corner then a high corner, 4 or 6 "
+                f"finite numbers with low < high on every axis, got {self.learn_box!r}"
+            )
+        object.__setattr__(self, "learn_box", box)
 
     @classmethod
     def for_resolution(cls, resolution: float, **overrides: Any) -> MapConfig:

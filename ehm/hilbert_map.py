@@ -436,10 +436,15 @@ class HilbertMap:
             return proba
         return proba, occupancy_std(scores, variance)
 
-    def decision_function(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+    def decision_function(
+        self, points: np.ndarray, mode: str | None = None, return_variance: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n,) float64 log-odds of occupancy: w^T phi(x), plus the intercept b when
-        config.query_intercept is set (Alg. 3)."""
-        return self._scores(points, mode, with_variance=False)[0]
+        config.query_intercept is set (Alg. 3); with return_variance, the pair (log-odds,
+        variance): (n,) float64 variance of the log-odds under the weights' posterior, from
+        which `occupancy`'s std follows (ehm.core.uncertainty.occupancy_std)."""
+        scores, variance = self._scores(points, mode, return_variance)
+        return (scores, variance) if return_variance else scores
 
     def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
         """(n, d) float64 gradient of the occupancy log-odds (`decision_function`) with

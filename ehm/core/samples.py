@@ -8,7 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
+from ehm.core.boxes import points_in_box, ray_box_intervals
 from ehm.core.scan import Scan
+from ehm.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -68,7 +70,8 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     occupied; one point in the band from `surface_margin` / 4 to `surface_margin` in front of
     it is free. Along each ray, free points are drawn uniformly, `free_spacing` apart on
     average (at most `max_free_samples` of them), up to `surface_margin` before the hit, or
-    over the whole length of a ray without return.
+    over the whole length of a ray without return. With `learn_box`, only samples inside
+    it are kept, free ones drawn along the part of each ray inside it alone.
     """
     offsets = scan.points_world - scan.origin
     lengths = np.linalg.norm(offsets, axis=1)
@@ -91,11 +94,18 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     in_front = hit_points - hit_dirs * front_depth[:, None]
 
     free_length = np.where(hits, np.maximum(lengths - margin, 0.0), lengths)
-    expected = free_length / config.free_spacing
-    counts = np.floor(expected + rng.random(len(expected))).astype(np.int64)
+    # The free part of each ray that is learned: all of it, or the part inside learn_box,
+    # sampled as densely as the whole ray (max_free_samples spreads a long ray's samples).
+    spacing = np.maximum(config.free_spacing, free_length / config.max_free_samples)
+    free_start, free_end = np.zeros(len(lengths)), free_length
+    if config.learn_box:
+        box = _learn_box(config, scan.dim)
+        free_start, free_end = ray_box_intervals(scan.origin, directions, free_length, box)
+    free_span = np.maximum(free_end - free_start, 0.0)
+    counts = np.floor(free_span / spacing + rng.random(len(lengths))).astype(np.int64)
     counts = np.minimum(counts, config.max_free_samples)
     ray_of_sample = np.repeat(np.arange(len(counts)), counts)
-    depth = free_length[ray_of_sample] * rng.random(len(ray_of_sample))
+    depth = free_start[ray_of_sample] + free_span[ray_of_sample] * rng.random(len(ray_of_sample))
     along = scan.origin + directions[ray_of_sample] * depth[:, None]
 
     points = np.concatenate([hit_points, behind, in_front, along])
@@ -104,7 +114,18 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     occupied[:n_occupied] = True
     at_surface = np.zeros(len(points), dtype=bool)
     at_surface[: n_occupied + len(in_front)] = True
-    return TrainingSamples(points, occupied, at_surface)
+    samples = TrainingSamples(points, occupied, at_surface)
+    if config.learn_box:  # the samples around hits outside the box
+        return samples.subset(points_in_box(points, box))
+    return samples
+
+
+def _learn_box(config: MapConfig, dim: int) -> np.ndarray:
+    """config.learn_box as a (2, dim) array, metres; InputError for a box of another dim."""
+    box = np.asarray(config.learn_box, dtype=np.float64).reshape(2, -1)
+    if box.shape[1] != dim:
+        raise InputError(f"MapConfig.learn_box is a {box.shape[1]}D box, the scan is {dim}D")
+    return box
 
 
 def samples_of_scans(

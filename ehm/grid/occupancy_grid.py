@@ -88,6 +88,27 @@ class OccupancyGrid:
         grid.update(snapshot)
         return grid
 
+    @classmethod
+    def of_log_odds(
+        cls,
+        origin: np.ndarray,
+        resolution: float,
+        log_odds: np.ndarray,
+        variance: np.ndarray | None = None,
+    ) -> OccupancyGrid:
+        """A grid of given values, for maps that are not one snapshot (a TiledMap blends its
+        tiles'): origin (d,) metres, world frame, low corner; log_odds, an array of the grid's
+        shape; variance, of the same shape, the log-odds' variance at each voxel (None: a grid
+        without the std). `variance_sums` then holds (variance, 1): the whole variance, no
+        background share. `update` starts such a grid over from a snapshot."""
+        log_odds = np.asarray(log_odds, dtype=np.float64)
+        grid = cls(origin, resolution, log_odds.shape, variance is not None)
+        grid._fields[0] = log_odds
+        if variance is not None:
+            grid._fields[1] = variance
+            grid._fields[2] = 1.0
+        return grid
+
     @property
     def scores(self) -> np.ndarray:
         """Log-odds w^T phi at each voxel centre (Eq. 17), float64 array of `shape` (a view)."""

@@ -1,9 +1,11 @@
 """Reading input files whole, with errors that name the file: missing, a folder, unreadable,
-not text, or a broken bzip2 stream."""
+not text, or a broken bzip2 stream; and writing files whole, atomically."""
 
 from __future__ import annotations
 
 import bz2
+import os
+import tempfile
 from os import PathLike
 from pathlib import Path
 
@@ -50,3 +52,19 @@ def _bunzip(path: str | PathLike[str], data: bytes) -> bytes:
             raise FileReadError(path, "truncated bzip2 stream")
         data = stream.unused_data
     return b"".join(parts)
+
+
+def write_atomically(path: str | PathLike[str], data: bytes) -> None:
+    """Write `data` to `path`: a temporary file in the same folder, synced, then a rename, so
+    what was there survives a crash half-way and readers never see half a file."""
+    target = Path(path)
+    fd, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent or ".")
+    try:
+        with os.fdopen(fd, "wb") as stream:
+            stream.write(data)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temporary, target)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

@@ -65,6 +65,17 @@ def kitti_scans(
 ) -> Iterator[Scan]:
     """The scans of `read_kitti`, each read when it is asked for; the frame numbers, poses
     and calibration are checked first, here."""
+    frames = kitti_frames(bin_paths, poses_path, calib)
+    return (read_kitti_scan(path, T_world_velodyne) for path, T_world_velodyne in frames)
+
+
+def kitti_frames(
+    bin_paths: list[str | PathLike[str]],
+    poses_path: str | PathLike[str],
+    calib: str | PathLike[str] | None = None,
+) -> list[tuple[Path, np.ndarray]]:
+    """Each scan's file and (4, 4) T_world_velodyne, in frame order, checked (frame numbers,
+    poses and calibration; see read_kitti); no scan is read."""
     frames = sorted((_frame_number(path), Path(path)) for path in bin_paths)
     poses = read_poses(poses_path)
     T_camera_velodyne = _calibration(frames[0][1], calib)
@@ -73,11 +84,11 @@ def kitti_scans(
             raise FileReadError(
                 poses_path, f"{len(poses)} poses: none for frame {frame} ({path.name})"
             )
-    return (_kitti_scan(path, poses[frame] @ T_camera_velodyne) for frame, path in frames)
+    return [(path, poses[frame] @ T_camera_velodyne) for frame, path in frames]
 
 
-def _kitti_scan(path: Path, T_world_velodyne: np.ndarray) -> Scan:
-    """One Velodyne scan in world frame."""
+def read_kitti_scan(path: Path, T_world_velodyne: np.ndarray) -> Scan:
+    """One Velodyne scan in world frame, placed by its (4, 4) T_world_velodyne."""
     raw = read_bytes(path)
     if len(raw) % 16:
         raise FileReadError(

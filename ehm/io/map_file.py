@@ -16,12 +16,9 @@ Layout (little-endian):
 from __future__ import annotations
 
 import json
-import os
 import struct
-import tempfile
 import zlib
 from os import PathLike
-from pathlib import Path
 
 import numpy as np
 
@@ -32,7 +29,7 @@ from ehm.core.memory import SampleMemory
 from ehm.core.scan import Scan
 from ehm.core.state import MapState
 from ehm.errors import EhmError, FileReadError
-from ehm.io.files import read_bytes
+from ehm.io.files import read_bytes, write_atomically
 
 MAGIC = b"EHMMAP\r\n"
 # Arrays of the anchor layers are stored beside the clusters' under names with this prefix.
@@ -59,7 +56,8 @@ SENSOR_PATH = "sensor_path"
 # scans waiting for their batch; older ones learned them before saving.
 # Version 11 maps keep the origin of every scan given (the sensor path); older files load
 # with none.
-FORMAT_VERSION = 11
+# Version 12 maps may learn inside a box only (MapConfig.learn_box: the tiles of a TiledMap).
+FORMAT_VERSION = 12
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -72,6 +70,11 @@ class MapFileError(FileReadError):
 def write_map(state: MapState, path: str | PathLike[str]) -> None:
     """Write a map's state to `path`: a temporary file in the same folder, then a rename, so an
     existing map survives a crash half-way."""
+    write_atomically(path, map_bytes(state))
+
+
+def map_bytes(state: MapState) -> bytes:
+    """A map's state as the bytes of its file."""
     arrays = {name: np.ascontiguousarray(a) for name, a in state.clusters.arrays().items()}
     anchors = state.anchors
     for layer, (parents, coarse) in enumerate(zip(anchors.parents, anchors.coarse, strict=True)):
@@ -105,24 +108,18 @@ def write_map(state: MapState, path: str | PathLike[str]) -> None:
         [_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(header)), header]
         + [a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes() for a in arrays.values()]
     )
-    target = Path(path)
-    fd, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as stream:
-            stream.write(body)
-            stream.write(_CRC.pack(zlib.crc32(body)))
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, target)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    return body + _CRC.pack(zlib.crc32(body))
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 11); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 12); MapFileError
     names what is wrong otherwise."""
-    data = read_bytes(path)
+    return map_state_of_bytes(read_bytes(path), path)
+
+
+def map_state_of_bytes(data: bytes, path: str | PathLike[str]) -> MapState:
+    """The state of a map from the bytes of its file; MapFileError names `path` and what is
+    wrong with them."""
     if len(data) < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
         raise MapFileError(path, "not an ehm map file (unknown magic bytes)")
     if len(data) < _PREAMBLE.size + _CRC.size:

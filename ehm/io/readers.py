@@ -8,7 +8,7 @@ scans = read_scans("tum_sequence/")                 # folder with poses.txt and 
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from itertools import islice
 from os import PathLike
 from pathlib import Path
@@ -20,7 +20,7 @@ from ehm.core.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen
-from ehm.io.kitti import kitti_files, kitti_scans
+from ehm.io.kitti import kitti_files, kitti_frames, read_kitti_scan
 from ehm.io.las import read_las
 from ehm.io.octomap_graph import read_octomap_graph
 from ehm.io.pcd import read_pcd
@@ -84,9 +84,21 @@ def scan_stream(
     odometry: str | None = None,
 ) -> Iterator[Scan]:
     """Scans from one or more files of one format, in world frame, each read when it is asked
-    for, so mapping starts with the first and memory holds one at a time. Everything that can
-    be checked before reading scans is checked here (files exist, options fit the format,
-    poses and calibration files read); a scan that cannot be read raises when it is reached.
+    for, so mapping starts with the first and memory holds one at a time (see ScanFiles for
+    the arguments and the checks made before any scan is read)."""
+    return iter(
+        ScanFiles(paths, format, origin, poses, calib, every, limit, topic, frame, odometry)
+    )
+
+
+class ScanFiles:
+    """The scans of one or more files of one format, in world frame, checked but not read:
+    iterate to read them in order, one at a time, or `read` some by index. Small and
+    picklable, so processes of a cluster can each read the scans they need.
+
+    Everything that can be checked before reading scans is checked when it is made (files
+    exist, options fit the format, poses and calibration files read); a scan that cannot be
+    read raises when it is reached.
 
     origin: sensor position (3,), metres, world frame, for point clouds (xyz, ply, pcd, las),
         which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
@@ -99,40 +111,90 @@ def scan_stream(
         fixed frame they are placed in by /tf, and an odometry topic to place them by instead
         (see ehm.io.bags); `poses` gives one pose per message instead.
 
+    Files of one scan each (xyz, ply, pcd, las, kitti) are read by index directly; logs,
+    graphs, TUM folders and bags hold many scans and are read from their start.
     Raises FileReadError naming the file for anything it cannot read, InputError for options
     that do not fit the format.
     """
-    items = [paths] if isinstance(paths, str | PathLike) else list(paths)
-    if not items:
-        raise InputError("no input files given")
-    fmt = format or _one_format(items)
-    if fmt not in FORMATS:
-        raise InputError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
-    _check_options(fmt, origin, poses, calib)
-    if fmt != "bag" and (topic, frame, odometry) != (None, None, None):
-        raise InputError(f"topic, frame and odometry are for ROS bags, not {fmt} files")
-    if not (isinstance(every, int) and every >= 1):
-        raise InputError(f"every must be an integer >= 1, got {every!r}")
-    if limit is not None and not (isinstance(limit, int) and limit >= 0):
-        raise InputError(f"limit must be an integer >= 0, got {limit!r}")
-    for item in items:
-        if not Path(item).exists():
-            raise FileReadError(item, "no such file or folder")
-    if fmt == "kitti":
-        items, poses = kitti_files(items, poses)
-        scans = kitti_scans(items, poses, calib)
-    elif fmt == "bag":
-        bags = [BagScans(item, topic, frame, odometry, poses) for item in items]
-        scans = (scan for bag in bags for scan in bag)
-    elif fmt in POSED_FORMATS:
-        scans = _posed_scans(items, fmt)
-    else:
-        T_world_files = _file_poses(poses, len(items))
-        scans = (
-            _point_cloud_scan(Path(item), fmt, origin, T_world_file)
-            for item, T_world_file in zip(items, T_world_files, strict=True)
-        )
-    return islice(scans, 0, None if limit is None else limit * every, every)
+
+    def __init__(
+        self,
+        paths: str | PathLike[str] | Sequence[str | PathLike[str]],
+        format: str | None = None,
+        origin: Sequence[float] | None = None,
+        poses: str | PathLike[str] | None = None,
+        calib: str | PathLike[str] | None = None,
+        every: int = 1,
+        limit: int | None = None,
+        topic: str | None = None,
+        frame: str | None = None,
+        odometry: str | None = None,
+    ) -> None:
+        items = [paths] if isinstance(paths, str | PathLike) else list(paths)
+        if not items:
+            raise InputError("no input files given")
+        fmt = format or _one_format(items)
+        if fmt not in FORMATS:
+            raise InputError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
+        _check_options(fmt, origin, poses, calib)
+        if fmt != "bag" and (topic, frame, odometry) != (None, None, None):
+            raise InputError(f"topic, frame and odometry are for ROS bags, not {fmt} files")
+        if not (isinstance(every, int) and every >= 1):
+            raise InputError(f"every must be an integer >= 1, got {every!r}")
+        if limit is not None and not (isinstance(limit, int) and limit >= 0):
+            raise InputError(f"limit must be an integer >= 0, got {limit!r}")
+        for item in items:
+            if not Path(item).exists():
+                raise FileReadError(item, "no such file or folder")
+        self.format = fmt
+        self._every, self._limit = every, limit
+        # One (path, T_world_file, origin) per scan for files of one scan each, else None.
+        self._files: list[tuple[Path, np.ndarray | None, np.ndarray | None]] | None = None
+        self._streams: list = []
+        if fmt == "kitti":
+            bins, poses_path = kitti_files(items, poses)
+            files = [(path, T, None) for path, T in kitti_frames(bins, poses_path, calib)]
+        elif fmt == "bag":
+            self._streams = [BagScans(item, topic, frame, odometry, poses) for item in items]
+            return
+        elif fmt in POSED_FORMATS:
+            self._streams = items
+            return
+        else:
+            sensor = None if origin is None else np.asarray(origin, dtype=np.float64)
+            T_world_files = _file_poses(poses, len(items))
+            files = [(Path(p), T, sensor) for p, T in zip(items, T_world_files, strict=True)]
+        self._files = files[::every][:limit]
+
+    def count(self) -> int | None:
+        """How many scans there are, when that is known without reading them (files of one
+        scan each), else None."""
+        return None if self._files is None else len(self._files)
+
+    def __iter__(self) -> Iterator[Scan]:
+        if self._files is not None:
+            return (self._read_file(i) for i in range(len(self._files)))
+        if self.format == "bag":
+            scans = (scan for bag in self._streams for scan in bag)
+        else:
+            scans = _posed_scans(self._streams, self.format)
+        stop = None if self._limit is None else self._limit * self._every
+        return islice(scans, 0, stop, self._every)
+
+    def read(self, indices: Iterable[int]) -> Iterator[tuple[int, Scan]]:
+        """(index, scan) for each of `indices` (0-based, ascending, after every and limit):
+        read directly from files of one scan each, else by reading the files from the start."""
+        wanted = sorted(set(indices))
+        if self._files is not None:
+            return ((i, self._read_file(i)) for i in wanted)
+        chosen = set(wanted)
+        return ((i, scan) for i, scan in enumerate(self) if i in chosen)
+
+    def _read_file(self, index: int) -> Scan:
+        path, T_world_file, sensor = self._files[index]
+        if self.format == "kitti":
+            return read_kitti_scan(path, T_world_file)
+        return _point_cloud_scan(path, self.format, sensor, T_world_file)
 
 
 def _posed_scans(items: list[str | PathLike[str]], fmt: str) -> Iterator[Scan]:
@@ -195,14 +257,14 @@ def _file_poses(poses: str | PathLike[str] | None, n_files: int) -> list[np.ndar
 
 
 def _point_cloud_scan(
-    path: Path, fmt: str, origin: Sequence[float] | None, T_world_file: np.ndarray | None
+    path: Path, fmt: str, origin: np.ndarray | None, T_world_file: np.ndarray | None
 ) -> Scan:
     if fmt == "pcd":
         points, viewpoint = read_pcd(path)
     else:
         points = {"xyz": read_xyz, "ply": read_ply, "las": read_las}[fmt](path)
         viewpoint = np.zeros(3)
-    sensor = viewpoint if origin is None else np.asarray(origin, dtype=np.float64)
+    sensor = viewpoint if origin is None else origin
     if T_world_file is not None:
         points = transform_points(T_world_file, points)
         sensor = transform_points(T_world_file, sensor[None])[0]

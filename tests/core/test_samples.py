@@ -1,10 +1,12 @@
 """Training samples drawn along rays."""
 
 import numpy as np
+import pytest
 
 from ehm.config import MapConfig
 from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
 from ehm.core.scan import Scan
+from ehm.errors import InputError
 
 
 def test_training_samples_lie_on_rays_with_the_right_labels(rng):
@@ -96,3 +98,43 @@ def test_sample_sets_add_up_in_order(rng):
     np.testing.assert_array_equal(both.points, np.vstack([first.points, second.points]))
     np.testing.assert_array_equal(both.occupied, [1, 0, 1, 0, 1])
     np.testing.assert_array_equal(both.at_surface, [1, 1, 1, 0, 0])
+
+
+def _ray_scan(rng: np.random.Generator, n: int = 4000) -> Scan:
+    origin = np.array([0.5, -0.3, 1.0])
+    directions = rng.normal(size=(n, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    lengths = rng.uniform(0.5, 8.0, n)
+    return Scan(origin + directions * lengths[:, None], origin, rng.random(n) < 0.7)
+
+
+def test_a_learn_box_keeps_the_samples_a_whole_map_draws_inside_it(rng):
+    scan = _ray_scan(rng)
+    box = np.array([[1.0, -2.0, 0.0], [4.0, 2.0, 3.0]])
+    config = MapConfig(free_spacing=0.05)
+    boxed = training_samples(scan, config.replace(learn_box=box.ravel()), rng)
+    whole = training_samples(scan, config, rng)
+    inside = np.all((whole.points >= box[0]) & (whole.points <= box[1]), axis=1)
+    assert np.all((boxed.points >= box[0] - 1e-9) & (boxed.points <= box[1] + 1e-9))
+    # The samples of each kind inside the box, as many as the whole map draws there.
+    for occupied, at_surface in ((True, True), (False, True), (False, False)):
+        in_whole = inside & (whole.occupied == occupied) & (whole.at_surface == at_surface)
+        in_boxed = (boxed.occupied == occupied) & (boxed.at_surface == at_surface)
+        expected = in_whole.sum()
+        assert abs(in_boxed.sum() - expected) <= 4 * np.sqrt(expected) + 2, (occupied, at_surface)
+
+
+def test_no_learn_box_and_a_box_holding_every_ray_draw_the_same_samples():
+    scan = _ray_scan(np.random.default_rng(3))
+    config = MapConfig(free_spacing=0.1, max_free_samples=20)
+    whole = training_samples(scan, config, np.random.default_rng(7))
+    box = (-20.0, -20.0, -20.0, 20.0, 20.0, 20.0)
+    boxed = training_samples(scan, config.replace(learn_box=box), np.random.default_rng(7))
+    np.testing.assert_allclose(boxed.points, whole.points, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(boxed.occupied, whole.occupied)
+
+
+def test_a_learn_box_of_another_dimension_is_refused(rng):
+    scan = _ray_scan(rng, 10)
+    with pytest.raises(InputError, match="learn_box is a 2D box, the scan is 3D"):
+        training_samples(scan, MapConfig(learn_box=(0, 0, 1, 1)), rng)
