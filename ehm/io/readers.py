@@ -181,9 +181,12 @@ class ScanFiles:
         stop = None if self._limit is None else self._limit * self._every
         return islice(scans, 0, stop, self._every)
 
-    def read(self, indices: Iterable[int]) -> Iterator[tuple[int, Scan]]:
-        """(index, scan) for each of `indices` (0-based, ascending, after every and limit):
-        read directly from files of one scan each, else by reading the files from the start."""
+    def read(self, indices: Iterable[int] | None = None) -> Iterator[tuple[int, Scan]]:
+        """(index, scan) for each of `indices` (0-based, after every and limit; None: every
+        scan), in ascending order: read directly from files of one scan each, else by reading
+        the files from the start."""
+        if indices is None:
+            return enumerate(self)
         wanted = sorted(set(indices))
         if self._files is not None:
             return ((i, self._read_file(i)) for i in wanted)

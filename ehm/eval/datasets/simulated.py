@@ -6,6 +6,7 @@ All are deterministic for a seed; the seed only draws the range noise.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -339,6 +340,60 @@ def city_scene(length: float = 1000.0, seed: int = 0) -> Scene:
     return scene_of(solids, [(x, y, 4.5) for x, y in trees], 1.8)
 
 
+class CityDrive:
+    """The scans of a drive down the right lane of `city_scene(length, seed)`: `n_scans`
+    scans of a 16-ring LiDAR (rings x azimuths rays, elevations -15 to +10 degrees, 1.8 m up,
+    `max_range` metres) evenly spaced along it, each made when it is read (ray-cast against
+    the solids in range), so any one can be made alone: a large scene for tiled maps, in a
+    few bytes that processes of a cluster each read from (a scan source, ehm.tiles)."""
+
+    def __init__(
+        self,
+        seed: int = 0,
+        length: float = 1000.0,
+        n_scans: int = 1000,
+        rings: int = 16,
+        azimuths: int = 512,
+        noise_std: float = 0.02,
+        max_range: float = 40.0,
+    ) -> None:
+        self.seed, self.length, self.n_scans = seed, length, n_scans
+        self.rings, self.azimuths = rings, azimuths
+        self.noise_std, self.max_range = noise_std, max_range
+        self._scene: Scene | None = None
+
+    @property
+    def scene(self) -> Scene:
+        """The city, made on first use (each process that reads scans makes its own)."""
+        if self._scene is None:
+            self._scene = city_scene(self.length, self.seed)
+        return self._scene
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, "_scene": None}
+
+    def count(self) -> int:
+        return self.n_scans
+
+    def __len__(self) -> int:
+        return self.n_scans
+
+    def __iter__(self) -> Iterator[Scan]:
+        return (scan for _, scan in self.read())
+
+    def read(self, indices: Iterable[int] | None = None) -> Iterator[tuple[int, Scan]]:
+        """(index, scan) for each of `indices` (None: every scan), ascending; scan i is the
+        same whenever it is made."""
+        directions = lidar_directions(self.rings, self.azimuths, 10.0, -15.0)
+        stations = np.linspace(1.0, self.length - 1.0, self.n_scans)
+        chosen = range(self.n_scans) if indices is None else sorted(set(indices))
+        for i in chosen:
+            origin = np.array([stations[i], -2.0, 1.8])
+            local = solids_in_range(self.scene, origin, self.max_range)
+            rng = np.random.default_rng([self.seed, i])
+            yield i, simulate_scan(local, origin, directions, self.max_range, self.noise_std, rng)
+
+
 def city_drive(
     seed: int = 0,
     length: float = 1000.0,
@@ -348,15 +403,6 @@ def city_drive(
     noise_std: float = 0.02,
     max_range: float = 40.0,
 ) -> SimulatedDataset:
-    """`n_scans` scans of a 16-ring LiDAR (rings x azimuths rays, elevations -15 to +10
-    degrees, 1.8 m up, `max_range` metres) evenly spaced down the right lane of
-    `city_scene(length)`: a large scene, made on the fly, for tiled maps."""
-    scene = city_scene(length, seed)
-    directions = lidar_directions(rings, azimuths, 10.0, -15.0)
-    rng = np.random.default_rng(seed)
-    scans = []
-    for x in np.linspace(1.0, length - 1.0, n_scans):
-        origin = np.array([x, -2.0, 1.8])
-        local = solids_in_range(scene, origin, max_range)
-        scans.append(simulate_scan(local, origin, directions, max_range, noise_std, rng))
-    return SimulatedDataset("city_drive", scans, scene)
+    """All the scans of a CityDrive (see there), made now, with its scene."""
+    drive = CityDrive(seed, length, n_scans, rings, azimuths, noise_std, max_range)
+    return SimulatedDataset("city_drive", list(drive), drive.scene)

@@ -1,0 +1,474 @@
+"""TiledMap: a map cut into overlapping square or cubic tiles, each an ordinary HilbertMap,
+learned one process per tile and answered by blending the tiles across their borders.
+
+    m = TiledMap(tile_size=25.0, config=MapConfig.for_resolution(0.2))
+    m.build(ScanFiles("sequences/00"), workers=4, directory="city.ehm")  # Dask, ehm.tiles.build
+    p = m.occupancy(points)                 # (n,) blended across tile borders, no seams
+    g = m.grid(bounds, resolution=0.2)      # an OccupancyGrid, as HilbertMap.grid gives
+    m2 = ehm.load("city.ehm")               # lazy: a query reads only the tiles it touches
+
+Each tile learns from the rays that cross its learn box, free samples only along their part
+inside it (MapConfig.learn_box), so where tiles overlap both learned the same data; the
+blending weights (ehm.tiles.tiling) make the answer run smoothly from one to the other.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Iterable
+from os import PathLike
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.kernels import kernel_reach
+from ehm.core.logistic import sigmoid
+from ehm.core.scan import Scan
+from ehm.core.uncertainty import logit_variance, occupancy_std
+from ehm.errors import EmptyMapError, InputError, SettingsError
+from ehm.grid.bounds import DEFAULT_MAX_BYTES, bytes_per_voxel, grid_shape
+from ehm.grid.occupancy_grid import OccupancyGrid
+from ehm.hilbert_map import HilbertMap
+from ehm.io.map_file import map_bytes, map_state_of_bytes
+from ehm.tiles.store import TileIndex, TileKey, TileRecord, TileStore
+from ehm.tiles.tiling import Tiling, scan_box
+
+if TYPE_CHECKING:
+    from ehm.tiles.build import BuildObserver, BuildReport
+    from ehm.tiles.sources import ScanSource
+
+DEFAULT_TILE_SIZE = 25.0
+# The default overlap, in free-space cluster radii (the widest clusters): tiles then learn
+# the same clusters where they meet, so the blend runs between two maps that agree.
+OVERLAP_IN_FREE_RADII = 2.0
+# Tiles kept in memory at most, least recently used dropped first (those not saved stay).
+MAX_LOADED_TILES = 64
+
+
+class TiledMap:
+    """A continuous occupancy map cut into tiles (see the module's docstring).
+
+    tile_size: side of the square (2D) or cubic (3D) tiles, metres; overlap: how far each
+    tile learns beyond its core, metres, at most tile_size / 2 (None: two free-space cluster
+    radii, MapConfig.free_cluster_radius); config and keyword overrides: the settings of
+    every tile, as for HilbertMap. max_loaded_tiles: tiles kept in memory at once.
+    """
+
+    def __init__(
+        self,
+        tile_size: float = DEFAULT_TILE_SIZE,
+        overlap: float | None = None,
+        config: MapConfig | None = None,
+        max_loaded_tiles: int = MAX_LOADED_TILES,
+        **overrides: Any,
+    ) -> None:
+        base = config if config is not None else MapConfig()
+        self.config = base.replace(**overrides) if overrides else base
+        if self.config.learn_box:
+            raise SettingsError("a tiled map sets each tile's learn_box itself: leave it empty")
+        if overlap is None:
+            overlap = OVERLAP_IN_FREE_RADII * self.config.free_cluster_radius
+        self.tiling = Tiling(tile_size, overlap)
+        if not (isinstance(max_loaded_tiles, int) and max_loaded_tiles >= 1):
+            raise SettingsError(
+                f"max_loaded_tiles must be an integer >= 1, got {max_loaded_tiles!r}"
+            )
+        self.max_loaded_tiles = max_loaded_tiles
+        self._dim: int | None = None
+        self._records: dict[TileKey, TileRecord] = {}
+        self._store: TileStore | None = None
+        self._loaded: OrderedDict[TileKey, HilbertMap] = OrderedDict()
+        self._changed: set[TileKey] = set()
+        self._origins: list[np.ndarray] = []
+        self.n_scans_ = 0
+
+    # ------------------------------------------------------------------ state
+    @property
+    def tile_size(self) -> float:
+        return self.tiling.size
+
+    @property
+    def overlap(self) -> float:
+        return self.tiling.overlap
+
+    @property
+    def dim(self) -> int | None:
+        return self._dim
+
+    @property
+    def directory(self) -> Path | None:
+        """The map directory tiles are read from and written to (None: all in memory)."""
+        return None if self._store is None else self._store.directory
+
+    @property
+    def tile_keys(self) -> list[TileKey]:
+        """Every tile's key (integer indices, ehm.tiles.tiling), sorted."""
+        return sorted(set(self._records) | self._changed)
+
+    @property
+    def n_tiles(self) -> int:
+        return len(self.tile_keys)
+
+    @property
+    def n_loaded_tiles(self) -> int:
+        """Tiles in memory now."""
+        return len(self._loaded)
+
+    @property
+    def n_clusters(self) -> int:
+        """Clusters of all tiles, after learning the scans waiting in tiles in memory (a
+        cluster in two tiles' overlap counts twice)."""
+        self.flush()
+        return sum(self.tile_record(key).n_clusters for key in self.tile_keys)
+
+    def flush(self) -> TiledMap:
+        """Learn the scans waiting for their batch in the tiles in memory; returns self."""
+        for key in self._changed:
+            self._loaded[key].flush()
+        return self
+
+    @property
+    def sensor_path(self) -> np.ndarray:
+        """(n, d) float64, metres, world frame: the origin of every scan given, in order."""
+        if not self._origins:
+            return np.zeros((0, self.dim or 3))
+        return np.stack(self._origins)
+
+    def __repr__(self) -> str:
+        where = f", directory={str(self.directory)!r}" if self._store is not None else ""
+        return (
+            f"TiledMap(dim={self.dim}, tiles={self.n_tiles}, scans={self.n_scans_}, "
+            f"tile_size={self.tile_size:g}, overlap={self.overlap:g}{where})"
+        )
+
+    def tile_config(self, key: TileKey) -> MapConfig:
+        """The settings of tile `key`: the map's, learning inside the tile's learn box."""
+        return self.config.replace(learn_box=tuple(self.tiling.learn_box(key).ravel()))
+
+    def tile(self, key: Iterable[int]) -> HilbertMap:
+        """Tile `key`'s map, read from the map directory when first asked for; InputError
+        for a tile the map does not have."""
+        key = tuple(int(k) for k in key)
+        if key in self._loaded:
+            self._loaded.move_to_end(key)
+            return self._loaded[key]
+        if key not in self._records or self._store is None:
+            raise InputError(f"the map has no tile {key}")
+        data = self._store.read_tile(key)
+        tile_map = HilbertMap.from_state(map_state_of_bytes(data, self._store.tile_path(key)))
+        self._keep(key, tile_map)
+        return tile_map
+
+    def tile_record(self, key: TileKey) -> TileRecord:
+        """What is known of tile `key` without reading it: from the index, or from the tile
+        in memory where it learned since."""
+        if key in self._changed:
+            old = self._records.get(key)
+            return tile_record(self._loaded[key], old.version if old else 0, 0)
+        return self._records[key]
+
+    def _keep(self, key: TileKey, tile_map: HilbertMap) -> None:
+        """Hold a tile in memory, dropping the least recently used saved ones over the cap."""
+        self._loaded[key] = tile_map
+        self._loaded.move_to_end(key)
+        while len(self._loaded) > self.max_loaded_tiles:
+            saved = next((k for k in self._loaded if k not in self._changed), None)
+            if saved is None:
+                break
+            del self._loaded[saved]
+
+    def memory_bytes(self) -> int:
+        """Bytes of the tiles in memory now (HilbertMap.memory_bytes) and the sensor path."""
+        tiles = sum(tile_map.memory_bytes() for tile_map in self._loaded.values())
+        return tiles + sum(origin.nbytes for origin in self._origins)
+
+    def extent(self) -> np.ndarray:
+        """(2, d) metres: the box holding every tile's kernels (within its learn box);
+        EmptyMapError for a map without clusters."""
+        self.flush()
+        boxes = [np.asarray(self.tile_record(k).extent) for k in self.tile_keys]
+        boxes = [box for box in boxes if box.size]
+        if not boxes:
+            raise EmptyMapError("the map is empty: it has no clusters")
+        return np.stack(
+            [np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)]
+        )
+
+    # --------------------------------------------------------------- learning
+    def integrate(
+        self, points_world: np.ndarray, origin: np.ndarray, hit_mask: np.ndarray | None = None
+    ) -> TiledMap:
+        """Learn one scan in this process, into the tiles its rays cross; returns self.
+        points_world: (N, d) float, metres, world frame; origin: (d,) metres; hit_mask: (N,)
+        bool, False for rays without return (None: all returned). `build` learns many scans
+        on a cluster."""
+        return self.integrate_scan(Scan(points_world, origin, hit_mask))
+
+    def integrate_scan(self, scan: Scan) -> TiledMap:
+        """Learn one Scan in this process, into the tiles its rays cross; returns self."""
+        if not isinstance(scan, Scan):
+            raise InputError(f"expected ehm.Scan, got {type(scan).__name__}")
+        self._take_dim(scan.dim)
+        for key in self.tiling.keys_meeting(scan_box(scan)):
+            part = self.tiling.clip(scan, key)
+            if part is not None:
+                self._learning_tile(key).integrate_scan(part)
+                self._changed.add(key)
+        self._origins.append(scan.origin)
+        self.n_scans_ += 1
+        return self
+
+    def build(
+        self,
+        scans: ScanSource | Iterable[Scan],
+        client: Any = None,
+        workers: int | None = None,
+        directory: str | PathLike[str] | None = None,
+        observer: BuildObserver | None = None,
+        block: int = 2,
+    ) -> BuildReport:
+        """Learn `scans` on Dask, a task per block of tiles (see ehm.tiles.build.build_tiles
+        for the arguments); tiles the scans do not cross stay as they are. Needs
+        dask.distributed (pip install 'ehm[tiles]')."""
+        from ehm.tiles.build import build_tiles
+
+        return build_tiles(self, scans, client, workers, directory, observer, block)
+
+    def _take_dim(self, dim: int) -> None:
+        if self._dim is None:
+            self._dim = dim
+        elif dim != self._dim:
+            raise InputError(f"scan points are {dim}D, the map is {self._dim}D")
+
+    def _learning_tile(self, key: TileKey) -> HilbertMap:
+        """Tile `key` to learn into: its map, or a new one."""
+        if key in self._loaded or key in self._records:
+            return self.tile(key)
+        tile_map = HilbertMap(self.tile_config(key))
+        self._changed.add(key)
+        self._keep(key, tile_map)
+        return tile_map
+
+    def _learned_tile(self, key: TileKey, data: bytes, record: TileRecord) -> None:
+        """Take a tile learned elsewhere (a build's task): into the map directory, or into
+        memory for a map without one."""
+        if self._store is not None:
+            self._store.write_tile(key, data)
+            self._records[key] = record
+            self._loaded.pop(key, None)
+            self._changed.discard(key)
+            return
+        tile_map = HilbertMap.from_state(map_state_of_bytes(data, f"tile {key}"))
+        self._changed.add(key)
+        self._keep(key, tile_map)
+
+    def _tile_bytes(self, key: TileKey) -> bytes | None:
+        """Tile `key` as the bytes of its file, to learn on elsewhere (None: no such tile)."""
+        if key in self._changed:
+            return map_bytes(self._loaded[key].state())
+        if key in self._records and self._store is not None:
+            return self._store.read_tile(key)
+        return None
+
+    # ---------------------------------------------------------------- queries
+    def occupancy(
+        self, points: np.ndarray, mode: str | None = None, return_std: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n,) float64 probability that each of (n, d) points, metres, world frame, is
+        occupied, blended over the tiles that hold it; with return_std, also its (n,)
+        standard deviation (see HilbertMap.occupancy). Reads the tiles it needs; where no
+        tile learned, 0.5. NaN for rows that are not finite."""
+        log_odds, variance = self._blended(points, mode, return_std)
+        if not return_std:
+            return sigmoid(log_odds)
+        return sigmoid(log_odds), occupancy_std(log_odds, variance)
+
+    def predict_proba(
+        self, points: np.ndarray, mode: str | None = None, return_std: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n, 2) float64 [p(free), p(occupied)] per point; with return_std, also the (n,)
+        standard deviation of either (see `occupancy`)."""
+        log_odds, variance = self._blended(points, mode, return_std)
+        occupied = sigmoid(log_odds)
+        proba = np.column_stack([1.0 - occupied, occupied])
+        return (proba, occupancy_std(log_odds, variance)) if return_std else proba
+
+    def decision_function(
+        self, points: np.ndarray, mode: str | None = None, return_variance: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n,) float64 log-odds of occupancy: the tiles' log-odds (HilbertMap.
+        decision_function) weighted by their blending weights; with return_variance, also the
+        (n,) variance of the log-odds, blended alike."""
+        log_odds, variance = self._blended(points, mode, return_variance)
+        return (log_odds, variance) if return_variance else log_odds
+
+    def _blended(
+        self, points: np.ndarray, mode: str | None, with_variance: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) blended log-odds at `points` and, when with_variance, their (n,) variance;
+        NaN for rows that are not finite."""
+        dim = self._require_dim("query it")
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != dim:
+            raise InputError(f"query points must have shape (n, {dim}), got {points.shape}")
+        rows, keys, weights = self.tiling.blend(points)
+        finite = np.all(np.isfinite(points), axis=1)
+        log_odds = np.where(finite, 0.0, np.nan)
+        variance = np.where(finite, 0.0, np.nan) if with_variance else np.zeros(0)
+        order = np.lexsort(keys.T[::-1])
+        rows, keys, weights = rows[order], keys[order], weights[order]
+        starts = np.flatnonzero(np.r_[True, np.any(keys[1:] != keys[:-1], axis=1)])
+        for first, end in zip(starts, np.r_[starts[1:], len(rows)], strict=True):
+            tile_map = self._answering(tuple(keys[first].tolist()))
+            chosen, weight = rows[first:end], weights[first:end]
+            if tile_map is None:  # nothing learned here: log-odds 0, the prior's variance
+                if with_variance:
+                    variance[chosen] += weight / self.config.prior_precision
+                continue
+            found = tile_map.decision_function(points[chosen], mode, with_variance)
+            if with_variance:
+                log_odds[chosen] += weight * found[0]
+                variance[chosen] += weight * found[1]
+            else:
+                log_odds[chosen] += weight * found
+        return log_odds, variance
+
+    def _answering(self, key: TileKey) -> HilbertMap | None:
+        """The map that answers for tile `key`, or None where it learned no cluster."""
+        if key not in self._records and key not in self._changed:
+            return None
+        tile_map = self.tile(key)
+        return tile_map if tile_map.n_clusters > 0 else None
+
+    def _require_dim(self, action: str) -> int:
+        if self._dim is None or not self.tile_keys:
+            raise EmptyMapError(f"the map is empty: integrate or build scans before you {action}")
+        return self._dim
+
+    # ------------------------------------------------------------------ grids
+    def grid(
+        self,
+        bounds: np.ndarray | None = None,
+        resolution: float = 0.05,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+        std: bool = False,
+    ) -> OccupancyGrid:
+        """Occupancy grid over `bounds` ((2, d) metres, world frame; None: `extent()`) at
+        `resolution` metres: each tile's grid (HilbertMap.grid, Sec. 3.5) over its part,
+        blended as `occupancy` blends; with std, also each voxel's standard deviation.
+        InputError for grids over `max_bytes`, before allocating. Reads the tiles it needs;
+        memory holds the grid and one tile's part of it."""
+        dim = self._require_dim("build a grid")
+        if bounds is None:
+            bounds = self.extent()
+        origin, shape = grid_shape(bounds, resolution, dim, max_bytes, bytes_per_voxel(std))
+        log_odds = np.zeros(shape)
+        variance = np.zeros(shape) if std else None
+        high = origin + np.array(shape) * resolution
+        for key in self.tiling.keys_meeting(np.stack([origin, high])):
+            box = self.tiling.learn_box(key)
+            first = np.clip(np.floor((box[0] - origin) / resolution), 0, shape).astype(int)
+            last = np.clip(np.ceil((box[1] - origin) / resolution), 0, shape).astype(int)
+            if np.any(last <= first):
+                continue
+            part = tuple(slice(a, b) for a, b in zip(first, last, strict=True))
+            part_box = np.stack([origin + first * resolution, origin + last * resolution])
+            centres = [
+                origin[a] + (np.arange(first[a], last[a]) + 0.5) * resolution for a in range(dim)
+            ]
+            mesh = np.meshgrid(*centres, indexing="ij")
+            points = np.column_stack([axis.ravel() for axis in mesh])
+            weight = self.tiling.weights(points, key).reshape(last - first)
+            tile_map = self._answering(key)
+            if tile_map is None:
+                if std:
+                    variance[part] += weight / self.config.prior_precision
+                continue
+            tile_grid = tile_map.grid(part_box, resolution, max_bytes=max_bytes, std=std)
+            log_odds[part] += weight * (tile_grid.scores + tile_grid.intercept)
+            if std:
+                sums = tile_grid.variance_sums
+                variance[part] += weight * logit_variance(
+                    sums[0], sums[1], tile_grid.prior_precision
+                )
+        return OccupancyGrid.of_log_odds(origin, resolution, log_odds, variance)
+
+    # ------------------------------------------------------------ persistence
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write the map as a map directory at `path` (ehm.tiles.store): each tile that
+        learned since it was last written (or every tile, to a new directory), atomically,
+        then the index. Saving learns nothing: scans waiting in a tile stay waiting."""
+        self._require_dim("save it")
+        store = TileStore(path)
+        same = self._store is not None and _same_folder(self._store.directory, store.directory)
+        if (
+            not same
+            and Path(path).exists()
+            and not (
+                Path(path).is_dir() and (TileStore.holds_map(path) or not any(Path(path).iterdir()))
+            )
+        ):
+            raise InputError(f"{path} exists and is not a tiled map's directory: choose another")
+        store.prepare()
+        records = {}
+        for key in self.tile_keys:
+            old = self._records.get(key)
+            if key in self._changed:
+                data = map_bytes(self._loaded[key].state())
+                store.write_tile(key, data)
+                records[key] = tile_record(
+                    self._loaded[key], (old.version if old else 0) + 1, len(data)
+                )
+            else:
+                if not same:
+                    store.write_tile(key, self._store.read_tile(key))
+                records[key] = old
+        store.write_index(self._index(records))
+        self._store, self._records = store, records
+        self._changed.clear()
+
+    def _index(self, records: dict[TileKey, TileRecord]) -> TileIndex:
+        return TileIndex(
+            self.tile_size,
+            self.overlap,
+            self._dim,
+            self.config.to_dict(),
+            self.n_scans_,
+            self.sensor_path.tolist(),
+            records,
+        )
+
+    @classmethod
+    def open(cls, path: str | PathLike[str], max_loaded_tiles: int = MAX_LOADED_TILES) -> TiledMap:
+        """The tiled map in directory `path`, its tiles read when first needed; TileIndexError
+        (a FileReadError) names what is wrong with it."""
+        store = TileStore(path)
+        index = store.read_index()
+        config = MapConfig.from_dict(index.config)
+        tiled_map = cls(index.tile_size, index.overlap, config, max_loaded_tiles)
+        tiled_map._dim = index.dim
+        tiled_map._store, tiled_map._records = store, dict(index.tiles)
+        tiled_map.n_scans_ = index.n_scans
+        tiled_map._origins = [np.asarray(origin, dtype=np.float64) for origin in index.sensor_path]
+        return tiled_map
+
+
+def tile_record(tile_map: HilbertMap, version: int, n_bytes: int) -> TileRecord:
+    """The index's record of a tile's map, without learning its waiting scans: its extent is
+    the box of its kernels' support within its learn box."""
+    clusters = tile_map.clusters_
+    n_clusters = 0 if clusters is None else len(clusters)
+    extent: list = []
+    if n_clusters:
+        reach = kernel_reach(clusters.transforms, clusters.planar_kernel)[:, None]
+        box = np.asarray(tile_map.config.learn_box).reshape(2, -1)
+        low = np.maximum((clusters.means - reach).min(axis=0), box[0])
+        high = np.minimum((clusters.means + reach).max(axis=0), box[1])
+        extent = [low.tolist(), high.tolist()]
+    return TileRecord(version, tile_map.n_scans_, n_clusters, n_bytes, extent)
+
+
+def _same_folder(a: Path, b: Path) -> bool:
+    return a.resolve() == b.resolve()
