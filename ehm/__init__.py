@@ -1,9 +1,10 @@
 """Efficient Hilbert Maps: continuous occupancy maps from range scans.
 
-The public API: HilbertMap, MapConfig, Scan, load, evaluate (the paper's comparison,
-ehm.eval), and the errors raised for bad input: EhmError and its kinds (ehm.errors). Each is
-imported on first use, so `import ehm` and the command line's help are instant, and the
-evaluation is never loaded by a program that does not ask for it.
+The public API: HilbertMap, TiledMap (city-scale maps in tiles, learned on Dask), MapConfig,
+Scan, load (either kind of map), evaluate (the paper's comparison, ehm.eval), and the errors
+raised for bad input: EhmError and its kinds (ehm.errors). Each is imported on first use, so
+`import ehm` and the command line's help are instant, and the evaluation is never loaded by a
+program that does not ask for it.
 """
 
 from importlib import import_module
@@ -21,8 +22,10 @@ if TYPE_CHECKING:
         SettingsError,
     )
     from ehm.eval.runner import evaluate
-    from ehm.hilbert_map import HilbertMap, load
+    from ehm.hilbert_map import HilbertMap
     from ehm.io.map_file import MapFileError
+    from ehm.maps import load
+    from ehm.tiles.tiled_map import TiledMap
 
 # Each public name and the module that defines it.
 _HOMES = {
@@ -36,8 +39,9 @@ _HOMES = {
     "MapConfig": "ehm.config",
     "MapFileError": "ehm.io.map_file",
     "Scan": "ehm.core.scan",
+    "TiledMap": "ehm.tiles.tiled_map",
     "evaluate": "ehm.eval.runner",
-    "load": "ehm.hilbert_map",
+    "load": "ehm.maps",
 }
 
 __all__ = [
@@ -51,6 +55,7 @@ __all__ = [
     "OutputError",
     "Scan",
     "SettingsError",
+    "TiledMap",
     "evaluate",
     "load",
 ]

@@ -111,8 +111,8 @@ def _parse_settings(settings: list[str]) -> dict:
 
 
 def _load(path: Path):
-    """The map at `path` (ehm.load)."""
-    from ehm.hilbert_map import load
+    """The map at `path`, a file or a tiled map's directory (ehm.load)."""
+    from ehm.maps import load
 
     return load(path)
 
@@ -251,12 +251,12 @@ def map_command(
     ] = None,
     batch: Annotated[bool, typer.Option(help="Learn all scans at once (single batch).")] = False,
     resolution: Annotated[
-        float,
+        float | None,
         typer.Option(
             help="Map detail, metres: scales every length setting (MapConfig.for_resolution); "
-            "about 0.2 for long-range outdoor LiDAR."
+            "about 0.2 for long-range outdoor LiDAR.  [default: 0.05]"
         ),
-    ] = 0.05,
+    ] = None,
     setting: Annotated[
         list[str] | None, typer.Option("--set", help="MapConfig override name=value.")
     ] = None,
@@ -273,22 +273,82 @@ def map_command(
         ),
     ] = False,
     port: Annotated[int, typer.Option(help="Port of the --view page.")] = 8080,
+    tiles: Annotated[
+        float | None,
+        typer.Option(
+            help="Cut the map into tiles this many metres a side, learned in parallel on Dask "
+            "(pip install 'ehm[tiles]'); -o names the map's folder."
+        ),
+    ] = None,
+    overlap: Annotated[
+        float | None,
+        typer.Option(help="With --tiles: how far each tile learns past its border, metres."),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(help="With --tiles: processes of the local cluster (default: cores)."),
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="With --tiles: a Dask scheduler to run on, 'tcp://host:8786'; its workers "
+            "must be able to read the inputs."
+        ),
+    ] = None,
+    update: Annotated[
+        bool,
+        typer.Option(
+            "--update",
+            help="Add the scans to the map at -o, with its own settings (a tiled map learns "
+            "again only the tiles they cross).",
+        ),
+    ] = False,
 ) -> None:
     """Build a map from scans of any supported format and save it."""
     from ehm.config import MapConfig
     from ehm.hilbert_map import HilbertMap
-    from ehm.io.outputs import check_output
-    from ehm.io.readers import scan_stream
+    from ehm.io.outputs import check_output, check_output_map_directory
+    from ehm.io.readers import ScanFiles
     from ehm.pipeline import MappingPipeline, ProgressBar
+    from ehm.tiles.tiled_map import TiledMap
 
     given = [*inputs, *(p for p in (poses, calib) if p is not None)]
-    check_output(output, given, force)
     sensor = _numbers(origin, float, "--origin") if origin else None
+    files = ScanFiles(inputs, format, sensor, poses, calib, every, limit, topic, frame, odometry)
     ranges = {"min_range": min_range, "max_range": max_range}
     overrides = {k: v for k, v in ranges.items() if v is not None}
-    config = MapConfig.for_resolution(resolution, **_parse_settings(setting or []), **overrides)
-    hilbert_map = HilbertMap(config)
-    scans = scan_stream(inputs, format, sensor, poses, calib, every, limit, topic, frame, odometry)
+    settings = _parse_settings(setting or [])
+    tiled = tiles is not None or (update and output.is_dir())
+    if not tiled and (overlap, workers, scheduler) != (None, None, None):
+        raise InputError("--overlap, --workers and --scheduler are for tiled maps (--tiles)")
+    if tiled and (batch or view):
+        raise InputError("--batch and --view are for single maps, not tiled ones")
+    if update:
+        if overrides or settings or resolution is not None or tiles is not None:
+            raise InputError(
+                "--update adds scans to a map with its own settings: leave out --resolution, "
+                "--set, --min-range, --max-range and --tiles"
+            )
+        if not output.exists():
+            raise InputError(f"--update: {output} does not exist; leave out --update to make it")
+        if batch:
+            raise InputError("--batch learns all scans afresh: it cannot --update a map")
+        if not tiled:
+            check_output(output, given, force=True)
+        existing = _load(output)
+    else:
+        detail = 0.05 if resolution is None else resolution
+        config = MapConfig.for_resolution(detail, **settings, **overrides)
+        if tiled:
+            check_output_map_directory(output, given, force)
+        else:
+            check_output(output, given, force)
+    if tiled:
+        tiled_map = existing if update else TiledMap(tiles, overlap, config)
+        _build_tiles(tiled_map, files, output, workers, scheduler, quiet)
+        return
+    hilbert_map = existing if update else HilbertMap(config)
+    scans = iter(files)
     observers = [] if quiet else [ProgressBar(console)]
     live = None
     if view:
@@ -313,6 +373,31 @@ def map_command(
         )
     if live is not None:
         _serve_until_stopped(live.server, f"the map at {live.url}")
+
+
+def _build_tiles(
+    tiled_map,
+    files,
+    output: Path,
+    workers: int | None,
+    scheduler: str | None,
+    quiet: bool,
+) -> None:
+    """`ehm map --tiles`: learn the scans of `files` into `tiled_map` on Dask, its tiles
+    written to the folder `output` as they come, with a progress bar unless `quiet`."""
+    from contextlib import nullcontext
+
+    from ehm.tiles.progress import TileProgressBar
+
+    progress = nullcontext(None) if quiet else TileProgressBar(console)
+    with progress as observer:
+        report = tiled_map.build(files, scheduler, workers, output, observer)
+    if not quiet:
+        console.print(
+            f"{report.n_scans} scans, {report.n_rays} rays -> {len(report.tiles)} tiles learned "
+            f"by {report.workers} workers in {report.seconds:.1f} s (binning "
+            f"{report.binning_seconds:.1f} s); {tiled_map!r}; wrote {output}"
+        )
 
 
 @app.command()
@@ -496,7 +581,7 @@ def export(
     if not 0.0 < resolution < math.inf:
         raise InputError(f"--resolution must be a positive number of metres, got {resolution}")
     box = _box(hilbert_map, bounds)
-    aligned = exports.aligned_bounds(hilbert_map.snapshot(), resolution, box)
+    aligned = exports.aligned_bounds(hilbert_map.extent() if box is None else box, resolution)
     occupancy_grid = _grid(hilbert_map, aligned, resolution, max_gib)
     if output.suffix in exports.OCTOMAP_SUFFIXES:
         known = exports.write_octomap(occupancy_grid, output)

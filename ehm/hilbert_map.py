@@ -50,7 +50,7 @@ from ehm.core.thinning import thin_samples
 from ehm.core.timing import StageTimer
 from ehm.core.uncertainty import add_curvature, logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError
-from ehm.grid.bounds import DEFAULT_MAX_BYTES
+from ehm.grid.bounds import DEFAULT_MAX_BYTES, support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.io.map_file import read_map, write_map
 
@@ -715,15 +715,20 @@ class HilbertMap:
         where one never saved does."""
         write_map(self.state(), path)
 
+    @classmethod
+    def load(cls, path: str | PathLike[str]) -> HilbertMap:
+        """The map in a file written by `save`; it answers and goes on learning exactly as
+        the saved map would. ehm.io.map_file.MapFileError names what is wrong with a bad
+        file. (ehm.load opens either kind of map.)"""
+        return cls.from_state(read_map(path))
+
+    def extent(self) -> np.ndarray:
+        """(2, d) metres, world frame: the box holding every kernel's support."""
+        return support_bounds(self.snapshot())
+
 
 def _log_odds_level(level: float) -> float:
     """The log-odds of an occupancy probability strictly between 0 and 1."""
     if not 0.0 < level < 1.0:
         raise InputError(f"level must be a probability between 0 and 1, got {level}")
     return float(np.log(level / (1.0 - level)))
-
-
-def load(path: str | PathLike[str]) -> HilbertMap:
-    """Read a map written by HilbertMap.save; it answers and goes on learning exactly as the
-    saved map would. ehm.io.map_file.MapFileError names what is wrong with a bad file."""
-    return HilbertMap.from_state(read_map(path))

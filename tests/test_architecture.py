@@ -9,6 +9,7 @@ import pytest
 
 import ehm
 import ehm.hilbert_map
+import ehm.maps
 
 PACKAGE = Path(ehm.__file__).parent
 
@@ -21,6 +22,8 @@ LAYERS = (
     "ehm.io",
     "ehm.hilbert_map",
     "ehm.pipeline",
+    "ehm.tiles",
+    "ehm.maps",
     "ehm.viz",
     "ehm.eval",
     "ehm.cli",
@@ -116,7 +119,7 @@ def test_the_public_api_is_loaded_on_first_use():
     for name in ehm.__all__:
         assert getattr(ehm, name).__name__ == name
         assert name in dir(ehm)
-    assert ehm.load is ehm.hilbert_map.load
+    assert ehm.load is ehm.maps.load
     with pytest.raises(AttributeError, match="module 'ehm' has no attribute 'Map'"):
         ehm.Map  # noqa: B018
 
@@ -125,7 +128,7 @@ def test_the_library_loads_neither_evaluation_nor_pictures_nor_readers():
     loaded = loaded_after("import ehm; ehm.HilbertMap().integrate; ehm.load")
     assert "ehm.hilbert_map" in loaded
     heavy = ("ehm.eval", "ehm.viz", "ehm.pipeline", "ehm.cli", "ehm.io.readers", "ehm.io.ply")
-    heavy += ("matplotlib", "skimage", "PIL", "typer", "rich", "octomap")
+    heavy += ("matplotlib", "skimage", "PIL", "typer", "rich", "octomap", "dask", "distributed")
     assert sorted(m for m in loaded if m.startswith(heavy)) == []
 
 
@@ -140,13 +143,15 @@ def test_the_command_line_imports_no_numerics_until_a_command_runs():
 
 def test_only_the_pipeline_loops_over_scans():
     """HilbertMap.integrate_scan is called by the pipeline (and by HilbertMap.integrate), so the
-    loop that reads, learns and times scans is written once."""
+    loop that reads, learns and times scans is written once; a tiled map's tiles learn the
+    part of each scan that crosses them in one function, ehm.tiles.build.learn_into_tiles
+    (called by TiledMap.integrate_scan, itself called by TiledMap.integrate)."""
     callers = set()
     for name, path in MODULES.items():
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Attribute) and node.attr == "integrate_scan":
                 callers.add(name)
-    assert callers == {"ehm.pipeline", "ehm.hilbert_map"}
+    assert callers == {"ehm.pipeline", "ehm.hilbert_map", "ehm.tiles.build", "ehm.tiles.tiled_map"}
 
 
 def test_only_the_command_line_imports_the_viewer():

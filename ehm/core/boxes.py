@@ -21,7 +21,7 @@ def ray_box_intervals(
         step = directions[:, axis]
         low, high = box[0, axis] - origin[axis], box[1, axis] - origin[axis]
         moving = step != 0.0
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):  # rays parallel: see below
             t_low, t_high = low / step, high / step
         near = np.where(moving, np.minimum(t_low, t_high), -np.inf)
         far = np.where(moving, np.maximum(t_low, t_high), np.inf)

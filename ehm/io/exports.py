@@ -4,7 +4,7 @@ images (.pgm with its .yaml) and point clouds of the occupied voxels (.ply, .pcd
 Voxels that no kernel reaches (log-odds exactly 0 before the intercept) are unknown: left out
 of OctoMap trees, grey in map_server images, never occupied.
 
-    grid = hilbert_map.grid(aligned_bounds(hilbert_map.snapshot(), 0.1), 0.1)
+    grid = hilbert_map.grid(aligned_bounds(hilbert_map.extent(), 0.1), 0.1)
     write_octomap(grid, "map.bt")
 """
 
@@ -15,9 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError, OutputError
-from ehm.grid.bounds import support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.io.octomap_bindings import octomap_module
 
@@ -31,12 +29,10 @@ MAP_SERVER_FREE = 0.196
 MAP_SERVER_UNKNOWN_PIXEL = 205
 
 
-def aligned_bounds(
-    snapshot: MapSnapshot, resolution: float, bounds: np.ndarray | None = None
-) -> np.ndarray:
-    """(2, d) `bounds` (None: every kernel's support, see support_bounds) widened outward to
-    multiples of `resolution`, metres, so that the grid's voxels are OctoMap's voxels."""
-    box = support_bounds(snapshot) if bounds is None else np.asarray(bounds, dtype=np.float64)
+def aligned_bounds(bounds: np.ndarray, resolution: float) -> np.ndarray:
+    """(2, d) `bounds`, metres, widened outward to multiples of `resolution`, metres, so
+    that the grid's voxels are OctoMap's voxels."""
+    box = np.asarray(bounds, dtype=np.float64)
     low = np.floor(box[0] / resolution - 1e-9) * resolution
     high = np.ceil(box[1] / resolution + 1e-9) * resolution
     return np.stack([low, high])

@@ -53,3 +53,30 @@ def check_output_folder(path: str | PathLike[str]) -> Path:
                 raise OutputError(f"{path}: folder {folder} cannot be written")
             return path
     return path
+
+
+def check_output_map_directory(
+    path: str | PathLike[str], inputs: Sequence[str | PathLike[str]] = (), force: bool = False
+) -> Path:
+    """`path` as a Path once a tiled map's directory can be written there: its folder exists
+    and can be written; it is not a file; not one of `inputs`; and if it exists, it is an empty
+    folder, or with `force` one holding a tiled map (index.json) to write over. OutputError
+    naming the problem otherwise."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{path} is a file: a tiled map is written as a folder")
+    folder = path.parent
+    if not folder.is_dir():
+        raise OutputError(f"{path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise OutputError(f"{path}: folder {folder} cannot be written")
+    if path.is_dir() and any(path.iterdir()):
+        for item in inputs:
+            item = Path(item)
+            if item.exists() and (path.samefile(item) or path.resolve() in item.resolve().parents):
+                raise OutputError(f"{path} holds an input: writing it would destroy it")
+        if not (path / "index.json").is_file():
+            raise OutputError(f"{path} is a folder of other files: choose a new or empty folder")
+        if not force:
+            raise OutputError(f"{path} exists: --force overwrites it")
+    return path

@@ -18,26 +18,24 @@ import logging
 import os
 import resource
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
-from os import PathLike
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
+import numba
 import numpy as np
 
 from ehm.config import MapConfig
 from ehm.errors import InputError
 from ehm.hilbert_map import HilbertMap
 from ehm.io.map_file import map_bytes, map_state_of_bytes
-from ehm.tiles.sources import ScanSource, scan_source
-from ehm.tiles.store import TileKey, TileRecord, TileStore
-from ehm.tiles.tiled_map import tile_record
+from ehm.tiles.sources import ScanSource
+from ehm.tiles.store import TileKey, TileRecord
 from ehm.tiles.tiling import Tiling, scan_box
 
 if TYPE_CHECKING:
     from ehm.core.scan import Scan
-    from ehm.tiles.tiled_map import TiledMap
 
 # Scans each binning task reads.
 BIN_CHUNK = 16
@@ -58,13 +56,12 @@ class ScanBins:
 
 @dataclass(frozen=True)
 class TileResult:
-    """A tile as its task learned it: key, data (its map file's bytes), record, the seconds
-    spent learning it (clipping scans, learning, writing its bytes) and the rays learned."""
+    """A tile as its task learned it: key, data (its map file's bytes), record, and the
+    rays it learned."""
 
     key: TileKey
     data: bytes
     record: TileRecord
-    seconds: float
     n_rays: int
 
 
@@ -115,6 +112,7 @@ class BuildObserver(Protocol):
 
 def bin_scans(source: ScanSource, indices: Iterable[int] | None, tiling: Tiling) -> list[ScanBins]:
     """The bins of the scans of `source` at `indices` (None: all): a task of its own."""
+    one_core_per_task()
     bins = []
     for index, scan in source.read(indices):
         rays = {}
@@ -140,19 +138,22 @@ class TileJob:
 
 def learn_tiles(source: ScanSource, jobs: list[TileJob], tiling: Tiling) -> TaskResult:
     """Learn a block of neighbouring tiles, a task of its own: each scan that crosses any of
-    them is read once, in order, clipped to each tile it crosses and learned into that tile's
-    map."""
+    them is read once, in order, and its rays that cross each tile learned into its map."""
+    one_core_per_task()
     start = time.perf_counter()
-    maps = [
-        HilbertMap(job.config)
+    maps = {
+        job.key: HilbertMap(job.config)
         if job.data is None
         else HilbertMap.from_state(map_state_of_bytes(job.data, f"tile {job.key}"))
         for job in jobs
-    ]
-    wanted = [set(job.indices) for job in jobs]
-    seconds, rays = [0.0] * len(jobs), [0] * len(jobs)
+    }
+    wanting: dict[int, list[TileKey]] = {}
+    for job in jobs:
+        for index in job.indices:
+            wanting.setdefault(index, []).append(job.key)
+    rays = dict.fromkeys(maps, 0)
     n_scans, read_seconds = 0, 0.0
-    scans = source.read(sorted(set().union(*wanted)))
+    scans = source.read(sorted(wanting))
     while True:
         read_start = time.perf_counter()
         index, scan = next(scans, (None, None))
@@ -160,23 +161,15 @@ def learn_tiles(source: ScanSource, jobs: list[TileJob], tiling: Tiling) -> Task
         if scan is None:
             break
         n_scans += 1
-        for t, job in enumerate(jobs):
-            if index in wanted[t]:
-                tile_start = time.perf_counter()
-                part = tiling.clip(scan, job.key)
-                if part is not None:
-                    maps[t].integrate_scan(part)
-                    rays[t] += len(part)
-                seconds[t] += time.perf_counter() - tile_start
+        for key, n_rays in learn_into_tiles(scan, tiling, wanting[index], maps.__getitem__).items():
+            rays[key] += n_rays
     tiles = []
-    for t, job in enumerate(jobs):
-        tile_start = time.perf_counter()
-        maps[t].flush()
-        data = map_bytes(maps[t].state())
-        record = tile_record(maps[t], job.version, len(data))
-        seconds[t] += time.perf_counter() - tile_start
-        tiles.append(TileResult(job.key, data, record, seconds[t], rays[t]))
-        maps[t] = None  # each tile's memory goes once it is written
+    for job in jobs:
+        tile_map = maps.pop(job.key)  # each tile's memory goes once it is written
+        tile_map.flush()
+        data = map_bytes(tile_map.state())
+        record = TileRecord.of_map(tile_map, job.version, len(data))
+        tiles.append(TileResult(job.key, data, record, rays[job.key]))
     return TaskResult(
         tiles,
         time.perf_counter() - start,
@@ -187,112 +180,58 @@ def learn_tiles(source: ScanSource, jobs: list[TileJob], tiling: Tiling) -> Task
     )
 
 
+def learn_into_tiles(
+    scan: Scan,
+    tiling: Tiling,
+    keys: Iterable[TileKey],
+    tile_of: Callable[[TileKey], HilbertMap],
+) -> dict[TileKey, int]:
+    """Learn the rays of `scan` that cross each tile of `keys` into its map, `tile_of(key)`
+    (asked for only for tiles the scan crosses); returns the rays learned per tile crossed."""
+    learned = {}
+    for key in keys:
+        part = tiling.clip(scan, key)
+        if part is not None:
+            tile_of(key).integrate_scan(part)
+            learned[key] = len(part)
+    return learned
+
+
+def one_core_per_task() -> None:
+    """Run this thread's parallel kernels on one core: a cluster gives each task one, and
+    tasks that each spread over all cores would only contend."""
+    numba.set_num_threads(1)
+
+
 def peak_resident_bytes() -> int:
     """The peak resident memory of this process so far, bytes (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def build_tiles(
-    tiled_map: TiledMap,
-    scans: ScanSource | Iterable[Scan],
-    client: Any = None,
-    workers: int | None = None,
-    directory: str | PathLike[str] | None = None,
-    observer: BuildObserver | None = None,
-    block: int = 2,
-) -> BuildReport:
-    """Learn `scans` into `tiled_map` on Dask; returns what was done.
-
-    scans: a ScanSource (ScanFiles, CityDrive: read by the workers) or scans in memory.
-    client: a dask.distributed Client, or a scheduler's address ('tcp://host:8786'), whose
-    workers must be able to read the scans; None: a LocalCluster of `workers` processes
-    (None: this machine's cores), one thread each, closed after. directory: the map
-    directory to write tiles into as they come (see TiledMap.save); None: the map's own, or
-    memory for a map without one. observer: told of each binned chunk and learned tile.
-    block: each task learns a block of up to block^d neighbouring tiles, reading each scan
-    that crosses them once (1: a task per tile; larger blocks read less, in fewer tasks).
-    """
-    try:
-        from dask.distributed import as_completed
-    except ImportError as error:
-        raise ImportError(INSTALL_HINT) from error
-    source = scan_source(scans)
-    if not (isinstance(block, int) and block >= 1):
-        raise InputError(f"block must be an integer >= 1, got {block!r}")
-    if directory is not None:
-        _write_into(tiled_map, directory)
-    report = BuildReport()
-    with _dask_client(client, workers) as dask_client:
-        report.workers = len(dask_client.scheduler_info()["workers"])
-        shared = dask_client.scatter(source, broadcast=True, hash=False)
-        start = time.perf_counter()
-        bins = _binned(dask_client, shared, source, tiled_map.tiling, observer, as_completed)
-        report.binning_seconds = time.perf_counter() - start
-        if not bins:
-            raise InputError("no scans to build the map from")
-        for scan_bins in bins:
-            tiled_map._take_dim(scan_bins.dim)
-        report.n_scans = len(bins)
-        report.n_rays = sum(scan_bins.n_rays for scan_bins in bins)
-        start = time.perf_counter()
-        blocks = _blocks(tiled_map, _scans_per_tile(bins), block)
-        futures = [
-            dask_client.submit(
-                learn_tiles, shared, jobs, tiled_map.tiling, priority=rays, pure=False
-            )
-            for jobs, rays in blocks
-        ]
-        n_tiles, done = sum(len(jobs) for jobs, _ in blocks), 0
-        if observer is not None:
-            observer.learning(0, n_tiles, None)
-        for future in as_completed(futures):
-            task = future.result()
-            future.release()
-            for tile in task.tiles:
-                tiled_map._learned_tile(tile.key, tile.data, tile.record)
-            task = replace(task, tiles=[replace(tile, data=b"") for tile in task.tiles])
-            report.tasks.append(task)
-            for tile in task.tiles:
-                done += 1
-                if observer is not None:
-                    observer.learning(done, n_tiles, tile)
-        report.learning_seconds = time.perf_counter() - start
-    tiled_map._origins += [scan_bins.origin for scan_bins in bins]
-    tiled_map.n_scans_ += len(bins)
-    if tiled_map._store is not None:
-        tiled_map._store.write_index(tiled_map._index(tiled_map._records))
-    return report
-
-
-def _binned(
-    dask_client: Any,
-    shared: Any,
-    source: ScanSource,
-    tiling: Tiling,
-    observer: BuildObserver | None,
-    as_completed: Any,
+def binned_scans(
+    client: Any, shared: Any, source: ScanSource, tiling: Tiling, observer: BuildObserver
 ) -> list[ScanBins]:
-    """Every scan's bins, in scan order: tasks of BIN_CHUNK scans (one task reading all of
-    a source that cannot tell its count)."""
+    """Every scan's bins, in scan order, from tasks of BIN_CHUNK scans (one task reading all
+    of a source that cannot tell its count). shared: the source, scattered to the workers."""
+    from dask.distributed import as_completed
+
     total = source.count()
     chunks: list[range | None] = (
         [None]
         if total is None
         else [range(i, min(i + BIN_CHUNK, total)) for i in range(0, total, BIN_CHUNK)]
     )
-    futures = [dask_client.submit(bin_scans, shared, chunk, tiling, pure=False) for chunk in chunks]
+    futures = [client.submit(bin_scans, shared, chunk, tiling, pure=False) for chunk in chunks]
     bins: list[ScanBins] = []
-    if observer is not None:
-        observer.binning(0, total)
+    observer.binning(0, total)
     for future in as_completed(futures):
         bins += future.result()
         future.release()
-        if observer is not None:
-            observer.binning(len(bins), total)
+        observer.binning(len(bins), total)
     return sorted(bins, key=lambda scan_bins: scan_bins.index)
 
 
-def _scans_per_tile(bins: list[ScanBins]) -> dict[TileKey, tuple[list[int], int]]:
+def scans_per_tile(bins: list[ScanBins]) -> dict[TileKey, tuple[list[int], int]]:
     """Per tile crossed: the scans that cross it, in order, and their rays in it."""
     tiles: dict[TileKey, tuple[list[int], int]] = {}
     for scan_bins in bins:
@@ -303,42 +242,53 @@ def _scans_per_tile(bins: list[ScanBins]) -> dict[TileKey, tuple[list[int], int]
     return tiles
 
 
-def _blocks(
-    tiled_map: TiledMap, tiles: dict[TileKey, tuple[list[int], int]], block: int
-) -> list[tuple[list[TileJob], int]]:
-    """The tasks: tiles grouped into blocks of `block` tiles a side, each block's jobs and
-    rays, largest first (so the longest tasks start first and none is left to the end)."""
-    grouped: dict[TileKey, tuple[list[TileJob], int]] = {}
-    for key, (indices, rays) in sorted(tiles.items()):
-        old = tiled_map._records.get(key)
-        job = TileJob(
-            key,
-            indices,
-            tiled_map.tile_config(key),
-            tiled_map._tile_bytes(key),
-            (old.version if old else 0) + 1,
-        )
+def tile_blocks(rays: dict[TileKey, int], block: int) -> list[tuple[list[TileKey], int]]:
+    """The tasks: tiles grouped into blocks of `block` tiles a side, with each block's rays
+    (its cost), largest first, so the longest tasks start first and none is left to the end."""
+    grouped: dict[TileKey, tuple[list[TileKey], int]] = {}
+    for key in sorted(rays):
         block_key = tuple(k // block for k in key)
-        jobs, total = grouped.get(block_key, ([], 0))
-        grouped[block_key] = ([*jobs, job], total + rays)
+        keys, total = grouped.get(block_key, ([], 0))
+        grouped[block_key] = ([*keys, key], total + rays[key])
     return sorted(grouped.values(), key=lambda item: -item[1])
 
 
-def _write_into(tiled_map: TiledMap, directory: str | PathLike[str]) -> None:
-    """Make `directory` the map's directory: its tiles so far are saved there first."""
-    if tiled_map.directory is not None or tiled_map.tile_keys:
-        tiled_map.save(directory)
-        return
-    store = TileStore(directory)
-    store.prepare()
-    tiled_map._store = store
+def learned_tasks(
+    client: Any, shared: Any, tasks: list[tuple[list[TileJob], int]], tiling: Tiling
+) -> Iterator[TaskResult]:
+    """Submit each task's jobs (with its cost as priority) and yield each task's result as it
+    comes, its futures released."""
+    from dask.distributed import as_completed
+
+    futures = [
+        client.submit(learn_tiles, shared, jobs, tiling, priority=cost, pure=False)
+        for jobs, cost in tasks
+    ]
+    for future in as_completed(futures):
+        task = future.result()
+        future.release()
+        yield task
+
+
+class NoObserver:
+    """A BuildObserver told nothing."""
+
+    def binning(self, done: int, total: int | None) -> None:
+        pass
+
+    def learning(self, done: int, total: int, result: TileResult | None) -> None:
+        pass
 
 
 @contextmanager
-def _dask_client(client: Any, workers: int | None) -> Iterator[Any]:
-    """The client to run on: `client`, one connected to the address `client`, or one of a
-    LocalCluster of `workers` single-threaded processes, closed on leaving."""
-    from dask.distributed import Client, LocalCluster
+def dask_client(client: Any, workers: int | None) -> Iterator[Any]:
+    """The client to run on: `client`, one connected to the address `client` ('tcp://host:
+    8786'), or one of a LocalCluster of `workers` single-threaded processes (None: this
+    machine's cores), closed on leaving. ImportError without dask.distributed."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError as error:
+        raise ImportError(INSTALL_HINT) from error
 
     if client is not None and not isinstance(client, str):
         yield client
@@ -355,7 +305,7 @@ def _dask_client(client: Any, workers: int | None) -> Iterator[Any]:
             n_workers=n_workers,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",  # any free port: clusters side by side never clash
             silence_logs=logging.ERROR,
         ) as cluster,
         Client(cluster) as local,

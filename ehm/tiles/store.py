@@ -16,9 +16,16 @@ import json
 from dataclasses import asdict, dataclass
 from os import PathLike
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from ehm.core.kernels import kernel_reach
 from ehm.errors import FileReadError, OutputError
 from ehm.io.files import read_text, write_atomically
+
+if TYPE_CHECKING:
+    from ehm.hilbert_map import HilbertMap
 
 INDEX_NAME = "index.json"
 TILES_FOLDER = "tiles"
@@ -43,6 +50,21 @@ class TileRecord:
     n_clusters: int
     n_bytes: int
     extent: list
+
+    @classmethod
+    def of_map(cls, tile_map: HilbertMap, version: int, n_bytes: int) -> TileRecord:
+        """The record of a tile's map, without learning its waiting scans: its extent is the
+        box of its kernels' support within its learn box."""
+        clusters = tile_map.clusters_
+        n_clusters = 0 if clusters is None else len(clusters)
+        extent: list = []
+        if n_clusters:
+            reach = kernel_reach(clusters.transforms, clusters.planar_kernel)[:, None]
+            box = np.asarray(tile_map.config.learn_box).reshape(2, -1)
+            low = np.maximum((clusters.means - reach).min(axis=0), box[0])
+            high = np.minimum((clusters.means + reach).max(axis=0), box[1])
+            extent = [low.tolist(), high.tolist()]
+        return cls(version, tile_map.n_scans_, n_clusters, n_bytes, extent)
 
 
 @dataclass

@@ -14,16 +14,17 @@ blending weights (ehm.tiles.tiling) make the answer run smoothly from one to the
 
 from __future__ import annotations
 
+import time
 from collections import OrderedDict
 from collections.abc import Iterable
+from dataclasses import replace
 from os import PathLike
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.kernels import kernel_reach
 from ehm.core.logistic import sigmoid
 from ehm.core.scan import Scan
 from ehm.core.uncertainty import logit_variance, occupancy_std
@@ -32,12 +33,21 @@ from ehm.grid.bounds import DEFAULT_MAX_BYTES, bytes_per_voxel, grid_shape
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap
 from ehm.io.map_file import map_bytes, map_state_of_bytes
+from ehm.tiles.build import (
+    BuildObserver,
+    BuildReport,
+    NoObserver,
+    TileJob,
+    binned_scans,
+    dask_client,
+    learn_into_tiles,
+    learned_tasks,
+    scans_per_tile,
+    tile_blocks,
+)
+from ehm.tiles.sources import ScanSource, scan_source
 from ehm.tiles.store import TileIndex, TileKey, TileRecord, TileStore
 from ehm.tiles.tiling import Tiling, scan_box
-
-if TYPE_CHECKING:
-    from ehm.tiles.build import BuildObserver, BuildReport
-    from ehm.tiles.sources import ScanSource
 
 DEFAULT_TILE_SIZE = 25.0
 # The default overlap, in free-space cluster radii (the widest clusters): tiles then learn
@@ -166,7 +176,7 @@ class TiledMap:
         in memory where it learned since."""
         if key in self._changed:
             old = self._records.get(key)
-            return tile_record(self._loaded[key], old.version if old else 0, 0)
+            return TileRecord.of_map(self._loaded[key], old.version if old else 0, 0)
         return self._records[key]
 
     def _keep(self, key: TileKey, tile_map: HilbertMap) -> None:
@@ -211,11 +221,8 @@ class TiledMap:
         if not isinstance(scan, Scan):
             raise InputError(f"expected ehm.Scan, got {type(scan).__name__}")
         self._take_dim(scan.dim)
-        for key in self.tiling.keys_meeting(scan_box(scan)):
-            part = self.tiling.clip(scan, key)
-            if part is not None:
-                self._learning_tile(key).integrate_scan(part)
-                self._changed.add(key)
+        keys = self.tiling.keys_meeting(scan_box(scan))
+        self._changed.update(learn_into_tiles(scan, self.tiling, keys, self._learning_tile))
         self._origins.append(scan.origin)
         self.n_scans_ += 1
         return self
@@ -229,12 +236,74 @@ class TiledMap:
         observer: BuildObserver | None = None,
         block: int = 2,
     ) -> BuildReport:
-        """Learn `scans` on Dask, a task per block of tiles (see ehm.tiles.build.build_tiles
-        for the arguments); tiles the scans do not cross stay as they are. Needs
-        dask.distributed (pip install 'ehm[tiles]')."""
-        from ehm.tiles.build import build_tiles
+        """Learn `scans` on Dask (ehm.tiles.build): a task per block of tiles, tiles the
+        scans do not cross left as they are; returns what was done. Needs dask.distributed
+        (pip install 'ehm[tiles]').
 
-        return build_tiles(self, scans, client, workers, directory, observer, block)
+        scans: a ScanSource (ScanFiles, CityDrive: read by the workers) or scans in memory.
+        client: a dask.distributed Client, or a scheduler's address ('tcp://host:8786'),
+        whose workers can read the scans; None: a LocalCluster of `workers` processes (None:
+        this machine's cores), one thread each, closed after. directory: the map directory
+        to write tiles into as they come, index last (see save); None: the map's own, or
+        memory for a map without one. observer: told of each binned chunk and learned tile.
+        block: each task learns a block of up to block^d neighbouring tiles, reading each
+        scan that crosses them once (1: a task per tile; larger blocks read less, in fewer
+        tasks).
+        """
+        source = scan_source(scans)
+        if not (isinstance(block, int) and block >= 1):
+            raise InputError(f"block must be an integer >= 1, got {block!r}")
+        observer = observer if observer is not None else NoObserver()
+        report = BuildReport()
+        with dask_client(client, workers) as on:
+            if directory is not None:
+                self._write_into(directory)
+            report.workers = len(on.scheduler_info()["workers"])
+            shared = on.scatter(source, broadcast=True, hash=False)
+            start = time.perf_counter()
+            bins = binned_scans(on, shared, source, self.tiling, observer)
+            report.binning_seconds = time.perf_counter() - start
+            if not bins:
+                raise InputError("no scans to build the map from")
+            for scan_bins in bins:
+                self._take_dim(scan_bins.dim)
+            report.n_scans = len(bins)
+            report.n_rays = sum(scan_bins.n_rays for scan_bins in bins)
+            start = time.perf_counter()
+            tiles = scans_per_tile(bins)
+            blocks = tile_blocks({key: rays for key, (_, rays) in tiles.items()}, block)
+            tasks = [
+                ([self._job(key, tiles[key][0]) for key in keys], cost) for keys, cost in blocks
+            ]
+            observer.learning(0, len(tiles), None)
+            done = 0
+            for task in learned_tasks(on, shared, tasks, self.tiling):
+                for tile in task.tiles:
+                    self._learned_tile(tile.key, tile.data, tile.record)
+                    done += 1
+                    observer.learning(done, len(tiles), replace(tile, data=b""))
+                report.tasks.append(replace(task, tiles=[replace(t, data=b"") for t in task.tiles]))
+            report.learning_seconds = time.perf_counter() - start
+        self._origins += [scan_bins.origin for scan_bins in bins]
+        self.n_scans_ += len(bins)
+        if self._store is not None:
+            self._store.write_index(self._index(self._records))
+        return report
+
+    def _job(self, key: TileKey, indices: list[int]) -> TileJob:
+        """What a task needs to learn the scans at `indices` into tile `key`."""
+        old = self._records.get(key)
+        version = (old.version if old else 0) + 1
+        return TileJob(key, indices, self.tile_config(key), self._tile_bytes(key), version)
+
+    def _write_into(self, directory: str | PathLike[str]) -> None:
+        """Make `directory` the map's directory, its tiles so far saved there first."""
+        if self._store is not None or self.tile_keys:
+            self.save(directory)
+            return
+        store = TileStore(directory)
+        store.prepare()
+        self._store = store
 
     def _take_dim(self, dim: int) -> None:
         if self._dim is None:
@@ -418,7 +487,7 @@ class TiledMap:
             if key in self._changed:
                 data = map_bytes(self._loaded[key].state())
                 store.write_tile(key, data)
-                records[key] = tile_record(
+                records[key] = TileRecord.of_map(
                     self._loaded[key], (old.version if old else 0) + 1, len(data)
                 )
             else:
@@ -453,21 +522,6 @@ class TiledMap:
         tiled_map.n_scans_ = index.n_scans
         tiled_map._origins = [np.asarray(origin, dtype=np.float64) for origin in index.sensor_path]
         return tiled_map
-
-
-def tile_record(tile_map: HilbertMap, version: int, n_bytes: int) -> TileRecord:
-    """The index's record of a tile's map, without learning its waiting scans: its extent is
-    the box of its kernels' support within its learn box."""
-    clusters = tile_map.clusters_
-    n_clusters = 0 if clusters is None else len(clusters)
-    extent: list = []
-    if n_clusters:
-        reach = kernel_reach(clusters.transforms, clusters.planar_kernel)[:, None]
-        box = np.asarray(tile_map.config.learn_box).reshape(2, -1)
-        low = np.maximum((clusters.means - reach).min(axis=0), box[0])
-        high = np.minimum((clusters.means + reach).max(axis=0), box[1])
-        extent = [low.tolist(), high.tolist()]
-    return TileRecord(version, tile_map.n_scans_, n_clusters, n_bytes, extent)
 
 
 def _same_folder(a: Path, b: Path) -> bool:

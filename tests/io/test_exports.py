@@ -22,9 +22,7 @@ octomap = pytest.importorskip("octomap")
 
 @pytest.fixture(scope="module")
 def room_grid(room_map):
-    bounds = aligned_bounds(
-        room_map.snapshot(), 0.1, np.array([[-2.0, -2.0, 0.0], [2.0, 2.0, 2.6]])
-    )
+    bounds = aligned_bounds(np.array([[-2.0, -2.0, 0.0], [2.0, 2.0, 2.6]]), 0.1)
     return room_map.grid(bounds, 0.1)
 
 
@@ -73,7 +71,7 @@ def test_bt_files_hold_the_occupied_voxels_and_no_others(room_grid, tmp_path):
 
 def test_map_server_maps_read_back_as_nav2_reads_them(plan, tmp_path):
     plan_map = ehm.HilbertMap().fit(plan.scans)
-    grid = plan_map.grid(aligned_bounds(plan_map.snapshot(), 0.1), 0.1)
+    grid = plan_map.grid(aligned_bounds(plan_map.extent(), 0.1), 0.1)
     yaml_path = write_map_server(grid, tmp_path / "plan.pgm")
     settings = dict(line.split(": ", 1) for line in yaml_path.read_text().splitlines())
     assert settings["image"] == "plan.pgm" and float(settings["resolution"]) == 0.1

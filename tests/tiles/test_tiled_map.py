@@ -1,0 +1,160 @@
+"""TiledMap in one process: the map API of HilbertMap, answered across tiles without seams."""
+
+import numpy as np
+import pytest
+
+import ehm
+from ehm.config import MapConfig
+from ehm.core.uncertainty import occupancy_std
+from ehm.errors import EmptyMapError, InputError, SettingsError
+from ehm.eval.metrics import f1_score
+from ehm.eval.protocol import held_out_rays
+from ehm.hilbert_map import HilbertMap
+from ehm.tiles import TiledMap
+
+# The virtual room (8 x 6 x 3 m) in tiles of 3 m: every tile border runs through it.
+TILE, OVERLAP = 3.0, 1.0
+
+
+@pytest.fixture(scope="module")
+def tiled_room(room):
+    tiled = TiledMap(TILE, OVERLAP)
+    for scan in room.scans:
+        tiled.integrate_scan(scan)
+    return tiled
+
+
+def room_points(room, n=40_000, seed=1):
+    rng = np.random.default_rng(seed)
+    return rng.uniform([-3.9, -2.9, 0.05], [3.9, 2.9, 2.95], (n, 3))
+
+
+def test_a_tiled_map_scores_held_out_rays_as_one_map_does(room):
+    split = held_out_rays(room.scans, 0.8, 0.05, seed=0)
+    tiled, one = TiledMap(TILE, OVERLAP), HilbertMap()
+    for scan in split.train:
+        tiled.integrate_scan(scan)
+        one.integrate_scan(scan)
+    tiled_f1 = f1_score(split.occupied, tiled.occupancy(split.points) > 0.5)
+    one_f1 = f1_score(split.occupied, one.occupancy(split.points) > 0.5)
+    assert tiled.n_tiles > 8
+    assert tiled_f1 >= one_f1 - 0.01, (tiled_f1, one_f1)
+
+
+def test_occupancy_does_not_jump_at_tile_borders(tiled_room):
+    """Along lines across the room, the largest change between neighbouring points near a
+    border is no larger than inside tiles."""
+    step = 0.01
+    x = np.arange(-3.5, 3.5, step)
+    near, inside = [], []
+    for y in np.linspace(-2.5, 2.5, 11):
+        for z in (0.3, 0.9, 1.5, 2.1):
+            line = np.column_stack([x, np.full_like(x, y), np.full_like(x, z)])
+            jumps = np.abs(np.diff(tiled_room.occupancy(line)))
+            middle = (x[1:] + x[:-1]) / 2.0
+            offset = np.abs((middle / TILE + 0.5) - np.round(middle / TILE + 0.5)) * TILE
+            near.append(jumps[offset < OVERLAP].max())
+            inside.append(jumps[offset >= OVERLAP].max())
+    assert max(near) <= max(inside), (max(near), max(inside))
+
+
+def test_queries_take_the_same_checks_as_a_hilbert_map(tiled_room):
+    p, std = tiled_room.occupancy(np.array([[0.0, 0.0, 1.0], [np.nan, 0.0, 0.0]]), return_std=True)
+    assert 0.0 <= p[0] <= 1.0 and 0.0 < std[0] < 0.5
+    assert np.isnan(p[1]) and np.isnan(std[1])
+    proba = tiled_room.predict_proba(np.zeros((3, 3)))
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0)
+    with pytest.raises(InputError, match=r"shape \(n, 3\)"):
+        tiled_room.occupancy(np.zeros((4, 2)))
+    with pytest.raises(InputError, match="query mode"):
+        tiled_room.occupancy(np.zeros((1, 3)), mode="fast")
+    # Far from every tile: unknown, the prior's answer.
+    far, far_std = tiled_room.occupancy(np.array([[500.0, 0.0, 0.0]]), return_std=True)
+    assert far[0] == 0.5
+    prior = 1.0 / tiled_room.config.prior_precision
+    assert far_std[0] == pytest.approx(occupancy_std(np.zeros(1), np.full(1, prior))[0])
+
+
+def test_the_grid_blends_tiles_as_point_queries_do(room):
+    """With every kernel not zero at a point as its features, a tile's grid and its point
+    queries are one model (see the grid's tests), and so are the blended ones."""
+    tiled = TiledMap(TILE, OVERLAP, features="support").integrate_scan(room.scans[0])
+    bounds = np.array([[-3.0, -2.0, 0.2], [3.0, 2.0, 2.2]])
+    grid = tiled.grid(bounds, resolution=0.1, std=True)
+    p, std = tiled.occupancy(grid.centers(), return_std=True)
+    np.testing.assert_allclose(grid.probability.ravel(), p, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(grid.std.ravel(), std, rtol=0, atol=1e-9)
+    vertices, faces = grid.mesh(0.5)
+    assert len(faces) > 1000
+    assert np.all((vertices >= bounds[0] - 1e-9) & (vertices <= bounds[1] + 1e-9))
+
+
+def test_save_and_load_round_trip_lazily(tmp_path, tiled_room, room):
+    tiled_room.save(tmp_path / "room.ehm")
+    loaded = ehm.load(tmp_path / "room.ehm")
+    assert isinstance(loaded, TiledMap)
+    assert loaded.n_loaded_tiles == 0
+    assert (loaded.tile_keys, loaded.n_scans_) == (tiled_room.tile_keys, tiled_room.n_scans_)
+    corner = np.array([[3.5, 2.5, 0.5]])  # in the corner tile, away from its borders
+    assert loaded.occupancy(corner)[0] == tiled_room.occupancy(corner)[0]
+    assert loaded.n_loaded_tiles == 1
+    points = room_points(room, 5000, seed=3)
+    np.testing.assert_array_equal(loaded.occupancy(points), tiled_room.occupancy(points))
+    np.testing.assert_array_equal(loaded.sensor_path, tiled_room.sensor_path)
+    assert loaded.config == tiled_room.config
+    assert (loaded.tile_size, loaded.overlap) == (TILE, OVERLAP)
+
+
+def test_memory_holds_at_most_max_loaded_tiles(tmp_path, tiled_room, room):
+    tiled_room.save(tmp_path / "room.ehm")
+    loaded = TiledMap.open(tmp_path / "room.ehm", max_loaded_tiles=2)
+    loaded.occupancy(room_points(room, 2000))
+    assert loaded.n_loaded_tiles == 2
+
+
+def test_new_scans_change_only_the_tiles_they_cross(tmp_path, room):
+    scan = room.scans[0]
+    corner = np.all(scan.points_world[:, :2] > [2.5, 1.5], axis=1)
+    tiled = TiledMap(TILE, OVERLAP).integrate_scan(scan.subset(~corner))
+    tiled.save(tmp_path / "m.ehm")
+    before = {key: tiled.tile_record(key) for key in tiled.tile_keys}
+    # Rays to one corner: only the tiles they cross learn again.
+    tiled.integrate_scan(scan.subset(corner))
+    tiled.save(tmp_path / "m.ehm")
+    after = ehm.load(tmp_path / "m.ehm")
+    bumped = [key for key in after.tile_keys if after.tile_record(key).version > 1]
+    assert 0 < len(bumped) < len(before) / 2
+    for key in set(before) - set(bumped):
+        assert after.tile_record(key) == before[key]
+
+
+def test_2d_maps_tile_in_squares(plan):
+    tiled = TiledMap(4.0, 1.0)
+    for scan in plan.scans:
+        tiled.integrate_scan(scan)
+    assert all(len(key) == 2 for key in tiled.tile_keys)
+    grid = tiled.grid(resolution=0.1)
+    assert grid.dim == 2
+    with pytest.raises(InputError, match="a mesh needs a 3D grid"):
+        grid.mesh()
+
+
+def test_bad_input_is_refused(room):
+    with pytest.raises(SettingsError, match="learn_box"):
+        TiledMap(3.0, 1.0, MapConfig(learn_box=(0, 0, 0, 1, 1, 1)))
+    with pytest.raises(SettingsError, match="at most half the tile size"):
+        TiledMap(3.0, 2.0)
+    with pytest.raises(SettingsError, match="max_loaded_tiles"):
+        TiledMap(max_loaded_tiles=0)
+    empty = TiledMap(3.0, 1.0)
+    with pytest.raises(EmptyMapError, match="the map is empty"):
+        empty.occupancy(np.zeros((1, 3)))
+    with pytest.raises(EmptyMapError, match="the map is empty"):
+        empty.grid()
+    tiled = TiledMap(3.0, 1.0).integrate_scan(room.scans[0].subset(np.arange(100)))
+    with pytest.raises(InputError, match="scan points are 2D, the map is 3D"):
+        tiled.integrate(np.zeros((3, 2)) + 1.0, np.zeros(2))
+    with pytest.raises(InputError, match=r"expected ehm\.Scan"):
+        tiled.integrate_scan("scan")
+    with pytest.raises(InputError, match="no tile"):
+        tiled.tile((99, 99, 99))
