@@ -18,7 +18,7 @@ from rich.markup import escape
 from rich.table import Table
 from typer.core import TyperGroup
 
-from ehm.errors import EhmError, InputError
+from ehm.errors import EhmError, EmptyMapError, InputError
 
 
 class _Commands(TyperGroup):
@@ -640,6 +640,10 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     table = Table(title=str(map_path))
     table.add_column("property")
     table.add_column("value")
+    if map_path.is_dir():
+        _tiled_map_rows(table, hilbert_map)
+        console.print(table)
+        return
     table.add_row("dimensions", str(hilbert_map.dim))
     table.add_row("clusters", str(hilbert_map.n_clusters))
     table.add_row("scans", str(hilbert_map.n_scans_))
@@ -659,6 +663,39 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     for name, value in hilbert_map.config.to_dict().items():
         table.add_row(f"config.{name}", repr(value))
     console.print(table)
+
+
+def _tiled_map_rows(table: Table, tiled_map) -> None:
+    """`ehm info` of a tiled map: read from its index alone, no tile loaded."""
+    import numpy as np
+
+    records = [tiled_map.tile_record(key) for key in tiled_map.tile_keys]
+    sizes = np.array([record.n_bytes for record in records])
+    table.add_row("kind", "tiled map (a folder of tile maps and index.json)")
+    table.add_row("dimensions", str(tiled_map.dim))
+    table.add_row(
+        "tiles",
+        f"{len(records)} of {tiled_map.tile_size:g} m, learning {tiled_map.overlap:g} m past "
+        "their borders",
+    )
+    table.add_row("scans", str(tiled_map.n_scans_))
+    path = tiled_map.sensor_path
+    length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) else 0.0
+    table.add_row("sensor path", f"{len(path)} poses, {length:.2f} m long")
+    table.add_row("clusters", f"{sum(record.n_clusters for record in records)} in all tiles")
+    table.add_row(
+        "tile files",
+        f"{sizes.sum() / 1e6:.3f} MB: {sizes.min() / 1e6:.3f} to {sizes.max() / 1e6:.3f} MB "
+        f"each, median {np.median(sizes) / 1e6:.3f}",
+    )
+    table.add_row("tile versions", f"1 to {max(record.version for record in records)}")
+    try:
+        low, high = tiled_map.extent().round(2).tolist()
+        table.add_row("cluster extent (m)", f"{low} .. {high}")
+    except EmptyMapError:
+        table.add_row("cluster extent (m)", "none: the map is empty, every point reads 0.5")
+    for name, value in tiled_map.config.to_dict().items():
+        table.add_row(f"config.{name}", repr(value))
 
 
 def _names(text: str, known: list[str], what: str) -> list[str]:

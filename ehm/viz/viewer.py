@@ -136,8 +136,9 @@ class MapViewer:
         add_plane_image(self.server, "/grid", self.grid, _heat_map(self.grid.probability), 0.0)
 
     def _show_samples(self) -> None:
-        """The occupied samples the map keeps near surfaces, as points."""
-        memory = self.map.memory_
+        """The occupied samples the map keeps near surfaces, as points (a tiled map keeps
+        them in its tiles, which the viewer does not read one by one)."""
+        memory = getattr(self.map, "memory_", None)
         if memory is None or len(memory) == 0:
             return
         kept = np.arange(memory.points.shape[1]) < memory.filled[:, None]
