@@ -94,7 +94,7 @@ def test_options_out_of_range_are_named(map_file, plan_log, tmp_path):
 
 def test_bad_files_are_named(map_file, tmp_path):
     (tmp_path / "folder.ehm").mkdir()
-    fails(["info", tmp_path / "folder.ehm"], "folder.ehm: is a folder, expected a file")
+    fails(["info", tmp_path / "folder.ehm"], "folder.ehm: a folder without index.json: neither")
     fails(["info", tmp_path / "none.ehm"], "none.ehm: no such file")
     header_row = tmp_path / "header.csv"
     header_row.write_text("x,y\n1,2\n")
@@ -178,7 +178,7 @@ def test_debug_shows_the_traceback_and_bugs_say_so(tmp_path, monkeypatch):
     def broken(path):
         raise ZeroDivisionError("division by zero")
 
-    monkeypatch.setattr("ehm.hilbert_map.load", broken)
+    monkeypatch.setattr("ehm.maps.load", broken)
     result = fails(["info", tmp_path / "junk.ehm"], "ZeroDivisionError: division by zero", 1)
     assert "This is a bug in ehm; `ehm --debug ...` shows where it happened." in result.stderr
     result = runner.invoke(app, ["--debug", "info", str(tmp_path / "junk.ehm")])
@@ -191,6 +191,6 @@ def test_a_closed_pipe_is_not_called_a_bug(tmp_path, monkeypatch):
     def closed(path):
         raise BrokenPipeError(32, "Broken pipe")
 
-    monkeypatch.setattr("ehm.hilbert_map.load", closed)
+    monkeypatch.setattr("ehm.maps.load", closed)
     result = runner.invoke(app, ["info", str(tmp_path / "m.ehm")])
     assert result.exit_code == 1 and "bug" not in result.output

@@ -143,7 +143,9 @@ class TileStore:
     def read_index(self) -> TileIndex:
         path = self.directory / INDEX_NAME
         if not path.is_file():
-            raise TileIndexError(self.directory, f"no {INDEX_NAME}: not a tiled ehm map")
+            raise TileIndexError(
+                self.directory, f"a folder without {INDEX_NAME}: neither a map file nor a tiled map"
+            )
         return TileIndex.of_json(read_text(path), path)
 
     def write_index(self, index: TileIndex) -> None:
