@@ -63,7 +63,9 @@ class TiledMap:
     tile_size: side of the square (2D) or cubic (3D) tiles, metres; overlap: how far each
     tile learns beyond its core, metres, at most tile_size / 2 (None: two free-space cluster
     radii, MapConfig.free_cluster_radius); config and keyword overrides: the settings of
-    every tile, as for HilbertMap. max_loaded_tiles: tiles kept in memory at once.
+    every tile, as for HilbertMap. max_loaded_tiles: saved tiles kept in memory at once, the
+    least recently used dropped first; tiles that learned since the map was last saved stay
+    until `save` writes them (a build into a directory writes each as it comes).
     """
 
     def __init__(
@@ -132,12 +134,6 @@ class TiledMap:
         cluster in two tiles' overlap counts twice)."""
         self.flush()
         return sum(self.tile_record(key).n_clusters for key in self.tile_keys)
-
-    def flush(self) -> TiledMap:
-        """Learn the scans waiting for their batch in the tiles in memory; returns self."""
-        for key in self._changed:
-            self._loaded[key].flush()
-        return self
 
     @property
     def sensor_path(self) -> np.ndarray:
@@ -225,6 +221,12 @@ class TiledMap:
         self._changed.update(learn_into_tiles(scan, self.tiling, keys, self._learning_tile))
         self._origins.append(scan.origin)
         self.n_scans_ += 1
+        return self
+
+    def flush(self) -> TiledMap:
+        """Learn the scans waiting for their batch in the tiles in memory; returns self."""
+        for key in self._changed:
+            self._loaded[key].flush()
         return self
 
     def build(

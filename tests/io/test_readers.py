@@ -35,3 +35,29 @@ def test_scans_stream_one_at_a_time_after_the_checks(input_files, tmp_path):
     assert len(picked) == 2
     with pytest.raises(InputError, match="limit must be an integer >= 0"):
         scan_stream(xyz, limit=-1)
+
+
+def test_scan_files_read_by_index_what_iterating_reads(tmp_path, plan_log):
+    import pickle
+
+    import numpy as np
+
+    from ehm.io.readers import ScanFiles
+
+    paths = []
+    for i in range(5):
+        paths.append(tmp_path / f"s{i}.xyz")
+        np.savetxt(paths[-1], np.random.default_rng(i).normal(size=(30, 3)))
+    files = ScanFiles(paths, origin=[0.0, 0.0, 1.0], every=2)
+    log = ScanFiles(plan_log, limit=4)
+    for source, count in ((files, 3), (log, None)):
+        source = pickle.loads(pickle.dumps(source))  # as a cluster's workers get it
+        everything = list(source)
+        assert source.count() == count
+        assert len(everything) == 3 if count else len(everything) == 4
+        picked = list(source.read([2, 0]))
+        assert [i for i, _ in picked] == [0, 2]
+        for i, scan in picked:
+            np.testing.assert_array_equal(scan.points_world, everything[i].points_world)
+            np.testing.assert_array_equal(scan.origin, everything[i].origin)
+        assert [i for i, _ in source.read()] == list(range(len(everything)))

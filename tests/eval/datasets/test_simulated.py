@@ -3,7 +3,7 @@
 import numpy as np
 
 from ehm.eval.datasets import street, warehouse
-from ehm.eval.datasets.simulated import city_drive, corridor_2d, warehouse_drive
+from ehm.eval.datasets.simulated import CityDrive, city_drive, corridor_2d, warehouse_drive
 
 
 def test_warehouse_scans_start_in_free_space_and_end_on_surfaces():
@@ -84,3 +84,17 @@ def test_city_drive_runs_down_a_long_street():
     np.testing.assert_array_equal(again.scans[5].points_world, data.scans[5].points_world)
     heights = data.scene.box_max[:, 2]
     assert heights.max() > 20.0 and np.sum(heights > 7.0) > 10  # buildings along the street
+
+
+def test_a_city_drive_makes_any_scan_alone_as_in_order():
+    import pickle
+
+    drive = CityDrive(length=200.0, n_scans=8, rings=4, azimuths=64)
+    in_order = list(drive)
+    sent = pickle.dumps(drive)  # as a cluster's workers get it: settings, not the scene
+    assert len(sent) < 1000
+    alone = pickle.loads(sent)
+    [(index, scan)] = list(alone.read([5]))
+    assert index == 5 and drive.count() == len(in_order) == 8
+    np.testing.assert_array_equal(scan.points_world, in_order[5].points_world)
+    np.testing.assert_array_equal(scan.hit_mask, in_order[5].hit_mask)
