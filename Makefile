@@ -41,6 +41,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/raycast.py
 	$(BIN)/python benchmarks/bag_stream.py
 	$(BIN)/python benchmarks/viewer.py
+	$(BIN)/python benchmarks/tiles.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numba
@@ -204,7 +205,16 @@ def one_core_per_task() -> None:
 
 
 def peak_resident_bytes() -> int:
-    """The peak resident memory of this process so far, bytes (Linux reports KiB)."""
+    """The peak resident memory of this process's program so far, bytes: Linux's VmHWM, which
+    starts afresh when a process starts a program (ru_maxrss carries the peak of the process
+    that started it over); elsewhere ru_maxrss."""
+    try:
+        status = Path("/proc/self/status").read_text()
+    except OSError:
+        status = ""
+    for line in status.splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) * 1024  # kB
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 

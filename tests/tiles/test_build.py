@@ -136,3 +136,18 @@ def test_bad_builds_are_refused(client, scans, monkeypatch):
     monkeypatch.setitem(sys.modules, "dask.distributed", None)
     with pytest.raises(ImportError, match=r"pip install 'ehm\[tiles\]'"):
         TiledMap(TILE, OVERLAP).build(scans)
+
+
+def test_peak_memory_is_this_program_s_own():
+    """A worker started by a large process reports its own peak, not its parent's."""
+    import subprocess
+
+    script = (
+        "import numpy as np; from ehm.tiles.build import peak_resident_bytes as peak; "
+        "before = peak(); block = np.ones(100_000_000 // 8); print(before, peak())"
+    )
+    held = np.ones(300_000_000 // 8)  # this process's peak rises past 300 MB
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    before, after = (int(v) for v in result.stdout.split())
+    assert before < 250e6 < held.nbytes
+    assert after - before > 90e6
