@@ -151,3 +151,12 @@ def test_peak_memory_is_this_program_s_own():
     before, after = (int(v) for v in result.stdout.split())
     assert before < 250e6 < held.nbytes
     assert after - before > 90e6
+
+
+def test_a_scheduler_address_runs_the_build_on_that_cluster(client, scans, in_process):
+    """As `ehm map --scheduler tcp://host:8786` does: a client of its own on that cluster."""
+    tiled = TiledMap(TILE, OVERLAP)
+    report = tiled.build(scans, client=client.scheduler.address)
+    assert report.workers == 2
+    points = probe_points(5000)
+    np.testing.assert_array_equal(tiled.occupancy(points), in_process.occupancy(points))
