@@ -1,15 +1,17 @@
-"""Learning a tiled map on Dask (dask.distributed): scans binned into tiles, one task per tile.
+"""Learning a tiled map on Dask (dask.distributed): scans binned into tiles, then one task
+per block of neighbouring tiles. TiledMap.build runs these steps.
 
-    bin scans 0-15  ─┐                               ┌─> learn tile (0, 0, 0) ─> write tile
-    bin scans 16-31 ─┼─> client: tile -> scans ──────┼─> learn tile (1, 0, 0) ─> write tile
+    bin scans 0-15  ─┐                               ┌─> learn block A's tiles ─> write them
+    bin scans 16-31 ─┼─> client: tile -> scans ──────┼─> learn block B's tiles ─> write them
     ...             ─┘   (and rays, the tile's cost) └─> ...  largest first     ─> index
 
 Workers read the scans themselves (source.read), twice: a binning task reads a chunk and
-tells, for each scan, its origin and how many of its rays cross each tile; a tile's task
-reads the scans that cross it, one at a time, clips them to the tile and learns them into the
-tile's map (MapConfig.learn_box), in scan order. The client holds only the bins and one
-learned tile at a time, which it writes to the map directory as it comes (or keeps, for a map
-in memory). A worker holds one tile and one scan per task, whatever the scene's size.
+tells, for each scan, its origin and how many of its rays cross each tile; a block's task
+reads the scans that cross its tiles, each once, in order, and learns the part of each that
+crosses a tile into that tile's map (MapConfig.learn_box). The client holds only the bins and
+one task's learned tiles at a time, which it writes to the map directory as they come (or
+keeps, for a map in memory). A worker holds one block of tiles and one scan per task,
+whatever the scene's size.
 """
 
 from __future__ import annotations
