@@ -688,7 +688,8 @@ def _tiled_map_rows(table: Table, tiled_map) -> None:
         f"{sizes.sum() / 1e6:.3f} MB: {sizes.min() / 1e6:.3f} to {sizes.max() / 1e6:.3f} MB "
         f"each, median {np.median(sizes) / 1e6:.3f}",
     )
-    table.add_row("tile versions", f"1 to {max(record.version for record in records)}")
+    versions = [record.version for record in records]
+    table.add_row("tile versions", f"{min(versions)} to {max(versions)}")
     try:
         low, high = tiled_map.extent().round(2).tolist()
         table.add_row("cluster extent (m)", f"{low} .. {high}")

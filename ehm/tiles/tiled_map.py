@@ -55,6 +55,8 @@ DEFAULT_TILE_SIZE = 25.0
 OVERLAP_IN_FREE_RADII = 2.0
 # Tiles kept in memory at most, least recently used dropped first (those not saved stay).
 MAX_LOADED_TILES = 64
+# A build into a map directory writes its index at least this often, seconds, as tiles come.
+INDEX_EVERY_SECONDS = 10.0
 
 
 class TiledMap:
@@ -278,13 +280,17 @@ class TiledMap:
                 ([self._job(key, tiles[key][0]) for key in keys], cost) for keys, cost in blocks
             ]
             observer.learning(0, len(tiles), None)
-            done = 0
+            done, indexed = 0, time.perf_counter()
             for task in learned_tasks(on, shared, tasks, self.tiling):
                 for tile in task.tiles:
                     self._learned_tile(tile.key, tile.data, tile.record)
                     done += 1
                     observer.learning(done, len(tiles), replace(tile, data=b""))
                 report.tasks.append(replace(task, tiles=[replace(t, data=b"") for t in task.tiles]))
+                if self._store is not None and time.perf_counter() - indexed > INDEX_EVERY_SECONDS:
+                    # An interrupted build leaves an index that matches the tile files.
+                    self._store.write_index(self._index(self._records))
+                    indexed = time.perf_counter()
             report.learning_seconds = time.perf_counter() - start
         self._origins += [scan_bins.origin for scan_bins in bins]
         self.n_scans_ += len(bins)

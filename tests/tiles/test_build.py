@@ -160,3 +160,25 @@ def test_a_scheduler_address_runs_the_build_on_that_cluster(client, scans, in_pr
     assert report.workers == 2
     points = probe_points(5000)
     np.testing.assert_array_equal(tiled.occupancy(points), in_process.occupancy(points))
+
+
+def test_the_index_keeps_up_with_the_tiles_during_a_build(client, scans, tmp_path, monkeypatch):
+    """Written as tasks finish (here after each), the index names only tiles on disk, so an
+    interrupted build leaves a map that opens."""
+    monkeypatch.setattr("ehm.tiles.tiled_map.INDEX_EVERY_SECONDS", 0.0)
+    folder = tmp_path / "m.ehm"
+    seen = []
+
+    class IndexChecker(Recorder):
+        def learning(self, done, total, result):
+            if (folder / "index.json").exists():
+                partial = ehm.load(folder)
+                for key in partial.tile_keys:
+                    assert partial.tile(key).n_scans_ == partial.tile_record(key).n_scans
+                seen.append(partial.n_tiles)
+
+    tiled = TiledMap(TILE, OVERLAP)
+    tiled.build(scans, client=client, directory=folder, block=1, observer=IndexChecker())
+    assert seen and min(seen) > 0 and max(seen) < tiled.n_tiles
+    assert seen == sorted(seen)
+    assert ehm.load(folder).n_tiles == tiled.n_tiles
