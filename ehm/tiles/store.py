@@ -23,6 +23,7 @@ import numpy as np
 from ehm.core.kernels import kernel_reach
 from ehm.errors import FileReadError, OutputError
 from ehm.io.files import read_text, write_atomically
+from ehm.io.outputs import check_output_map_directory
 
 if TYPE_CHECKING:
     from ehm.hilbert_map import HilbertMap
@@ -161,8 +162,18 @@ class TileStore:
     def write_tile(self, key: TileKey, data: bytes) -> None:
         write_atomically(self.tile_path(key), data)
 
+    def remove_tiles_except(self, keys: set[TileKey]) -> None:
+        """Delete tile files that the index no longer names (left by a map written over)."""
+        kept = {tile_name(key) for key in keys}
+        for path in (self.directory / TILES_FOLDER).glob("*.ehm"):
+            if path.name not in kept:
+                path.unlink(missing_ok=True)
+
     def prepare(self) -> None:
-        """Make the directory and its tiles folder; OutputError where that fails."""
+        """Make the directory and its tiles folder where a tiled map may be written (see
+        ehm.io.outputs.check_output_map_directory: not a file, nor a folder of other files);
+        OutputError otherwise and where making it fails."""
+        check_output_map_directory(self.directory, force=True)
         try:
             (self.directory / TILES_FOLDER).mkdir(parents=True, exist_ok=True)
         except OSError as error:

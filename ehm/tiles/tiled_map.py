@@ -296,6 +296,7 @@ class TiledMap:
         self.n_scans_ += len(bins)
         if self._store is not None:
             self._store.write_index(self._index(self._records))
+            self._store.remove_tiles_except(set(self._records) | self._changed)
         return report
 
     def _job(self, key: TileKey, indices: list[int]) -> TileJob:
@@ -480,14 +481,6 @@ class TiledMap:
         self._require_dim("save it")
         store = TileStore(path)
         same = self._store is not None and _same_folder(self._store.directory, store.directory)
-        if (
-            not same
-            and Path(path).exists()
-            and not (
-                Path(path).is_dir() and (TileStore.holds_map(path) or not any(Path(path).iterdir()))
-            )
-        ):
-            raise InputError(f"{path} exists and is not a tiled map's directory: choose another")
         store.prepare()
         records = {}
         for key in self.tile_keys:
@@ -503,6 +496,7 @@ class TiledMap:
                     store.write_tile(key, self._store.read_tile(key))
                 records[key] = old
         store.write_index(self._index(records))
+        store.remove_tiles_except(set(records))
         self._store, self._records = store, records
         self._changed.clear()
 

@@ -6,7 +6,7 @@ import pytest
 import ehm
 from ehm.config import MapConfig
 from ehm.core.uncertainty import occupancy_std
-from ehm.errors import EmptyMapError, InputError, SettingsError
+from ehm.errors import EmptyMapError, InputError, OutputError, SettingsError
 from ehm.eval.metrics import f1_score
 from ehm.eval.protocol import held_out_rays
 from ehm.hilbert_map import HilbertMap
@@ -158,3 +158,22 @@ def test_bad_input_is_refused(room):
         tiled.integrate_scan("scan")
     with pytest.raises(InputError, match="no tile"):
         tiled.tile((99, 99, 99))
+
+
+def test_saving_writes_over_a_tiled_map_but_nothing_else(tmp_path, tiled_room, room):
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "a.txt").write_text("x")
+    (tmp_path / "file.ehm").write_text("x")
+    cases = ((tmp_path / "notes", "folder of other files"), (tmp_path / "file.ehm", "is a file"))
+    for path, message in cases:
+        with pytest.raises(OutputError, match=message):
+            tiled_room.save(path)
+    # Over a larger map, the tiles only the old map had go with it.
+    tiled_room.save(tmp_path / "m.ehm")
+    scan = room.scans[0]
+    corner = np.all(scan.points_world[:, :2] > [2.5, 1.5], axis=1)
+    small = TiledMap(TILE, OVERLAP).integrate_scan(scan.subset(corner))
+    small.save(tmp_path / "m.ehm")
+    files = sorted((tmp_path / "m.ehm" / "tiles").iterdir())
+    assert len(files) == small.n_tiles < tiled_room.n_tiles
+    assert ehm.load(tmp_path / "m.ehm").tile_keys == small.tile_keys
