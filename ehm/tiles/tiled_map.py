@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import time
 from collections import OrderedDict
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from os import PathLike
 from pathlib import Path
@@ -387,20 +387,14 @@ class TiledMap:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) blended log-odds at `points` and, when with_variance, their (n,) variance;
         NaN for rows that are not finite."""
-        dim = self._require_dim("query it")
-        points = np.asarray(points, dtype=np.float64)
-        if points.ndim != 2 or points.shape[1] != dim:
-            raise InputError(f"query points must have shape (n, {dim}), got {points.shape}")
+        points = self._checked_points(points)
         rows, keys, weights = self.tiling.blend(points)
         finite = np.all(np.isfinite(points), axis=1)
         log_odds = np.where(finite, 0.0, np.nan)
         variance = np.where(finite, 0.0, np.nan) if with_variance else np.zeros(0)
-        order = np.lexsort(keys.T[::-1])
-        rows, keys, weights = rows[order], keys[order], weights[order]
-        starts = np.flatnonzero(np.r_[True, np.any(keys[1:] != keys[:-1], axis=1)])
-        for first, end in zip(starts, np.r_[starts[1:], len(rows)], strict=True):
-            tile_map = self._answering(tuple(keys[first].tolist()))
-            chosen, weight = rows[first:end], weights[first:end]
+        for key, entries in _by_tile(np.arange(len(rows)), keys):
+            tile_map = self._answering(key)
+            chosen, weight = rows[entries], weights[entries]
             if tile_map is None:  # nothing learned here: log-odds 0, the prior's variance
                 if with_variance:
                     variance[chosen] += weight / self.config.prior_precision
@@ -412,6 +406,35 @@ class TiledMap:
             else:
                 log_odds[chosen] += weight * found
         return log_odds, variance
+
+    def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n, d) float64 gradient of the blended log-odds (`decision_function`) with respect
+        to position, 1/m, world frame, at (n, d) points, metres: the tiles' gradients
+        (HilbertMap.gradient) blended as the log-odds are, plus each tile's log-odds times the
+        gradient of its weight. NaN rows where points are not finite."""
+        points = self._checked_points(points)
+        rows, keys, weights = self.tiling.blend(points)
+        finite = np.all(np.isfinite(points), axis=1)
+        out = np.where(finite[:, None], np.zeros(points.shape), np.nan)
+        for key, entries in _by_tile(np.arange(len(rows)), keys):
+            tile_map = self._answering(key)
+            if tile_map is None:  # log-odds 0 everywhere: nothing to add
+                continue
+            chosen = rows[entries]
+            at = points[chosen]
+            slope = self.tiling.weight_gradients(at, key)
+            out[chosen] += weights[entries, None] * tile_map.gradient(at, mode)
+            out[chosen] += tile_map.decision_function(at, mode)[:, None] * slope
+        return out
+
+    def _checked_points(self, points: np.ndarray) -> np.ndarray:
+        """(n, d) float64 query points; InputError for another shape, EmptyMapError for an
+        empty map."""
+        dim = self._require_dim("query it")
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != dim:
+            raise InputError(f"query points must have shape (n, {dim}), got {points.shape}")
+        return points
 
     def _answering(self, key: TileKey) -> HilbertMap | None:
         """The map that answers for tile `key`, or None where it learned no cluster."""
@@ -524,6 +547,16 @@ class TiledMap:
         tiled_map.n_scans_ = index.n_scans
         tiled_map._origins = [np.asarray(origin, dtype=np.float64) for origin in index.sensor_path]
         return tiled_map
+
+
+def _by_tile(values: np.ndarray, keys: np.ndarray) -> Iterator[tuple[TileKey, np.ndarray]]:
+    """Each tile key of (m, d) `keys` with the (m,) `values` of its rows."""
+    if len(keys) == 0:
+        return
+    order = np.lexsort(keys.T[::-1])
+    starts = np.flatnonzero(np.r_[True, np.any(keys[order][1:] != keys[order][:-1], axis=1)])
+    for first, end in zip(starts, np.r_[starts[1:], len(order)], strict=True):
+        yield tuple(keys[order[first]].tolist()), values[order[first:end]]
 
 
 def _same_folder(a: Path, b: Path) -> bool:

@@ -85,6 +85,23 @@ class Tiling:
         inside = np.minimum(points - core[0], core[1] - points)  # < 0 outside the core
         return np.prod(_smoothstep((inside + self.overlap) / (2.0 * self.overlap)), axis=1)
 
+    def weight_gradients(self, points: np.ndarray, key: TileKey) -> np.ndarray:
+        """(n, d) float64, 1/m: the gradient of tile `key`'s blending weight (`weights`) at
+        (n, d) points, metres."""
+        core = self.core_box(key)
+        below, above = points - core[0], core[1] - points
+        inside = np.minimum(below, above)
+        band = 2.0 * self.overlap
+        t = (inside + self.overlap) / band
+        factors = _smoothstep(t)
+        slopes = np.where((t > 0.0) & (t < 1.0), 6.0 * t * (1.0 - t), 0.0) / band
+        slopes *= np.where(below <= above, 1.0, -1.0)  # d(inside)/dx: +1 near low, -1 near high
+        gradients = np.empty_like(points, dtype=np.float64)
+        for axis in range(points.shape[1]):
+            others = np.prod(np.delete(factors, axis, axis=1), axis=1)
+            gradients[:, axis] = slopes[:, axis] * others
+        return gradients
+
     def clip(self, scan: Scan, key: TileKey) -> Scan | None:
         """The rays of `scan` that cross tile `key`'s learn box (None if none does). The rays
         are whole; a map with MapConfig.learn_box set to that box learns only their part in

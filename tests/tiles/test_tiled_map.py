@@ -62,6 +62,8 @@ def test_queries_take_the_same_checks_as_a_hilbert_map(tiled_room):
     p, std = tiled_room.occupancy(np.array([[0.0, 0.0, 1.0], [np.nan, 0.0, 0.0]]), return_std=True)
     assert 0.0 <= p[0] <= 1.0 and 0.0 < std[0] < 0.5
     assert np.isnan(p[1]) and np.isnan(std[1])
+    assert np.isnan(tiled_room.occupancy(np.full((2, 3), np.nan))).all()
+    assert tiled_room.occupancy(np.zeros((0, 3))).shape == (0,)
     proba = tiled_room.predict_proba(np.zeros((3, 3)))
     np.testing.assert_allclose(proba.sum(axis=1), 1.0)
     with pytest.raises(InputError, match=r"shape \(n, 3\)"):
@@ -177,3 +179,22 @@ def test_saving_writes_over_a_tiled_map_but_nothing_else(tmp_path, tiled_room, r
     files = sorted((tmp_path / "m.ehm" / "tiles").iterdir())
     assert len(files) == small.n_tiles < tiled_room.n_tiles
     assert ehm.load(tmp_path / "m.ehm").tile_keys == small.tile_keys
+
+
+def test_the_gradient_is_that_of_the_blended_log_odds(room):
+    tiled = TiledMap(TILE, OVERLAP, features="support", planar_kernel=False)
+    tiled.integrate_scan(room.scans[0])
+    points = np.random.default_rng(3).uniform([-4.0, -3.0, 0.1], [4.0, 3.0, 2.4], (3000, 3))
+    points[0] = [1.5, 0.3, 1.0]  # on a tile border
+    step = 1e-5
+    numeric = np.column_stack(
+        [
+            (tiled.decision_function(points + step * np.eye(3)[a])
+             - tiled.decision_function(points - step * np.eye(3)[a])) / (2 * step)
+            for a in range(3)
+        ]
+    )  # fmt: skip
+    analytic = tiled.gradient(points)
+    assert np.abs(analytic).max() > 1.0
+    np.testing.assert_allclose(analytic, numeric, atol=1e-4 * np.abs(numeric).max())
+    assert np.isnan(tiled.gradient(np.array([[np.nan, 0.0, 0.0]]))).all()

@@ -77,3 +77,21 @@ def test_clip_keeps_the_rays_that_cross_a_tile(rng):
 def test_bad_tilings_are_refused(size, overlap, message):
     with pytest.raises(SettingsError, match=message):
         Tiling(size, overlap)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_weight_gradients_are_the_derivatives_of_the_weights(rng, dim):
+    tiling = Tiling(4.0, 1.0)
+    key = (0,) * dim
+    points = rng.uniform(-3.5, 3.5, (4000, dim))
+    step = 1e-6
+    numeric = np.column_stack(
+        [
+            (tiling.weights(points + step * np.eye(dim)[a], key)
+             - tiling.weights(points - step * np.eye(dim)[a], key)) / (2 * step)
+            for a in range(dim)
+        ]
+    )  # fmt: skip
+    analytic = tiling.weight_gradients(points, key)
+    assert np.abs(analytic).max() > 0.5
+    np.testing.assert_allclose(analytic, numeric, atol=1e-6)
