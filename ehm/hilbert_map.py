@@ -39,7 +39,15 @@ from ehm.core.logistic import sigmoid
 from ehm.core.memory import SampleMemory
 from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
-from ehm.core.raycast import CandidateCells, GridLogOdds, first_crossings, refine_guesses
+from ehm.core.raycast import (
+    CandidateCells,
+    GridLogOdds,
+    checked_rays,
+    first_crossings,
+    log_odds_level,
+    refine_guesses,
+    segment_rays,
+)
 from ehm.core.samples import TrainingSamples, samples_of_scans
 from ehm.core.scan import Scan
 from ehm.core.sgd import loss_weights, train_weights
@@ -486,8 +494,8 @@ class HilbertMap:
         (ehm.core.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it stops
         no ray at the default level."""
         clusters = self._learned("cast rays through it")
-        origins, directions, max_range = self._rays(origins, directions, max_range)
-        threshold = _log_odds_level(level)
+        origins, directions, max_range = checked_rays(origins, directions, max_range, self.dim)
+        threshold = log_odds_level(level)
         mode = self._checked_mode(mode or self.config.query_mode)
         radius = self.config.cluster_radius
 
@@ -555,46 +563,8 @@ class HilbertMap:
         """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
         one (d,) point each, metres, world frame) has occupancy above `level`, as `raycast`
         finds it. Unknown space (0.5) counts as free at the default level."""
-        starts, ends = np.atleast_2d(starts).astype(float), np.atleast_2d(ends).astype(float)
-        if (
-            starts.shape[1:] != (self.dim,)
-            or ends.shape[1:] != (self.dim,)
-            or (len(starts) != len(ends) and 1 not in (len(starts), len(ends)))
-        ):
-            raise InputError(
-                f"segment ends must be (n, {self.dim}) or ({self.dim},) points, got "
-                f"{starts.shape} and {ends.shape}"
-            )
-        starts, ends = np.broadcast_arrays(starts, ends)
-        lengths = np.linalg.norm(ends - starts, axis=1)
-        directions = np.where(lengths[:, None] > 0, ends - starts, 1.0)
+        starts, directions, lengths = segment_rays(starts, ends, self.dim)
         return np.isinf(self.raycast(starts, directions, lengths, level, mode))
-
-    def _rays(
-        self, origins: np.ndarray, directions: np.ndarray, max_range: float | np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Checked rays: (n, d) origins, (n, d) unit directions and (n,) ranges, float64."""
-        directions = np.asarray(directions, dtype=np.float64)
-        if directions.ndim != 2 or directions.shape[1] != self.dim:
-            raise InputError(
-                f"ray directions must have shape (n, {self.dim}), got {directions.shape}"
-            )
-        origins = np.asarray(origins, dtype=np.float64)
-        if origins.shape not in ((self.dim,), directions.shape):
-            raise InputError(
-                f"ray origins must have shape ({self.dim},) or {directions.shape}, "
-                f"got {origins.shape}"
-            )
-        origins = np.broadcast_to(origins, directions.shape)
-        lengths = np.linalg.norm(directions, axis=1)
-        if not (
-            np.all(np.isfinite(origins)) and np.all(lengths > 0) and np.all(np.isfinite(lengths))
-        ):
-            raise InputError("ray origins must be finite and directions finite and not zero")
-        max_range = np.broadcast_to(np.asarray(max_range, dtype=np.float64), lengths.shape)
-        if not np.all((max_range >= 0) & np.isfinite(max_range)):
-            raise InputError("max_range must be finite metres >= 0")
-        return np.ascontiguousarray(origins), directions / lengths[:, None], max_range.copy()
 
     def _query_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Checked (n, d) float64 points, which rows are finite, and those rows (contiguous)."""
@@ -725,10 +695,3 @@ class HilbertMap:
     def extent(self) -> np.ndarray:
         """(2, d) metres, world frame: the box holding every kernel's support."""
         return support_bounds(self.snapshot())
-
-
-def _log_odds_level(level: float) -> float:
-    """The log-odds of an occupancy probability strictly between 0 and 1."""
-    if not 0.0 < level < 1.0:
-        raise InputError(f"level must be a probability between 0 and 1, got {level}")
-    return float(np.log(level / (1.0 - level)))

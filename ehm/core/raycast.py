@@ -24,8 +24,64 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ehm.errors import InputError
+
 # Points of every running ray evaluated in one call of the log-odds.
 STEPS_PER_ROUND = 32
+
+
+def checked_rays(
+    origins: np.ndarray, directions: np.ndarray, max_range: float | np.ndarray, dim: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rays a map of `dim` dimensions can cast: (n, d) origins (given as (n, d) or one (d,)
+    point), (n, d) unit directions and (n,) ranges, float64; InputError naming what is
+    wrong."""
+    directions = np.asarray(directions, dtype=np.float64)
+    if directions.ndim != 2 or directions.shape[1] != dim:
+        raise InputError(f"ray directions must have shape (n, {dim}), got {directions.shape}")
+    origins = np.asarray(origins, dtype=np.float64)
+    if origins.shape not in ((dim,), directions.shape):
+        raise InputError(
+            f"ray origins must have shape ({dim},) or {directions.shape}, got {origins.shape}"
+        )
+    origins = np.broadcast_to(origins, directions.shape)
+    lengths = np.linalg.norm(directions, axis=1)
+    if not (np.all(np.isfinite(origins)) and np.all(lengths > 0) and np.all(np.isfinite(lengths))):
+        raise InputError("ray origins must be finite and directions finite and not zero")
+    max_range = np.broadcast_to(np.asarray(max_range, dtype=np.float64), lengths.shape)
+    if not np.all((max_range >= 0) & np.isfinite(max_range)):
+        raise InputError("max_range must be finite metres >= 0")
+    return np.ascontiguousarray(origins), directions / lengths[:, None], max_range.copy()
+
+
+def segment_rays(
+    starts: np.ndarray, ends: np.ndarray, dim: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Segments from starts[i] to ends[i] ((n, d) or one (d,) point each, metres) as rays:
+    (n, d) origins, (n, d) directions (any length; ones for a segment of length 0) and (n,)
+    lengths, metres; InputError for ends of other shapes."""
+    starts, ends = np.atleast_2d(starts).astype(float), np.atleast_2d(ends).astype(float)
+    if (
+        starts.shape[1:] != (dim,)
+        or ends.shape[1:] != (dim,)
+        or (len(starts) != len(ends) and 1 not in (len(starts), len(ends)))
+    ):
+        raise InputError(
+            f"segment ends must be (n, {dim}) or ({dim},) points, got {starts.shape} and "
+            f"{ends.shape}"
+        )
+    starts, ends = np.broadcast_arrays(starts, ends)
+    lengths = np.linalg.norm(ends - starts, axis=1)
+    directions = np.where(lengths[:, None] > 0, ends - starts, 1.0)
+    return starts, directions, lengths
+
+
+def log_odds_level(level: float) -> float:
+    """The log-odds of an occupancy probability strictly between 0 and 1; InputError for
+    others."""
+    if not 0.0 < level < 1.0:
+        raise InputError(f"level must be a probability between 0 and 1, got {level}")
+    return float(np.log(level / (1.0 - level)))
 
 
 def first_crossings(

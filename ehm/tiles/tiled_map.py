@@ -26,6 +26,7 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.logistic import sigmoid
+from ehm.core.raycast import checked_rays, first_crossings, log_odds_level, segment_rays
 from ehm.core.scan import Scan
 from ehm.core.uncertainty import logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError, SettingsError
@@ -426,6 +427,39 @@ class TiledMap:
             out[chosen] += weights[entries, None] * tile_map.gradient(at, mode)
             out[chosen] += tile_map.decision_function(at, mode)[:, None] * slope
         return out
+
+    def raycast(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        max_range: float | np.ndarray,
+        level: float = 0.5,
+        mode: str | None = None,
+    ) -> np.ndarray:
+        """(n,) distance, metres, along each ray to the first point whose blended occupancy
+        rises above `level`; inf where none does within `max_range` (see HilbertMap.raycast
+        for the arguments). Rays march the blended log-odds cluster_radius / 2 apart all the
+        way (a single map's grid and candidate cells are not kept across tiles), and each
+        crossing is located to cluster_radius / 10 (ehm.core.raycast.first_crossings)."""
+        dim = self._require_dim("cast rays through it")
+        origins, directions, max_range = checked_rays(origins, directions, max_range, dim)
+        threshold = log_odds_level(level)
+        radius = self.config.cluster_radius
+
+        def log_odds(points: np.ndarray) -> np.ndarray:
+            return self.decision_function(points, mode)
+
+        step, tolerance = radius / 2.0, radius / 10.0
+        return first_crossings(log_odds, origins, directions, max_range, threshold, step, tolerance)
+
+    def segment_free(
+        self, starts: np.ndarray, ends: np.ndarray, level: float = 0.5, mode: str | None = None
+    ) -> np.ndarray:
+        """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
+        one (d,) point each, metres, world frame) has blended occupancy above `level`, as
+        `raycast` finds it."""
+        starts, directions, lengths = segment_rays(starts, ends, self._require_dim("query it"))
+        return np.isinf(self.raycast(starts, directions, lengths, level, mode))
 
     def _checked_points(self, points: np.ndarray) -> np.ndarray:
         """(n, d) float64 query points; InputError for another shape, EmptyMapError for an

@@ -5,6 +5,7 @@ import pytest
 
 import ehm
 from ehm.config import MapConfig
+from ehm.core.raycast import first_crossings_reference
 from ehm.core.uncertainty import occupancy_std
 from ehm.errors import EmptyMapError, InputError, OutputError, SettingsError
 from ehm.eval.metrics import f1_score
@@ -198,3 +199,33 @@ def test_the_gradient_is_that_of_the_blended_log_odds(room):
     assert np.abs(analytic).max() > 1.0
     np.testing.assert_allclose(analytic, numeric, atol=1e-4 * np.abs(numeric).max())
     assert np.isnan(tiled.gradient(np.array([[np.nan, 0.0, 0.0]]))).all()
+
+
+def test_rays_stop_where_the_blended_map_rises_above_the_level(tiled_room, room):
+    scan = room.scans[0]
+    rng = np.random.default_rng(6)
+    rays = rng.choice(np.flatnonzero(scan.hit_mask), 300, replace=False)
+    offsets = scan.points_world[rays] - scan.origin
+    directions = offsets / np.linalg.norm(offsets, axis=1)[:, None]
+    distance = tiled_room.raycast(scan.origin, directions, 12.0)
+    dense = first_crossings_reference(
+        tiled_room.decision_function,
+        np.broadcast_to(scan.origin, directions.shape),
+        directions,
+        np.full(len(directions), 12.0),
+        0.0,
+        0.005,
+    )
+    both = np.isfinite(distance) & np.isfinite(dense)
+    assert both.mean() > 0.95
+    assert np.mean(np.abs(distance[both] - dense[both]) < 0.02) > 0.97
+    exact = room.scene.raycast(scan.origin, directions)
+    assert np.median(np.abs(distance - exact)[np.isfinite(distance)]) < 0.05
+    before = scan.origin + directions * (exact[:, None] - 0.3)
+    beyond = scan.origin + directions * (exact[:, None] + 0.3)
+    assert tiled_room.segment_free(scan.origin, before).mean() > 0.9
+    assert tiled_room.segment_free(scan.origin, beyond).mean() < 0.05
+    with pytest.raises(InputError, match=r"ray directions must have shape \(n, 3\)"):
+        tiled_room.raycast(np.zeros(3), np.ones((4, 2)), 5.0)
+    with pytest.raises(InputError, match="segment ends must be"):
+        tiled_room.segment_free(np.zeros((2, 3)), np.ones((3, 3)))
