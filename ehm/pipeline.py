@@ -174,21 +174,27 @@ class MappingPipeline:
         run.add_stages(self.hilbert_map.timings_)
 
 
+def rate_progress(console=None):
+    """A Rich Progress whose tasks show a description, a bar, done of total, a `rate` field
+    and the time elapsed (the progress bars of mapping and of tiled builds)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    return Progress(
+        "[progress.description]{task.description}",
+        BarColumn(),
+        MofNCompleteColumn(),
+        "{task.fields[rate]}",
+        TimeElapsedColumn(),
+        console=console,
+    )
+
+
 class ProgressBar(NullObserver):
     """A Rich progress bar over the scans: scans learned, how many a second are read and how
     many learned (each rate over the time spent on it alone), and the time elapsed."""
 
     def __init__(self, console=None, description: str = "mapping") -> None:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
-
-        self._progress = Progress(
-            "[progress.description]{task.description}",
-            BarColumn(),
-            MofNCompleteColumn(),
-            "{task.fields[rate]}",
-            TimeElapsedColumn(),
-            console=console,
-        )
+        self._progress = rate_progress(console)
         self._description = description
         self._task = None
         self._last = 0.0

@@ -108,3 +108,18 @@ def sparse_batch():
         return features.indptr, features.rows, features.values, labels
 
     return make
+
+
+@pytest.fixture
+def table_row():
+    """The cells after the first of the Rich table row of a command's output that starts
+    with `name`: table_row(output, name)."""
+
+    def cells(output: str, name: str) -> list[str]:
+        for line in output.splitlines():
+            row = [c.strip() for c in line.strip("│┃| ").split("│")]
+            if row and row[0] == name:
+                return row[1:]
+        raise AssertionError(f"no row {name!r} in:\n{output}")
+
+    return cells

@@ -29,16 +29,7 @@ def room_map_file(tmp_path_factory, room):
     return path
 
 
-def table_row(output: str, name: str) -> list[str]:
-    """The cells of the Rich table row that starts with `name`."""
-    for line in output.splitlines():
-        cells = [c.strip() for c in line.strip("│┃| ").split("│")]
-        if cells and cells[0] == name:
-            return cells[1:]
-    raise AssertionError(f"no row {name!r} in:\n{output}")
-
-
-def test_map_then_info_and_query(map_file, tmp_path):
+def test_map_then_info_and_query(map_file, tmp_path, table_row):
     hilbert_map = ehm.load(map_file)
     info = runner.invoke(app, ["info", str(map_file)])
     assert info.exit_code == 0, info.output

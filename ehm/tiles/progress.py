@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from ehm.pipeline import rate_progress
 from ehm.tiles.build import TileResult
 
 
@@ -13,16 +14,7 @@ class TileProgressBar:
     each with its rate and the time elapsed."""
 
     def __init__(self, console: Any = None) -> None:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
-
-        self._progress = Progress(
-            "[progress.description]{task.description}",
-            BarColumn(),
-            MofNCompleteColumn(),
-            "{task.fields[rate]}",
-            TimeElapsedColumn(),
-            console=console,
-        )
+        self._progress = rate_progress(console)
         self._tasks: dict[str, Any] = {}
         self._started: dict[str, float] = {}
 

@@ -13,14 +13,6 @@ pytest.importorskip("dask.distributed")
 runner = CliRunner(env={"COLUMNS": "240"})
 
 
-def table_row(output: str, name: str) -> list[str]:
-    for line in output.splitlines():
-        cells = [c.strip() for c in line.strip("│┃| ").split("│")]
-        if cells and cells[0] == name:
-            return cells[1:]
-    raise AssertionError(f"no row {name!r} in:\n{output}")
-
-
 @pytest.fixture(scope="module")
 def tiled_plan(tmp_path_factory, plan_log):
     """The floor plan's log mapped in 4 m tiles by two workers, each reading the log."""
@@ -32,7 +24,7 @@ def tiled_plan(tmp_path_factory, plan_log):
     return output
 
 
-def test_map_in_tiles_learns_what_one_process_learns(tiled_plan, plan_log):
+def test_map_in_tiles_learns_what_one_process_learns(tiled_plan, plan_log, table_row):
     here = TiledMap(4.0, 1.0)
     for scan in read_scans(plan_log):
         here.integrate_scan(scan)
