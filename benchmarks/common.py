@@ -8,6 +8,7 @@ import platform
 import statistics
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from datetime import date
 from pathlib import Path
 from typing import Any
@@ -120,16 +121,31 @@ def markdown_table(
     return "\n".join(lines) + "\n"
 
 
+@dataclass(frozen=True)
+class Sweep:
+    """What a benchmark sweep runs: seeds, train fractions, data sets and methods."""
+
+    seeds: list[int]
+    fractions: list[float]
+    datasets: list[str]
+    methods: list[str]
+
+
 def sweep_arguments(
-    description: str, datasets: Sequence[str]
-) -> tuple[list[int], list[float], list[str]]:
-    """Seeds, train fractions and data sets of a benchmark sweep from the command line
-    (--seeds 0,1,2 --fractions 0.8,0.4 --datasets a,b; the defaults: those, and `datasets`)."""
+    description: str, datasets: Sequence[str], methods: Sequence[str] = ()
+) -> Sweep:
+    """The sweep asked for on the command line (--seeds 0,1,2 --fractions 0.8,0.4
+    --datasets a,b --methods m,n; the defaults: those, `datasets` and `methods`)."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--seeds", default="0,1,2")
     parser.add_argument("--fractions", default="0.8,0.4")
     parser.add_argument("--datasets", default=",".join(datasets))
+    if methods:
+        parser.add_argument("--methods", default=",".join(methods))
     args = parser.parse_args()
-    seeds = [int(s) for s in args.seeds.split(",")]
-    fractions = [float(f) for f in args.fractions.split(",")]
-    return seeds, fractions, args.datasets.split(",")
+    return Sweep(
+        [int(s) for s in args.seeds.split(",")],
+        [float(f) for f in args.fractions.split(",")],
+        args.datasets.split(","),
+        args.methods.split(",") if methods else [],
+    )

@@ -3,7 +3,7 @@ in one batch (`ehm-batch`) and OctoMap, on every data set with several scans, an
 against the exact occupancy.
 
     python benchmarks/online_mapping.py [--seeds 0,1,2] [--fractions 0.8,0.4]
-                                        [--datasets warehouse,street,...]
+                                        [--datasets warehouse,street,...] [--methods ehm,...]
 
 For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the
 four methods: held-out F1 of the occupied class at p = 0.5, every method at the data set's
@@ -35,7 +35,7 @@ from ehm.eval.runner import run_method
 
 METHODS = ("ehm", "ehm-alone", "ehm-batch", "octomap")
 SIMULATED = {"virtual_room": virtual_room, "warehouse": warehouse, "street": street}
-DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab")
+DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab", "octomap_scan")
 # Test points near surfaces: uniform in balls of this radius around training hits, metres.
 NEAR = 0.3
 # Solids at most this wide across in every horizontal direction are thin (posts), metres.
@@ -76,9 +76,14 @@ def thin_solid_test_points(
 
 
 def measure(
-    name: str, scans: list[Scan], scene: Scene | None, fraction: float, seed: int
+    name: str,
+    scans: list[Scan],
+    scene: Scene | None,
+    fraction: float,
+    seed: int,
+    methods: Sequence[str] = METHODS,
 ) -> dict[str, dict[str, float]]:
-    """Measures of each method on one split: 'held-out F1', and with a scene 'near
+    """Measures of each of `methods` on one split: 'held-out F1', and with a scene 'near
     precision', 'near recall', 'near F1', and where it has thin solids 'thin recall'."""
     resolution = RESOLUTIONS.get(name, RESOLUTION)
     split = held_out_rays(scans, fraction, resolution, seed)
@@ -90,7 +95,7 @@ def measure(
         truth = scene.occupied(near)
         thin = thin_solid_test_points(scene, split.train, rng)
     found = {}
-    for method in METHODS:
+    for method in methods:
         mapper = make_mapper(method, resolution, seed)
         probability, build_s, _ = run_method(mapper, split.train, split.points)
         row = {"held-out F1": f1_score(split.occupied, probability > 0.5), "build s": build_s}
@@ -111,9 +116,10 @@ def measure(
 
 
 def main() -> None:
-    seeds, fractions, names = sweep_arguments(__doc__.splitlines()[0], DATASETS)
+    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, METHODS)
+    seeds, fractions, methods = sweep.seeds, sweep.fractions, sweep.methods
     print(heading("Online mapping", f"seeds {seeds}, train fractions {fractions}"))
-    for name in names:
+    for name in sweep.datasets:
         if name in SIMULATED:
             data = SIMULATED[name]()
             scans, scene = data.scans, data.scene
@@ -125,8 +131,8 @@ def main() -> None:
                 continue
         rows = []
         for fraction in fractions:
-            runs = [measure(name, scans, scene, fraction, seed) for seed in seeds]
-            for method in METHODS:
+            runs = [measure(name, scans, scene, fraction, seed, methods) for seed in seeds]
+            for method in methods:
                 cells = [method, f"{fraction:.0%}"]
                 for measure_name in runs[0][method]:
                     values = [run[method][measure_name] for run in runs]
@@ -134,7 +140,7 @@ def main() -> None:
                     digits = 2 if measure_name == "build s" else 3
                     cells.append(f"{statistics.fmean(values):.{digits}f}±{spread:.{digits}f}")
                 rows.append(cells)
-        header = ["method", "train", *runs[0][METHODS[0]]]
+        header = ["method", "train", *runs[0][methods[0]]]
         print(f"### {name}: {len(scans)} scans, {sum(len(s) for s in scans):,} rays\n")
         print(markdown_table(header, rows, text_columns=2))
 

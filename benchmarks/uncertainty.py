@@ -86,7 +86,8 @@ def measure(
 
 
 def main() -> None:
-    seeds, fractions, names = sweep_arguments(__doc__.splitlines()[0], DATASETS)
+    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS)
+    seeds, fractions, names = sweep.seeds, sweep.fractions, sweep.datasets
     rows = []
     for name in names:
         try:

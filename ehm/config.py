@@ -66,18 +66,10 @@ class MapConfig:
     occupied_depth: float = 0.15
     """One occupied sample is drawn up to this far behind each hit, metres: surfaces are taken
     to be solid this deep."""
-    samples_per_cell: int = 0
-    """Most samples of one batch kept per cell and kind, in cells half a cluster radius wide
-    (ehm.core.thinning); each kept one stands for those left out of its cell, and SGD visits
-    it as many times. Where rays crowd, near the sensor, this takes most samples out before
-    any work. 0 keeps all. A trade, off by default: at 16, TUM's frames map 1.7x faster at
-    the same held-out F1 and near-surface F1 rises 0.01-0.02 on the simulated scenes, but the
-    virtual room's held-out F1 drops 0.02-0.03 (0.929 against 0.948 scan by scan) and thin
-    posts read occupied less often (BENCHMARKS.md)."""
 
     batch_rays: int = 20_000
     """Scans are gathered until they hold at least this many rays, then learned as one batch
-    (one set of samples, one clustering, one SGD run). A query, a grid or `flush()`
+    (one gathering of evidence, one clustering, one SGD run). A query, a grid or `flush()`
     learns the scans still waiting first, so every answer sees every scan given. Small scans
     (a 2D laser's few hundred rays) then share the fixed cost of an update and form their
     clusters together: the Intel lab's 180-ray scans map 6x faster and score held-out F1
@@ -180,16 +172,15 @@ class MapConfig:
     """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0: the log-odds
     variance of never-observed space (occupancy std 0.21 at 1; ehm.core.uncertainty), and
     under 'posterior' the prior the first update starts from."""
-    memory_per_cell: int = 8
-    """Past training samples a map keeps per cell of space (ehm.core.memory): a uniform random
-    subset of those that fell in the cell, `cluster_radius` on a side around hits,
-    `free_cluster_radius` along rays. They are replayed with later scans, and those that formed
-    no cluster yet are clustered again with a later scan's samples in their cell. 0 keeps
-    none: each scan is learned from its own samples alone, as Alg. 2 does."""
+    keep_evidence: bool = True
+    """Keep the evidence of past scans, one weighted mean per cell and kind (ehm.core.memory):
+    it is replayed with later scans that reach its place, and what formed no cluster yet is
+    clustered again with a later scan's evidence in its cell. False: each scan is learned from
+    its own evidence alone, as Alg. 2 does."""
     replay_ratio: float = 1.0
-    """Past samples replayed from the memory with each scan, per sample of the scan: from the
-    cells around hits as many as the scan has samples there (times the ratio), the rest from
-    cells along rays, each cell in proportion to the samples it has seen."""
+    """Weight of the past evidence replayed with each batch, per unit of the batch's own: from
+    the cells around hits as much as the batch has there (times the ratio), the rest from the
+    cells along rays, each cell in proportion to the weight it has seen."""
     balance_classes: bool = False
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2
@@ -264,8 +255,6 @@ class MapConfig:
             ("kmeans_iterations", 0),
             ("anisotropic_candidates", 1),
             ("anchor_layers", 1),
-            ("memory_per_cell", 0),
-            ("samples_per_cell", 0),
             ("batch_rays", 0),
             ("max_free_samples", 1),
         )

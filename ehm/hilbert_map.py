@@ -23,6 +23,7 @@ from ehm.config import MapConfig
 from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet, ClusterView
 from ehm.core.coplanar import merge_coplanar
+from ehm.core.evidence import gather_evidence
 from ehm.core.features import (
     PointGroups,
     SparseFeatures,
@@ -36,7 +37,7 @@ from ehm.core.grouping import group_samples
 from ehm.core.index import ClusterIndex
 from ehm.core.kernels import kernel_reach
 from ehm.core.logistic import sigmoid
-from ehm.core.memory import SampleMemory
+from ehm.core.memory import EvidenceMemory
 from ehm.core.merging import MergeCandidates, absorb_clusters
 from ehm.core.posterior import update_posterior
 from ehm.core.raycast import (
@@ -48,13 +49,12 @@ from ehm.core.raycast import (
     refine_guesses,
     segment_rays,
 )
-from ehm.core.samples import TrainingSamples, samples_of_scans
+from ehm.core.samples import TrainingSamples
 from ehm.core.scan import Scan
 from ehm.core.sgd import loss_weights, train_weights
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
 from ehm.core.supports import SupportHash
-from ehm.core.thinning import thin_samples
 from ehm.core.timing import StageTimer
 from ehm.core.uncertainty import add_curvature, logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError
@@ -89,7 +89,7 @@ class HilbertMap:
     def _reset(self) -> None:
         """Forget everything learned."""
         self.clusters_: ClusterSet | None = None
-        self.memory_: SampleMemory | None = None
+        self.memory_: EvidenceMemory | None = None
         # Scans given but not learned yet, waiting for config.batch_rays rays.
         self._waiting: list[Scan] = []
         self._waiting_rays = 0
@@ -188,7 +188,7 @@ class HilbertMap:
             self.bias_state_,
             self.n_scans_,
             self._rng.bit_generator.state,
-            SampleMemory.of_config(dim, self.config) if empty else self._memory(),
+            EvidenceMemory.of_config(dim, self.config) if empty else self._memory(),
             tuple(self._waiting),
             self.sensor_path,
         )
@@ -226,7 +226,7 @@ class HilbertMap:
             self._lineage,
         )
 
-    def _memory(self) -> SampleMemory:
+    def _memory(self) -> EvidenceMemory:
         """The sample memory, made with the clusters: there is one whenever there are clusters."""
         if self.memory_ is None:
             raise EmptyMapError("the map has no sample memory before it has learned")
@@ -309,7 +309,7 @@ class HilbertMap:
         scans, self._waiting, self._waiting_rays = self._waiting, [], 0
         timer = StageTimer()
         with timer("samples"):
-            samples = samples_of_scans(scans, self.config, self._rng)
+            samples = gather_evidence(scans, self.config, self._rng)
         self._learn(samples, timer)
         self._update_followers()
         return self
@@ -327,7 +327,7 @@ class HilbertMap:
         self._reset()
         timer = StageTimer()
         with timer("samples"):
-            samples = samples_of_scans(scans, self.config, self._rng)
+            samples = gather_evidence(scans, self.config, self._rng)
         self._learn(samples, timer)
         self.n_scans_ = len(scans)
         self._origins = [scan.origin for scan in scans]
@@ -335,20 +335,17 @@ class HilbertMap:
         return self
 
     def _learn(self, samples: TrainingSamples, timer: StageTimer) -> None:
-        """Alg. 2 from the samples on, one step per stage of the paper's Table 2: samples
-        thinned where rays crowd (ehm.core.thinning), and past samples from the memory: those
-        waiting for a cluster join the clustering, and some are replayed with the new ones
-        (ehm.core.memory)."""
+        """Alg. 2 from the batch's evidence on (one weighted sample per cell and kind,
+        ehm.core.evidence), one step per stage of the paper's Table 2, with the past evidence
+        of the places it reaches (ehm.core.memory): what formed no cluster yet joins the
+        clustering, and all of it is replayed with the new."""
         cfg = self.config
         if self.clusters_ is None or self.memory_ is None:
             dim = samples.points.shape[1]
             self.clusters_ = ClusterSet.empty(dim)
-            self.memory_ = SampleMemory.of_config(dim, cfg)
+            self.memory_ = EvidenceMemory.of_config(dim, cfg)
             self._relist(None)
         clusters, memory = self.clusters_, self.memory_
-        if cfg.samples_per_cell:
-            with timer("thinning"):
-                samples = thin_samples(samples, cfg, self._rng)
         n_new = len(samples)
         with timer("clustering"):
             visit = memory.visit(samples)
@@ -381,7 +378,7 @@ class HilbertMap:
                 )
             self._relist(changed)
         with timer("replay"):
-            replayed = memory.replay(cfg.replay_ratio, visit, self._rng)
+            replayed = memory.replay(cfg.replay_ratio, visit)
             # Shuffled once here, SGD reads the features in order (ehm.core.sgd.blocked_order).
             shuffle = self._rng.permutation(n_new + len(replayed))
             train = (samples + replayed).subset(shuffle)
@@ -410,7 +407,7 @@ class HilbertMap:
             add_curvature(features, new_weights, clusters.weights, self.bias_, clusters.precision)
         with timer("memory"):
             memory.mark_clustered(pending, grouped.in_cluster[n_new:])
-            memory.insert(visit, grouped.in_cluster[:n_new], self._rng)
+            memory.insert(visit, grouped.in_cluster[:n_new])
         self.timings_ = dict(timer.seconds)
 
     # ---------------------------------------------------------------- queries

@@ -44,7 +44,9 @@ def test_map_then_info_and_query(map_file, tmp_path, table_row):
     assert table_row(info.output, "memory") == [f"{hilbert_map.memory_bytes() / 1e6:.3f} MB"]
     kept = hilbert_map.memory_
     assert len(kept) > 0
-    assert table_row(info.output, "past samples kept") == [f"{len(kept)} in {kept.n_cells} cells"]
+    assert table_row(info.output, "past evidence kept") == [
+        f"{len(kept)} cells, {kept.weight.sum():.0f} samples"
+    ]
     points = np.array([[-3.0, -1.5], [6.0, -0.2]])
     np.save(tmp_path / "q.npy", points)
     np.savetxt(tmp_path / "q.csv", points, delimiter=",")

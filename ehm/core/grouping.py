@@ -75,8 +75,9 @@ def group_samples(
     for rows, radius, is_coarse in parts:
         points = samples.points[rows]
         outer = radius * config.outer_radius_factor
-        result = quick_means(points, radius, outer, config.min_cluster_size, rng)
-        result = kmeans_refine(points, result, config.kmeans_iterations)
+        weights, scatter = samples.weight[rows], samples.scatter[rows]
+        result = quick_means(points, radius, outer, config.min_cluster_size, rng, weights, scatter)
+        result = kmeans_refine(points, result, config.kmeans_iterations, weights, scatter)
         group_of_point[rows] = result.owner + n_groups
         in_cluster[rows] = result.kept[result.owner]
         n_groups += len(result.means)
@@ -87,8 +88,8 @@ def group_samples(
         coarse.append(np.full(int(result.kept.sum()), is_coarse))
         # Label: the majority of the samples each seed took out of the pool.
         n_seeds = len(result.means)
-        n_occupied = np.bincount(result.owner, samples.occupied[rows], n_seeds)
-        majority = 2 * n_occupied > np.bincount(result.owner, None, n_seeds)
+        n_occupied = np.bincount(result.owner, weights * samples.occupied[rows], n_seeds)
+        majority = 2 * n_occupied > np.bincount(result.owner, weights, n_seeds)
         occupied.append(majority[result.kept])
     return SampleGroups(
         PointGroups(group_of_point, np.concatenate(centres)),

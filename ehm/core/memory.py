@@ -1,36 +1,27 @@
-"""A bounded memory of past training samples, kept per cell of space, so that learning scan by
-scan does not forget.
+"""What a map keeps of past evidence so that learning scan by scan does not forget: per cell
+and kind of ehm.core.evidence, the weight of the samples that fell there and their mean.
 
-Stochastic gradient steps over one scan's samples pull the weights it reaches towards that
-scan's view. With the memory, each scan is learned together with past samples from the same
-places, in the proportions in which they were seen, as learning all scans in one batch would.
+Stochastic gradient steps over one batch pull the weights it reaches towards that batch's
+view. With the memory, each batch is learned together with the past evidence of the places it
+reaches, in the proportions in which it was seen, as learning all scans in one batch would:
+the replay. From the cells around hits comes as much weight as the batch has there, from cells
+along rays the rest (ratio times the batch's own), each cell in proportion to what it has
+seen. Every batch's rays cross open space that earlier ones crossed too: in proportion alone
+the replay was 89-96 % free samples along rays against 72-83 % in the scans (the warehouse),
+which moved the occupied boundary into free space.
 
-Every cell keeps a uniform random subset of at most `per_cell` of the samples that fell in it
-(each sample draws a random priority; the lowest stay) and counts the samples it has seen.
-Replay draws, among the cells a new scan's samples fall in, a cell in proportion to that count,
-then one of its kept samples uniformly: each past sample there comes back about as often as it
-would among all samples seen so far, while memory grows with the mapped space, not with the
-number of scans.
+Evidence that formed no cluster when it came (its quick-means seed gathered too little) waits
+in the memory and joins the clustering again when a later batch brings evidence to its cell,
+so sparse scans (a 2D laser's 180 rays) build the clusters their evidence could not build
+alone.
 
-It draws from cells around hits as many samples as the scan has there, the rest from cells
-along rays. Every scan's rays cross open space that earlier scans crossed too: drawn in
-proportion alone, the replay was 89-96 % free samples along rays against 72-83 % in the scans
-(the warehouse), which pushed the bias, left out of queries, below one batch's and the
-occupied region into free space (near-surface precision 0.461 against 0.506 with the kinds
-matched; held-out F1 on the Intel lab 0.923 against 0.909). Replay stays where the scan is:
-drawn from the whole map it scored lower where scans are small (held-out F1 on the Intel lab
-0.890 against 0.920) and made every scan change weights everywhere, so grids that follow the
-map would be rebuilt after each scan.
-
-Samples that formed no cluster when they came (their quick-means seed took too few samples)
-are marked. They join the clustering again when a later scan brings samples to their cell, so
-sparse scans (a 2D laser with 180 rays) build clusters their samples could not build alone
-(still fewer than one batch: on the Intel lab 8,900 against 9,620).
-
-Samples around hits live in cells `cluster_radius` on a side, free samples along rays in cells
-`free_cluster_radius` on a side. A cell is named by one 64-bit key: its integer coordinates in
-20 bits per axis in 3D (31 in 2D) and a bit for its kind, so a memory reaches about half a
-million cells from the world origin along each axis (63 km with 0.12 m cells).
+The cells the replay and the waiting evidence are drawn from are the regions a batch reaches:
+cells of the cluster radius of each kind (`cluster_radius` around hits, `free_cluster_radius`
+along rays), each holding FINE_CELLS_PER_RADIUS (COARSE_CELLS_PER_RADIUS) evidence cells along
+every axis. An entry's key is its region's, then its kind, then its cell within the region
+(REGION_BITS), so the entries of a region are one run of sorted keys. Per entry: the weight
+seen (float64), the mean's offset from its cell's corner (float32 per axis) and whether it
+formed part of a cluster.
 """
 
 from __future__ import annotations
@@ -40,248 +31,277 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.cells import packed_cell_keys, rank_in_runs
+from ehm.core.evidence import (
+    COARSE_CELLS_PER_RADIUS,
+    FINE_CELLS_PER_RADIUS,
+    FREE_ALONG_RAY,
+    KIND_BITS,
+    cell_sides,
+    kinds_of,
+    sample_flags,
+)
 from ehm.core.samples import TrainingSamples
+from ehm.errors import InputError
 
-# Priority of an empty slot; samples draw theirs below it.
-EMPTY = np.uint32(2**32 - 1)
+# Bits of a key for the cell within its region (FINE_CELLS_PER_RADIUS ** 3 of them at most),
+# and for those and the kind.
+SUB_BITS = 3 * (FINE_CELLS_PER_RADIUS - 1).bit_length()
+REGION_BITS = KIND_BITS + SUB_BITS
 
 
-@dataclass(frozen=True)
-class PendingSamples:
-    """Kept samples that formed no cluster yet, in the cells a new batch of samples reaches.
-    samples: their TrainingSamples; cells, slots: (p,) int64, where the memory keeps each."""
+def memory_keys(points: np.ndarray, kinds: np.ndarray, sides: tuple[float, float]) -> np.ndarray:
+    """(n,) int64 key of the evidence cell of each of (n, d) points, metres, world frame, of
+    `kinds` (n,), in its region (see the module's docstring); `sides` (fine, coarse) metres."""
+    along_ray = kinds == FREE_ALONG_RAY
+    per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
+    side = np.where(along_ray, sides[1], sides[0])
+    cells = np.floor(points / side[:, None]).astype(np.int64)
+    regions = np.floor_divide(cells, per_region[:, None])
+    sub = np.zeros(len(points), dtype=np.int64)
+    for axis in range(points.shape[1]):
+        sub = sub * FINE_CELLS_PER_RADIUS + (cells[:, axis] - regions[:, axis] * per_region)
+    return _region_keys(regions, along_ray) | (kinds << SUB_BITS) | sub
 
-    samples: TrainingSamples
-    cells: np.ndarray
-    slots: np.ndarray
+
+def region_ranges(
+    points: np.ndarray, along_ray: np.ndarray, sides: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The key ranges [low, high) of the regions holding (n, d) points: of the regions along
+    rays where along_ray (n,) bool, else of the regions around hits; one per distinct region."""
+    per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
+    side = np.where(along_ray, sides[1], sides[0])
+    cells = np.floor(points / side[:, None]).astype(np.int64)
+    low = np.unique(_region_keys(np.floor_divide(cells, per_region[:, None]), along_ray))
+    return low, low + (1 << REGION_BITS)
+
+
+def _region_keys(regions: np.ndarray, along_ray: np.ndarray) -> np.ndarray:
+    """(n,) int64: the integer `regions` (n, d) packed REGION_BITS_PER_AXIS bits an axis
+    from the world origin, then the along_ray bit, then REGION_BITS zeros."""
+    bits = (63 - 1 - REGION_BITS) // regions.shape[1]
+    half = 1 << (bits - 1)
+    if len(regions) and not (regions.min() >= -half and regions.max() < half):
+        raise InputError(
+            "evidence lies beyond the reach of the sample memory's cells: set max_range "
+            "(ehm map --max-range) to cut rays longer than the sensor's"
+        )
+    keys = np.zeros(len(regions), dtype=np.int64)
+    for axis in range(regions.shape[1]):
+        keys = (keys << bits) | (regions[:, axis] + half)
+    return ((keys << 1) | along_ray) << REGION_BITS
+
+
+def _in_ranges(keys: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """(m,) int64 rows of sorted `keys` inside any of the ranges [low, high)."""
+    start, stop = np.searchsorted(keys, low), np.searchsorted(keys, high)
+    lengths = stop - start
+    return np.repeat(start - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
 
 
 @dataclass(frozen=True)
 class Visit:
-    """Where a batch of samples falls in a memory. keys: (u,) int64 sorted distinct keys of
-    their cells; key_of_sample: (n,) int64 index of each sample's key; cells: (u,) int64 row of
-    each key's cell, -1 where the memory has none yet; near: (c,) int64 rows of the cells, of
-    either kind, that hold any of the samples."""
+    """Where a batch of evidence falls in a memory. samples: the batch; keys: (n,) int64 the
+    key of each sample's cell; entries: (n,) int64 row of that cell's entry, -1 where the
+    memory has none yet; near: (c,) int64 rows of the entries, of any kind, in the cells the
+    batch reaches."""
 
     samples: TrainingSamples
     keys: np.ndarray
-    key_of_sample: np.ndarray
-    cells: np.ndarray
+    entries: np.ndarray
     near: np.ndarray
 
 
-class SampleMemory:
-    """Past training samples of a map, at most `per_cell` per cell of space (per_cell = 0 keeps
-    none). `sides`: (side of the cells of samples around hits, side of the cells of free
-    samples along rays), metres.
+@dataclass(frozen=True)
+class PendingSamples:
+    """Past evidence that formed no cluster yet, in the cells a batch reaches: samples, and
+    entries (p,) int64, the memory's row of each."""
 
-    Per cell, rows 0..n_cells-1: seen (float64, weight of the samples that fell in it), filled
-    (int64, kept samples, slots 0..filled-1), at_surface (bool, its kind). Per kept sample,
-    (cells, per_cell) arrays: points (float32, metres, world frame, one more axis), occupied
-    and clustered (bool), priority (uint32, EMPTY in an empty slot). keys: (n_cells,) int64 sorted
-    cell keys, and cell_of_key the row of each.
+    samples: TrainingSamples
+    entries: np.ndarray
+
+
+class EvidenceMemory:
+    """Past evidence of a map, one weighted mean per cell and kind (ehm.core.evidence); an
+    empty memory that keeps nothing when `enabled` is False.
+
+    keys (n,) int64 sorted; weight (n,) float64; offset (n, d) float32 metres from each
+    cell's corner to the mean; clustered (n,) bool.
     """
 
-    def __init__(self, dim: int, per_cell: int, sides: tuple[float, float]) -> None:
+    def __init__(self, dim: int, enabled: bool, sides: tuple[float, float]) -> None:
         self.dim = dim
-        self.per_cell = per_cell
+        self.enabled = enabled
         self.sides = (float(sides[0]), float(sides[1]))
         self.keys = np.zeros(0, dtype=np.int64)
-        self.cell_of_key = np.zeros(0, dtype=np.int64)
-        self.n_cells = 0
-        self._allocate(0)
+        self.weight = np.zeros(0)
+        self.offset = np.zeros((0, dim), dtype=np.float32)
+        self.clustered = np.zeros(0, dtype=bool)
 
     @classmethod
-    def of_config(cls, dim: int, config: MapConfig) -> SampleMemory:
+    def of_config(cls, dim: int, config: MapConfig) -> EvidenceMemory:
         """An empty memory for a dim-dimensional map with `config`'s settings."""
-        return cls(dim, config.memory_per_cell, (config.cluster_radius, config.free_cluster_radius))
-
-    def _allocate(self, capacity: int) -> None:
-        k, d = self.per_cell, self.dim
-        self.seen = np.zeros(capacity)
-        self.filled = np.zeros(capacity, dtype=np.int64)
-        self.at_surface = np.zeros(capacity, dtype=bool)
-        self.points = np.zeros((capacity, k, d), dtype=np.float32)
-        self.occupied = np.zeros((capacity, k), dtype=bool)
-        self.clustered = np.zeros((capacity, k), dtype=bool)
-        self.priority = np.full((capacity, k), EMPTY, dtype=np.uint32)
-
-    def _reserve(self, n_cells: int) -> None:
-        """Room for n_cells cells, growing by doubling so appends cost amortized O(1)."""
-        capacity = len(self.seen)
-        if n_cells <= capacity:
-            return
-        old = self.cell_arrays()
-        self._allocate(max(n_cells, 2 * capacity, 64))
-        for name, array in old.items():
-            getattr(self, name)[: len(array)] = array
-
-    def cell_arrays(self) -> dict[str, np.ndarray]:
-        """The per-cell arrays of the n_cells cells in use (views)."""
-        names = ("seen", "filled", "at_surface", "points", "occupied", "clustered", "priority")
-        return {name: getattr(self, name)[: self.n_cells] for name in names}
+        return cls(dim, config.keep_evidence, cell_sides(config))
 
     def __len__(self) -> int:
-        """Samples kept."""
-        return int(self.filled[: self.n_cells].sum())
+        """Entries kept."""
+        return len(self.keys)
 
     @property
     def nbytes(self) -> int:
-        """Bytes allocated, spare capacity included."""
-        arrays = [self.keys, self.cell_of_key, self.seen, self.filled, self.at_surface]
-        arrays += [self.points, self.occupied, self.clustered, self.priority]
-        return sum(a.nbytes for a in arrays)
-
-    # ------------------------------------------------------------------ cells
-    def cell_keys(self, points: np.ndarray, at_surface: np.ndarray) -> np.ndarray:
-        """(n,) int64 key of the cell of each of (n, d) points, metres, of the given kinds."""
-        side = np.where(at_surface, self.sides[0], self.sides[1])
-        remedy = "set memory_per_cell=0 to map without the sample memory"
-        return packed_cell_keys(points, side, at_surface, 1, remedy)
+        return sum(a.nbytes for a in (self.keys, self.weight, self.offset, self.clustered))
 
     def _find(self, keys: np.ndarray) -> np.ndarray:
-        """(n,) int64 cell row of each of `keys` (n,) int64, -1 where there is none yet."""
-        cells = np.full(len(keys), -1, dtype=np.int64)
+        """(n,) int64 entry of each of `keys`, -1 where there is none."""
+        found = np.full(len(keys), -1, dtype=np.int64)
         position = np.searchsorted(self.keys, keys)
         inside = np.flatnonzero(position < len(self.keys))
-        found = inside[self.keys[position[inside]] == keys[inside]]
-        cells[found] = self.cell_of_key[position[found]]
-        return cells
+        hit = inside[self.keys[position[inside]] == keys[inside]]
+        found[hit] = position[hit]
+        return found
 
     # -------------------------------------------------------------- learning
     def visit(self, samples: TrainingSamples) -> Visit:
         """Where `samples` fall in this memory: the start of every step below."""
-        if self.per_cell == 0:
+        if not self.enabled:
             none = np.zeros(0, dtype=np.int64)
-            return Visit(samples, none, np.zeros(len(samples), dtype=np.int64), none, none)
-        keys = self.cell_keys(samples.points, samples.at_surface)
-        unique, key_of_sample = np.unique(keys, return_inverse=True)
-        cells = self._find(unique)
-        other_kind = self._find(np.unique(self.cell_keys(samples.points, ~samples.at_surface)))
-        near = np.union1d(cells[cells >= 0], other_kind[other_kind >= 0])
-        return Visit(samples, unique, key_of_sample.ravel(), cells, near)
+            return Visit(samples, none, np.full(len(samples), -1, dtype=np.int64), none)
+        keys = memory_keys(samples.points, kinds_of(samples), self.sides)
+        n = len(samples)
+        # The regions of both kinds around every sample.
+        points = np.concatenate([samples.points, samples.points])
+        along_ray = np.repeat([False, True], n)
+        low, high = region_ranges(points, along_ray, self.sides)
+        return Visit(samples, keys, self._find(keys), _in_ranges(self.keys, low, high))
 
     def pending(self, visit: Visit) -> PendingSamples:
-        """The kept samples not yet in any cluster, in the cells the visit's samples fall in."""
-        cells = visit.cells[visit.cells >= 0]
-        waiting = ~self.clustered[cells] & (self.priority[cells] != EMPTY)
-        row, slots = np.nonzero(waiting)
-        cells = cells[row]
-        return PendingSamples(self._samples_at(cells, slots), cells, slots)
+        """The entries that formed no cluster yet, in the cells of the visit's samples."""
+        entries = np.unique(visit.entries[visit.entries >= 0])
+        entries = entries[~self.clustered[entries]]
+        samples = self._samples_at(entries)
+        return PendingSamples(
+            TrainingSamples(
+                samples.points, samples.occupied, samples.at_surface, self.weight[entries]
+            ),
+            entries,
+        )
 
     def mark_clustered(self, pending: PendingSamples, clustered: np.ndarray) -> None:
-        """Record which `pending` samples ((p,) bool `clustered`) have now formed clusters."""
-        self.clustered[pending.cells[clustered], pending.slots[clustered]] = True
+        """Record which `pending` entries ((p,) bool `clustered`) now formed clusters."""
+        self.clustered[pending.entries[clustered]] = True
 
-    def replay(self, ratio: float, visit: Visit, rng: np.random.Generator) -> TrainingSamples:
-        """`ratio` past samples per sample of the visit, from the cells, of either kind, that
-        hold any of the visit's samples: of each kind of cell as many as the visit has samples
-        of that kind, times ratio (all from one kind when the other has no cells there), each
-        cell drawn in proportion to the samples it has seen (their weights), then one of its
-        kept samples uniformly (none when there are no such cells). Each weighs the mean
-        weight of the visit's samples of its kind."""
+    def replay(self, ratio: float, visit: Visit) -> TrainingSamples:
+        """The entries near the visit's samples as weighted samples: those around hits weigh
+        `ratio` times the visit's weight there in all, those along rays the rest of ratio times
+        the visit's weight (all to one group when the other has no entries near), each entry
+        in proportion to the weight it has seen."""
         samples = visit.samples
-        n = round(ratio * len(samples))
-        n_surface = round(ratio * int(samples.at_surface.sum()))
-        kinds = self.at_surface[visit.near]
-        if not kinds.all() and kinds.any():
-            counts = ((True, n_surface), (False, n - n_surface))
+        near = visit.near
+        if len(near) == 0 or ratio == 0:
+            return self._samples_at(np.zeros(0, dtype=np.int64))
+        replayed = self._samples_at(near)
+        total = ratio * samples.weight.sum()
+        at_surface_total = ratio * samples.weight[samples.at_surface].sum()
+        groups = replayed.at_surface
+        weight = np.zeros(len(near))
+        if groups.all() or not groups.any():
+            weight = total * self.weight[near] / self.weight[near].sum()
         else:
-            counts = ((bool(kinds.all()), n),)
-        chosen, slots, weights = [], [], []
-        for at_surface, n_kind in counts:
-            cells = visit.near[kinds == at_surface]
-            if len(cells) == 0 or n_kind == 0:
-                continue
-            cumulative = np.cumsum(self.seen[cells])
-            drawn = np.searchsorted(cumulative, rng.random(n_kind) * cumulative[-1], side="right")
-            chosen.append(cells[np.minimum(drawn, len(cells) - 1)])
-            slots.append((rng.random(n_kind) * self.filled[chosen[-1]]).astype(np.int64))
-            # Each weighs as the visit's samples of its kind do on average.
-            same_kind = samples.weight[samples.at_surface == at_surface]
-            weights.append(np.full(n_kind, same_kind.mean() if len(same_kind) else 1.0))
-        if not chosen:
-            none = np.zeros(0, dtype=np.int64)
-            return self._samples_at(none, none)
-        replayed = self._samples_at(np.concatenate(chosen), np.concatenate(slots))
+            for group, share in ((True, at_surface_total), (False, total - at_surface_total)):
+                rows = groups == group
+                weight[rows] = share * self.weight[near[rows]] / self.weight[near[rows]].sum()
+        keep = weight > 0
         return TrainingSamples(
-            replayed.points, replayed.occupied, replayed.at_surface, np.concatenate(weights)
+            replayed.points[keep], replayed.occupied[keep], replayed.at_surface[keep], weight[keep]
         )
 
-    def insert(self, visit: Visit, clustered: np.ndarray, rng: np.random.Generator) -> None:
-        """Offer the visit's samples to the memory; clustered: (n,) bool, each formed part of a
-        cluster. Each cell keeps the per_cell lowest priorities among its samples and the new
-        ones."""
+    def insert(self, visit: Visit, clustered: np.ndarray) -> None:
+        """Add the visit's samples to the memory; clustered: (n,) bool, each formed part of a
+        cluster."""
         samples = visit.samples
-        if self.per_cell == 0 or len(samples) == 0:
+        if not self.enabled or len(samples) == 0:
             return
-        cells = self._add_cells(visit)
-        self.seen[cells] += np.bincount(visit.key_of_sample, samples.weight, len(cells))
-        k, d = self.per_cell, self.dim
-        # A new sample can stay only below the highest kept priority of a full cell.
-        cell_of_sample = cells[visit.key_of_sample]
-        priority = rng.integers(0, EMPTY, len(samples), dtype=np.uint32)
-        full = self.filled[cells] == k
-        ceiling = np.where(full, self.priority[cells].max(axis=1), EMPTY)
-        new = np.flatnonzero(priority < ceiling[visit.key_of_sample])
-        touched = np.unique(cell_of_sample[new])
-        # Candidates per touched cell: its kept slots (empty ones at EMPTY), then new samples.
-        cell_of = np.concatenate([np.repeat(touched, k), cell_of_sample[new]])
-        priority = np.concatenate([self.priority[touched].ravel(), priority[new]])
-        points = np.concatenate(
-            [self.points[touched].reshape(-1, d), samples.points[new].astype(np.float32)]
+        new_keys, key_of_sample = np.unique(visit.keys, return_inverse=True)
+        key_of_sample = key_of_sample.ravel()
+        missing = new_keys[self._find(new_keys) < 0]
+        if len(missing):
+            position = np.searchsorted(self.keys, missing)
+            self.keys = np.insert(self.keys, position, missing)
+            self.weight = np.insert(self.weight, position, 0.0)
+            self.offset = np.insert(self.offset, position, 0.0, axis=0)
+            self.clustered = np.insert(self.clustered, position, False)
+        entries = self._find(new_keys)
+        corner = self._corners(new_keys)
+        d = self.dim
+        w = np.bincount(key_of_sample, samples.weight, len(new_keys))
+        sums = np.stack(
+            [
+                np.bincount(key_of_sample, samples.weight * samples.points[:, a], len(new_keys))
+                for a in range(d)
+            ],
+            1,
         )
-        occupied = np.concatenate([self.occupied[touched].ravel(), samples.occupied[new]])
-        was_clustered = np.concatenate([self.clustered[touched].ravel(), clustered[new]])
-        order = np.argsort((cell_of << 32) | priority.astype(np.int64))
-        rank = rank_in_runs(cell_of[order])
-        keep = order[rank < k]
-        target_cell, slot = cell_of[keep], rank[rank < k]
-        self.priority[target_cell, slot] = priority[keep]
-        self.points[target_cell, slot] = points[keep]
-        self.occupied[target_cell, slot] = occupied[keep]
-        self.clustered[target_cell, slot] = was_clustered[keep]
-        self.filled[touched] = np.sum(self.priority[touched] != EMPTY, axis=1)
+        old_w = self.weight[entries]
+        total = old_w + w
+        mean = (old_w[:, None] * self.offset[entries] + (sums - w[:, None] * corner)) / total[
+            :, None
+        ]
+        self.weight[entries] = total
+        self.offset[entries] = mean.astype(np.float32)
+        formed = np.bincount(key_of_sample, clustered, len(new_keys)) > 0
+        self.clustered[entries] |= formed
 
-    def _add_cells(self, visit: Visit) -> np.ndarray:
-        """(u,) int64 rows of the visit's cells, adding the ones it found missing."""
-        cells = visit.cells.copy()
-        missing = cells < 0
-        n_missing = int(missing.sum())
-        if n_missing:
-            self._reserve(self.n_cells + n_missing)
-            cells[missing] = np.arange(self.n_cells, self.n_cells + n_missing)
-            position = np.searchsorted(self.keys, visit.keys[missing])
-            self.keys = np.insert(self.keys, position, visit.keys[missing])
-            self.cell_of_key = np.insert(self.cell_of_key, position, cells[missing])
-            self.at_surface[cells[missing]] = (visit.keys[missing] & 1).astype(bool)
-            self.n_cells += n_missing
-        return cells
+    def _corners(self, keys: np.ndarray) -> np.ndarray:
+        """(n, d) metres, world frame: the low corner of each key's evidence cell."""
+        kinds = (keys >> SUB_BITS) & (2**KIND_BITS - 1)
+        along_ray = kinds == FREE_ALONG_RAY
+        per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
+        side = np.where(along_ray, self.sides[1], self.sides[0])
+        bits = (63 - 1 - REGION_BITS) // self.dim
+        half = 1 << (bits - 1)
+        sub = keys & (2**SUB_BITS - 1)
+        rest = keys >> (REGION_BITS + 1)
+        cells = np.empty((len(keys), self.dim))
+        for axis in range(self.dim - 1, -1, -1):
+            region = (rest & ((1 << bits) - 1)) - half
+            rest = rest >> bits
+            cells[:, axis] = region * per_region + sub % FINE_CELLS_PER_RADIUS
+            sub = sub // FINE_CELLS_PER_RADIUS
+        return cells * side[:, None]
 
-    def _samples_at(self, cells: np.ndarray, slots: np.ndarray) -> TrainingSamples:
-        return TrainingSamples(
-            self.points[cells, slots].astype(np.float64),
-            self.occupied[cells, slots].copy(),
-            self.at_surface[cells].copy(),
-        )
+    def samples(self) -> TrainingSamples:
+        """Every entry as a weighted sample at its mean (metres, world frame)."""
+        return self._samples_at(np.arange(len(self.keys)))
+
+    def _samples_at(self, entries: np.ndarray) -> TrainingSamples:
+        keys = self.keys[entries]
+        occupied, at_surface = sample_flags((keys >> SUB_BITS) & (2**KIND_BITS - 1))
+        points = self._corners(keys) + self.offset[entries]
+        return TrainingSamples(points, occupied, at_surface, self.weight[entries].copy())
 
     # ------------------------------------------------------------ persistence
+    @classmethod
+    def of_samples(
+        cls, dim: int, config: MapConfig, samples: TrainingSamples, clustered: np.ndarray
+    ) -> EvidenceMemory:
+        """A memory holding `samples` (each its weight), `clustered` (n,) bool those that
+        formed part of a cluster: how maps of formats before 13, which kept samples, go on."""
+        memory = cls.of_config(dim, config)
+        memory.insert(memory.visit(samples), clustered)
+        return memory
+
     def arrays(self) -> dict[str, np.ndarray]:
-        """Everything the memory holds, trimmed to the cells in use (for map files)."""
-        return {"keys": self.keys, "cell_of_key": self.cell_of_key, **self.cell_arrays()}
+        return {
+            "keys": self.keys,
+            "weight": self.weight,
+            "offset": self.offset,
+            "clustered": self.clustered,
+        }
 
     @classmethod
     def from_arrays(
         cls, dim: int, config: MapConfig, arrays: dict[str, np.ndarray]
-    ) -> SampleMemory:
-        """The memory whose `arrays()` these are, for a map with `config`."""
+    ) -> EvidenceMemory:
         memory = cls.of_config(dim, config)
-        memory.keys = arrays["keys"]
-        memory.cell_of_key = arrays["cell_of_key"]
-        memory.n_cells = len(memory.keys)
-        memory._reserve(memory.n_cells)
         for name, array in arrays.items():
-            if name not in ("keys", "cell_of_key"):
-                getattr(memory, name)[: memory.n_cells] = array
+            setattr(memory, name, array)
         return memory

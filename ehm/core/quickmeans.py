@@ -2,7 +2,10 @@
 
 Seeds are drawn at random among the points still available; each seed gathers the available
 points within the outer radius r_o (its cluster when there are at least `min_size` of them) and
-takes the points within the inner radius r_i out of the pool. Drawing uniformly from the pool
+takes the points within the inner radius r_i out of the pool. Points may carry weights and
+scatter: each then stands for `weight` samples whose mean it is and whose scatter about it is
+given (ehm.core.evidence), and a cluster's count, mean and covariance are those of all the
+samples its points stand for. Drawing uniformly from the pool
 at every step is the same as walking one random permutation and skipping points already taken,
 which is what the kernel does. Neighbours are found through a hash of cells of side
 r_o / CELLS_PER_RADIUS.
@@ -24,10 +27,11 @@ class QuickMeansResult:
     """Clusters of one point set.
 
     seeds: (S,) int64, index of each seed point. owner: (N,) int64, the seed (0..S-1) that took
-    each point out of the pool. counts: (S,) int64, points within r_o of each seed when it was
-    drawn. means: (S, d) float64, metres. covariances: (S, d, d) float64, m^2 (unbiased, zero
-    for a single point). kept: (S,) bool, counts >= min_size: the clusters proper; the other
-    seeds still group their points for neighbour search.
+    each point out of the pool. counts: (S,) float64, weight of the points within r_o of each
+    seed when it was drawn (their number when unweighted). means: (S, d) float64, metres.
+    covariances: (S, d, d) float64, m^2 (unbiased, zero for a single point). kept: (S,) bool,
+    counts >= min_size: the clusters proper; the other seeds still group their points for
+    neighbour search.
     """
 
     seeds: np.ndarray
@@ -82,6 +86,8 @@ def _quick_means_kernel(
     cell_sizes,
     sorted_points,
     sorted_index,
+    sorted_weights,
+    sorted_scatter,
     order,
     r_inner,
     r_outer,
@@ -93,9 +99,11 @@ def _quick_means_kernel(
     cells (n, d): each point's cell of side `cell` from the corner `low`, keyed by `strides`
     (strides[0] == 1); cell_keys: sorted, one per cell, with the start and size of the cell's
     points in sorted_points (their coordinates, cell by cell) and sorted_index (their rows in
-    `points`). Points taken out of the pool leave their cell (sizes and the sorted arrays
-    change in place), so a seed reads only points still available, one after the other in
-    memory. Returns (seeds, owner, counts, sums, scatter), sums and scatter about each seed.
+    `points`), sorted_weights their weights, sorted_scatter (n, d, d) their own scatter, or
+    (0, d, d) for none. Points taken out of the pool leave their cell
+    (sizes and the sorted arrays change in place), so a seed reads only points still
+    available, one after the other in memory. Returns (seeds, owner, counts, sums, scatter),
+    sums and scatter about each seed, each point's weighing its weight.
     """
     n, d = points.shape
     reach = CELLS_PER_RADIUS
@@ -103,7 +111,8 @@ def _quick_means_kernel(
     available = np.ones(n, dtype=np.bool_)
     owner = np.full(n, -1, dtype=np.int64)
     seeds = np.empty(n, dtype=np.int64)
-    counts = np.zeros(n, dtype=np.int64)
+    counts = np.zeros(n)
+    with_scatter = sorted_scatter.shape[0] > 0
     sums = np.empty((n, d))  # rows written as seeds are drawn: no pages touched for the rest
     scatter = np.empty((n, d, d))
     ri2 = r_inner * r_inner
@@ -149,11 +158,16 @@ def _quick_means_kernel(
                         if dist2 >= ro2:
                             m += 1
                             continue
-                        counts[s] += 1
+                        w = sorted_weights[m]
+                        counts[s] += w
                         for a in range(d):
-                            sums[s, a] += diff[a]
+                            sums[s, a] += w * diff[a]
                             for b in range(d):
-                                scatter[s, a, b] += diff[a] * diff[b]
+                                scatter[s, a, b] += w * diff[a] * diff[b]
+                        if with_scatter:
+                            for a in range(d):
+                                for b in range(d):
+                                    scatter[s, a, b] += sorted_scatter[m, a, b]
                         if dist2 < ri2:
                             p = sorted_index[m]
                             available[p] = False
@@ -163,6 +177,13 @@ def _quick_means_kernel(
                             tail = cell_starts[slot] + cell_sizes[slot]
                             sorted_index[m] = sorted_index[tail]
                             sorted_index[tail] = p
+                            sorted_weights[m], sorted_weights[tail] = sorted_weights[tail], w
+                            if with_scatter:
+                                for a in range(d):
+                                    for b in range(d):
+                                        held = sorted_scatter[m, a, b]
+                                        sorted_scatter[m, a, b] = sorted_scatter[tail, a, b]
+                                        sorted_scatter[tail, a, b] = held
                             for a in range(d):
                                 sorted_points[m, a] = sorted_points[tail, a]
                         else:
@@ -172,10 +193,11 @@ def _quick_means_kernel(
     return seeds[:s].copy(), owner, counts[:s].copy(), sums[:s].copy(), scatter[:s].copy()
 
 
-def _cell_hash(points: np.ndarray, cell: float):
+def _cell_hash(points: np.ndarray, cell: float, weights: np.ndarray):
     """Integer cells of side `cell` of (n, d) points, their linear keys (sorted, one per
-    cell), where each cell's points start and how many there are, and the points' coordinates
-    and rows sorted cell by cell (the arguments of _quick_means_kernel after `points`)."""
+    cell), where each cell's points start and how many there are, and the points' coordinates,
+    rows and `weights` sorted cell by cell (the arguments of _quick_means_kernel after
+    `points`)."""
     hashed = cell_keys(points, cell)
     sorted_index = np.argsort(hashed.keys)
     sorted_keys = hashed.keys[sorted_index]
@@ -190,6 +212,7 @@ def _cell_hash(points: np.ndarray, cell: float):
         sizes,
         points[sorted_index],
         sorted_index,
+        weights[sorted_index],
     )
 
 
@@ -197,24 +220,35 @@ def quick_means(
     points: np.ndarray,
     r_inner: float,
     r_outer: float,
-    min_size: int,
+    min_size: float,
     rng: np.random.Generator,
+    weights: np.ndarray | None = None,
+    scatter: np.ndarray | None = None,
 ) -> QuickMeansResult:
-    """Cluster (N, d) points, metres, with inner radius r_inner and outer radius r_outer."""
+    """Cluster (N, d) points, metres, with inner radius r_inner and outer radius r_outer.
+
+    weights: (N,) float64 samples each point stands for (None: one each); scatter: (N, d, d)
+    m^2, those samples' scatter about the point (None: none); a cluster is kept when its
+    weight reaches min_size."""
     points = np.ascontiguousarray(points, dtype=np.float64)
+    d = points.shape[1]
     if len(points) == 0:
-        d = points.shape[1]
         empty = np.zeros(0, dtype=np.int64)
         return QuickMeansResult(
-            empty, empty, empty, np.zeros((0, d)), np.zeros((0, d, d)), np.zeros(0, dtype=bool)
+            empty, empty, np.zeros(0), np.zeros((0, d)), np.zeros((0, d, d)), np.zeros(0, bool)
         )
     if not 0 < r_inner <= r_outer:
         raise ValueError(f"quick-means needs 0 < r_inner <= r_outer, got {r_inner}, {r_outer}")
     order = rng.permutation(len(points))
     cell = r_outer / CELLS_PER_RADIUS
+    weights = np.ones(len(points)) if weights is None else np.asarray(weights, np.float64)
+    hashed = _cell_hash(points, cell, weights)
+    sorted_index = hashed[-2]
+    sorted_scatter = np.zeros((0, d, d)) if scatter is None else scatter[sorted_index]
     seeds, owner, counts, sums, scatter = _quick_means_kernel(
         points,
-        *_cell_hash(points, cell),
+        *hashed,
+        sorted_scatter,
         order,
         float(r_inner),
         float(r_outer),
@@ -226,10 +260,18 @@ def quick_means(
 
 
 def quick_means_reference(
-    points: np.ndarray, r_inner: float, r_outer: float, min_size: int, order: np.ndarray
+    points: np.ndarray,
+    r_inner: float,
+    r_outer: float,
+    min_size: float,
+    order: np.ndarray,
+    weights: np.ndarray | None = None,
+    scatter: np.ndarray | None = None,
 ) -> QuickMeansResult:
     """Plain NumPy quick-means with brute-force distances, for tests of the compiled kernel."""
-    n = len(points)
+    n, d = points.shape
+    weights = np.ones(n) if weights is None else weights
+    scatter = np.zeros((n, d, d)) if scatter is None else scatter
     available = np.ones(n, dtype=bool)
     owner = np.full(n, -1, dtype=np.int64)
     seeds, counts, sums, scatters = [], [], [], []
@@ -243,36 +285,47 @@ def quick_means_reference(
         available[taken] = False
         owner[taken] = len(seeds)
         seeds.append(seed)
-        counts.append(members.sum())
-        sums.append(diff[members].sum(axis=0))
-        scatters.append(diff[members].T @ diff[members])
+        w = weights[members]
+        counts.append(w.sum())
+        sums.append((w[:, None] * diff[members]).sum(axis=0))
+        scatters.append((w[:, None] * diff[members]).T @ diff[members] + scatter[members].sum(0))
     seeds_a = np.array(seeds, dtype=np.int64)
-    counts_a = np.array(counts, dtype=np.int64)
+    counts_a = np.array(counts, dtype=np.float64)
     means, covariances = _statistics(counts_a, np.array(sums), np.array(scatters), points[seeds_a])
     return QuickMeansResult(seeds_a, owner, counts_a, means, covariances, counts_a >= min_size)
 
 
 def kmeans_refine(
-    points: np.ndarray, result: QuickMeansResult, iterations: int
+    points: np.ndarray,
+    result: QuickMeansResult,
+    iterations: int,
+    weights: np.ndarray | None = None,
+    scatter: np.ndarray | None = None,
 ) -> QuickMeansResult:
-    """Lloyd iterations from the kept quick-means clusters; every point joins its nearest."""
+    """Lloyd iterations from the kept quick-means clusters; every point joins its nearest.
+    weights, scatter: as `quick_means` takes them (None: one sample each, no scatter)."""
     means = result.means[result.kept]
     if iterations == 0 or len(means) == 0:
         return result
-    d = points.shape[1]
+    n, d = points.shape
+    weights = np.ones(n) if weights is None else weights
     for _ in range(iterations):
         _, owner = cKDTree(means).query(points)
-        counts = np.bincount(owner, minlength=len(means))
+        counts = np.bincount(owner, weights, len(means))
         occupied = counts > 0
-        sums = np.stack([np.bincount(owner, points[:, a], len(means)) for a in range(d)], 1)
+        sums = np.stack(
+            [np.bincount(owner, weights * points[:, a], len(means)) for a in range(d)], 1
+        )
         means = sums[occupied] / counts[occupied, None]
     _, owner = cKDTree(means).query(points)
-    counts = np.bincount(owner, minlength=len(means))
+    counts = np.bincount(owner, weights, len(means))
     diff = points - means[owner]
-    outer = np.einsum("ni,nj->nij", diff, diff).reshape(len(points), d * d)
-    scatter = np.stack(
+    outer = weights[:, None] * np.einsum("ni,nj->nij", diff, diff).reshape(n, d * d)
+    if scatter is not None:
+        outer = outer + scatter.reshape(n, d * d)
+    scatter_sums = np.stack(
         [np.bincount(owner, outer[:, c], len(means)) for c in range(d * d)], 1
     ).reshape(-1, d, d)
-    _, covariances = _statistics(counts, np.zeros_like(means), scatter, means)
+    _, covariances = _statistics(counts, np.zeros_like(means), scatter_sums, means)
     seeds = np.full(len(means), -1, dtype=np.int64)
     return QuickMeansResult(seeds, owner.astype(np.int64), counts, means, covariances, counts > 0)

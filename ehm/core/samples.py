@@ -19,18 +19,23 @@ class TrainingSamples:
 
     points: (n, d) float64, metres, world frame. occupied: (n,) bool. at_surface: (n,) bool,
     True for the samples drawn around hits (both classes), False for free samples along rays.
-    weight: (n,) float64, how many drawn samples each stands for in the loss (ones unless
-    thinned, ehm.core.thinning; None gives ones).
+    weight: (n,) float64, how many drawn samples each stands for in the loss (None gives
+    ones). scatter: (n, d, d) float64, m^2, the scatter of those samples about the point, for
+    a point that is their mean (ehm.core.evidence; None gives zeros).
     """
 
     points: np.ndarray
     occupied: np.ndarray
     at_surface: np.ndarray
     weight: np.ndarray = None  # type: ignore[assignment]
+    scatter: np.ndarray = None  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         if self.weight is None:
             object.__setattr__(self, "weight", np.ones(len(self.points)))
+        if self.scatter is None:
+            d = self.points.shape[1]
+            object.__setattr__(self, "scatter", np.zeros((len(self.points), d, d)))
 
     def __len__(self) -> int:
         return len(self.points)
@@ -44,7 +49,13 @@ class TrainingSamples:
         return TrainingSamples(
             *(
                 np.take(values, rows, axis=0)
-                for values in (self.points, self.occupied, self.at_surface, self.weight)
+                for values in (
+                    self.points,
+                    self.occupied,
+                    self.at_surface,
+                    self.weight,
+                    self.scatter,
+                )
             )
         )
 
@@ -59,68 +70,127 @@ class TrainingSamples:
             np.concatenate([p.occupied for p in parts]),
             np.concatenate([p.at_surface for p in parts]),
             np.concatenate([p.weight for p in parts]),
+            np.concatenate([p.scatter for p in parts]),
         )
 
 
-def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
-    """Occupied and free samples along every ray of `scan`.
+@dataclass(frozen=True)
+class ScanRays:
+    """The rays of scans that are learned, one row each (metres, world frame).
+
+    origins: (n, d) each ray's start. directions: (n, d) unit vectors. lengths: (n,) distance
+    to each ray's end (its hit, or where it stops without one). hits: (n,) bool.
+    free_start, free_end: (n,) the part of each ray that gives free samples (start > end where
+    it gives none). spacing: (n,) distance between its free samples.
+    """
+
+    origins: np.ndarray
+    directions: np.ndarray
+    lengths: np.ndarray
+    hits: np.ndarray
+    free_start: np.ndarray
+    free_end: np.ndarray
+    spacing: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.lengths)
+
+
+def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
+    """The learned rays of `scans`, in order.
 
     Rays shorter than `min_range` are left out; rays longer than `max_range` (if set) end there
-    without a hit. Around each hit: the hit and one point up to `occupied_depth` behind it are
-    occupied; one point in the band from `surface_margin` / 4 to `surface_margin` in front of
-    it is free. Along each ray, free points are drawn uniformly, `free_spacing` apart on
-    average (at most `max_free_samples` of them), up to `surface_margin` before the hit, or
-    over the whole length of a ray without return. With `learn_box`, only samples inside
-    it are kept, free ones drawn along the part of each ray inside it alone.
+    without a hit. Free samples are drawn up to `surface_margin` before a hit, or over the whole
+    length of a ray without return, `free_spacing` apart (sparser on rays so long that they
+    would give more than `max_free_samples`); with `learn_box`, only along the part of each ray
+    inside it, as densely as along the whole ray.
     """
+    parts = [_rays_of_scan(scan, config) for scan in scans]
+    return ScanRays(*(np.concatenate(column) for column in zip(*parts, strict=True)))
+
+
+def _rays_of_scan(scan: Scan, config: MapConfig) -> tuple[np.ndarray, ...]:
     offsets = scan.points_world - scan.origin
     lengths = np.linalg.norm(offsets, axis=1)
     usable = (lengths > 0) & (lengths >= config.min_range)
     offsets, lengths, hits = offsets[usable], lengths[usable], scan.hit_mask[usable]
-    ends = scan.points_world[usable]
     if config.max_range > 0:
         hits = hits & (lengths <= config.max_range)
         scale = np.minimum(config.max_range / lengths, 1.0)
         offsets, lengths = offsets * scale[:, None], lengths * scale
-        ends = scan.origin + offsets
     directions = offsets / lengths[:, None]
-    margin = config.surface_margin
-
-    hit_points = ends[hits]
-    hit_dirs = directions[hits]
-    behind_depth = config.occupied_depth * rng.random(len(hit_points))
-    behind = hit_points + hit_dirs * behind_depth[:, None]
-    front_depth = np.minimum(margin * (0.25 + 0.75 * rng.random(len(hit_points))), lengths[hits])
-    in_front = hit_points - hit_dirs * front_depth[:, None]
-
-    free_length = np.where(hits, np.maximum(lengths - margin, 0.0), lengths)
-    # The free part of each ray that is learned: all of it, or the part inside learn_box,
-    # sampled as densely as the whole ray (max_free_samples spreads a long ray's samples).
+    free_length = np.where(hits, np.maximum(lengths - config.surface_margin, 0.0), lengths)
     spacing = np.maximum(config.free_spacing, free_length / config.max_free_samples)
     free_start, free_end = np.zeros(len(lengths)), free_length
     if config.learn_box:
-        box = _learn_box(config, scan.dim)
+        box = learn_box(config, scan.dim)
         free_start, free_end = ray_box_intervals(scan.origin, directions, free_length, box)
-    free_span = np.maximum(free_end - free_start, 0.0)
-    counts = np.floor(free_span / spacing + rng.random(len(lengths))).astype(np.int64)
-    counts = np.minimum(counts, config.max_free_samples)
-    ray_of_sample = np.repeat(np.arange(len(counts)), counts)
-    depth = free_start[ray_of_sample] + free_span[ray_of_sample] * rng.random(len(ray_of_sample))
-    along = scan.origin + directions[ray_of_sample] * depth[:, None]
+    origins = np.broadcast_to(scan.origin, directions.shape)
+    return origins, directions, lengths, hits, free_start, free_end, spacing
 
-    points = np.concatenate([hit_points, behind, in_front, along])
-    n_occupied = 2 * len(hit_points)
+
+def ray_randoms(n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n, 3) uniforms in [0, 1) that place each ray's samples: the depth of its sample
+    behind the hit, of its sample in front, and the offset of its free samples."""
+    return rng.random((n, 3))
+
+
+def free_sample_counts(rays: ScanRays, randoms: np.ndarray, max_free_samples: int) -> np.ndarray:
+    """(n,) int64 free samples along each ray: one in each `spacing` of the free part, from
+    the offset randoms[:, 2] on (length / spacing of them in expectation)."""
+    span = np.maximum(rays.free_end - rays.free_start, 0.0)
+    counts = np.floor(span / rays.spacing + 1.0 - randoms[:, 2]).astype(np.int64)
+    return np.where(span > 0.0, np.minimum(counts, max_free_samples), 0)
+
+
+def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
+    """Occupied and free samples along every ray of `scan` (see `scan_rays` for which rays
+    and which part of each).
+
+    Around each hit: the hit and one point up to `occupied_depth` behind it are occupied; one
+    point in the band from `surface_margin` / 4 to `surface_margin` in front of it is free.
+    Along each ray, free points are stratified: one in each `spacing` of its free part, from a
+    random offset. With `learn_box`, the samples around hits outside it are left out.
+    """
+    rays = scan_rays([scan], config)
+    return samples_of_rays(rays, ray_randoms(len(rays), rng), config)
+
+
+def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> TrainingSamples:
+    """The samples of `rays` placed by `randoms` (see ray_randoms), as `training_samples`
+    describes them."""
+    hits = rays.hits
+    hit_points = rays.origins[hits] + rays.directions[hits] * rays.lengths[hits, None]
+    hit_dirs = rays.directions[hits]
+    behind = hit_points + hit_dirs * (config.occupied_depth * randoms[hits, 0])[:, None]
+    front_depth = np.minimum(
+        config.surface_margin * (0.25 + 0.75 * randoms[hits, 1]), rays.lengths[hits]
+    )
+    in_front = hit_points - hit_dirs * front_depth[:, None]
+    counts = free_sample_counts(rays, randoms, config.max_free_samples)
+    ray_of_sample = np.repeat(np.arange(len(counts)), counts)
+    rank = np.arange(len(ray_of_sample)) - np.repeat(np.cumsum(counts) - counts, counts)
+    depth = (
+        rays.free_start[ray_of_sample]
+        + (rank + randoms[ray_of_sample, 2]) * rays.spacing[ray_of_sample]
+    )
+    along = rays.origins[ray_of_sample] + rays.directions[ray_of_sample] * depth[:, None]
+    # Each hit's three samples together, then the free samples of every ray.
+    surface = np.stack([hit_points, behind, in_front], axis=1).reshape(-1, rays.origins.shape[1])
+    points = np.concatenate([surface, along])
+    n_surface = len(surface)
     occupied = np.zeros(len(points), dtype=bool)
-    occupied[:n_occupied] = True
+    occupied[:n_surface] = np.tile([True, True, False], len(hit_points))
     at_surface = np.zeros(len(points), dtype=bool)
-    at_surface[: n_occupied + len(in_front)] = True
+    at_surface[:n_surface] = True
     samples = TrainingSamples(points, occupied, at_surface)
     if config.learn_box:  # the samples around hits outside the box
-        return samples.subset(points_in_box(points, box))
+        box = learn_box(config, rays.origins.shape[1])
+        return samples.subset(~at_surface | points_in_box(points, box))
     return samples
 
 
-def _learn_box(config: MapConfig, dim: int) -> np.ndarray:
+def learn_box(config: MapConfig, dim: int) -> np.ndarray:
     """config.learn_box as a (2, dim) array, metres; InputError for a box of another dim."""
     box = np.asarray(config.learn_box, dtype=np.float64).reshape(2, -1)
     if box.shape[1] != dim:

@@ -10,7 +10,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet
-from ehm.core.memory import SampleMemory
+from ehm.core.memory import EvidenceMemory
 from ehm.core.scan import Scan
 
 
@@ -20,7 +20,7 @@ class MapState:
     (2,) float64, [bias, its AdaGrad accumulator]; n_scans: scans learned; rng_state: the
     state of the map's random generator (numpy's bit_generator.state), so that a restored map
     continues exactly as the saved one would; None starts it afresh from config.seed. memory:
-    the past samples it replays. waiting: scans given but not learned yet, waiting for their
+    the past evidence it replays. waiting: scans given but not learned yet, waiting for their
     batch (config.batch_rays), in the order given. sensor_path: (n, d) float64, metres, world
     frame, the origin of every scan given, in order (empty for maps saved before it was kept)."""
 
@@ -30,6 +30,6 @@ class MapState:
     bias_state: np.ndarray
     n_scans: int
     rng_state: dict[str, Any] | None
-    memory: SampleMemory
+    memory: EvidenceMemory
     waiting: tuple[Scan, ...] = ()
     sensor_path: np.ndarray | None = None

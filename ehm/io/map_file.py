@@ -25,7 +25,8 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.anchors import AnchorLayers
 from ehm.core.clusters import ClusterSet
-from ehm.core.memory import SampleMemory
+from ehm.core.memory import EvidenceMemory
+from ehm.core.samples import TrainingSamples
 from ehm.core.scan import Scan
 from ehm.core.state import MapState
 from ehm.errors import EhmError, FileReadError
@@ -42,12 +43,10 @@ SENSOR_PATH = "sensor_path"
 # they learn more.
 # Version 7 maps may take every kernel not zero at a point as its features (MapConfig.features
 # 'support'); older files learned and answer with the nearest clusters ('nearest').
-# Version 5 stores the sample memory; older files load with none (memory_per_cell 0).
+# Version 5 stores the sample memory; older files load with none.
 # Version 4 stores the random generator's state and each weight's posterior precision;
 # version 3 files load with a generator started afresh from the map's seed, and learn on by
 # SGD as they did.
-# Version 8 maps may thin each batch's samples (MapConfig.samples_per_cell); older files
-# learned every sample.
 # Version 9 maps may gather small scans into batches (MapConfig.batch_rays); older files
 # learned each scan as it came.
 # Version 10 maps may limit the rays' range (MapConfig.min_range, max_range) and bound the
@@ -57,7 +56,10 @@ SENSOR_PATH = "sensor_path"
 # Version 11 maps keep the origin of every scan given (the sensor path); older files load
 # with none.
 # Version 12 maps may learn inside a box only (MapConfig.learn_box: the tiles of a TiledMap).
-FORMAT_VERSION = 12
+# Version 13 maps keep past evidence per cell (ehm.core.memory, MapConfig.keep_evidence) where
+# older ones kept samples (memory_per_cell, and samples_per_cell thinned them): their kept
+# samples load as evidence, each weighing its cell's samples seen over those kept.
+FORMAT_VERSION = 13
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -112,7 +114,7 @@ def map_bytes(state: MapState) -> bytes:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 12); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 13); MapFileError
     names what is wrong otherwise."""
     return map_state_of_bytes(read_bytes(path), path)
 
@@ -182,28 +184,32 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         if name.startswith(WAITING_PREFIX)
     }
     settings = header["config"]
+    dim = header["dim"]
+    kept = None
+    if version < 13:
+        kept, memory_arrays = _kept_samples(memory_arrays), {}
+        settings = {k: v for k, v in settings.items() if k != "samples_per_cell"}
+        settings["keep_evidence"] = settings.pop("memory_per_cell", 0) > 0
     if version < 9:
         # Maps before format 9 learned each scan as it came.
         settings = {**settings, "batch_rays": 0}
-    if version < 8:
-        # Maps before format 8 learned every sample.
-        settings = {**settings, "samples_per_cell": 0}
     if version < 7:
         # Maps before format 7 learned and answered with the nearest clusters' features.
         settings = {**settings, "features": "nearest"}
     if version < 5:
         # Maps of formats 3 and 4 learned without a sample memory, and go on so.
-        settings = {**settings, "memory_per_cell": 0}
+        settings = {**settings, "keep_evidence": False}
     if version == 3:
         # Format 3 maps learned by SGD and kept no posterior precisions.
         settings = {**settings, "update_rule": "sgd"}
         arrays["precision"] = np.full(len(arrays["weights"]), MapConfig().prior_precision)
     config = MapConfig.from_dict(settings)
-    dim = header["dim"]
-    if memory_arrays:
-        memory = SampleMemory.from_arrays(dim, config, memory_arrays)
+    if kept is not None:
+        memory = EvidenceMemory.of_samples(dim, config, *kept)
+    elif memory_arrays:
+        memory = EvidenceMemory.from_arrays(dim, config, memory_arrays)
     else:
-        memory = SampleMemory.of_config(dim, config)
+        memory = EvidenceMemory.of_config(dim, config)
     return MapState(
         config,
         ClusterSet(**arrays),
@@ -215,6 +221,23 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         _waiting_scans(waiting_arrays),
         sensor_path,
     )
+
+
+def _kept_samples(arrays: dict[str, np.ndarray]) -> tuple[TrainingSamples, np.ndarray] | None:
+    """The samples a memory of a format before 13 kept, each weighing its cell's samples seen
+    over those kept, and which formed part of a cluster; None for no memory."""
+    if not arrays:
+        return None
+    kept = arrays["priority"] != np.uint32(2**32 - 1)
+    cell, _ = np.nonzero(kept)
+    share = arrays["seen"] / np.maximum(arrays["filled"], 1)
+    samples = TrainingSamples(
+        arrays["points"][kept].astype(np.float64),
+        arrays["occupied"][kept],
+        arrays["at_surface"][cell],
+        share[cell],
+    )
+    return samples, arrays.get("clustered", np.ones_like(kept))[kept]
 
 
 def _waiting_arrays(scans: tuple[Scan, ...]) -> dict[str, np.ndarray]:

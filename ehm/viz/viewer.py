@@ -136,19 +136,19 @@ class MapViewer:
         add_plane_image(self.server, "/grid", self.grid, _heat_map(self.grid.probability), 0.0)
 
     def _show_samples(self) -> None:
-        """The occupied samples the map keeps near surfaces, as points (a tiled map keeps
-        them in its tiles, which the viewer does not read one by one)."""
+        """The occupied evidence the map keeps near surfaces (ehm.core.memory), as points (a
+        tiled map keeps it in its tiles, which the viewer does not read one by one)."""
         memory = getattr(self.map, "memory_", None)
         if memory is None or len(memory) == 0:
             return
-        kept = np.arange(memory.points.shape[1]) < memory.filled[:, None]
-        points = memory.points[memory.occupied & kept]
+        evidence = memory.samples()
+        points = evidence.points[evidence.occupied]
         if len(points):
             self.samples = self.server.scene.add_point_cloud(
                 "/samples", points.astype(np.float32), SAMPLE_COLOR, point_size=0.01,
                 visible=False,
             )  # fmt: skip
-            self.show_samples = self.server.gui.add_checkbox("show kept samples", False)
+            self.show_samples = self.server.gui.add_checkbox("show kept evidence", False)
             self.show_samples.on_update(
                 lambda _: setattr(self.samples, "visible", self.show_samples.value)
             )

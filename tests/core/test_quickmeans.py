@@ -24,6 +24,37 @@ def test_compiled_quick_means_matches_reference(rng, dim):
     np.testing.assert_allclose(result.covariances, reference.covariances, atol=1e-12)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_compiled_weighted_quick_means_matches_reference(rng, dim):
+    points = _cloud(rng, 1200, dim)
+    weights = rng.uniform(0.2, 5.0, len(points))
+    spread = rng.normal(0, 0.05, (len(points), dim, dim))
+    scatter = np.einsum("nij,nkj->nik", spread, spread)
+    result = quick_means(points, 0.2, 0.3, 6.0, np.random.default_rng(3), weights, scatter)
+    order = np.random.default_rng(3).permutation(len(points))
+    reference = quick_means_reference(points, 0.2, 0.3, 6.0, order, weights, scatter)
+    np.testing.assert_array_equal(result.owner, reference.owner)
+    np.testing.assert_allclose(result.counts, reference.counts, rtol=1e-12)
+    np.testing.assert_array_equal(result.kept, reference.kept)
+    np.testing.assert_allclose(result.means, reference.means, atol=1e-12)
+    np.testing.assert_allclose(result.covariances, reference.covariances, atol=1e-12)
+
+
+def test_points_standing_for_samples_cluster_as_the_samples_would(rng):
+    """Two points, each the mean of a group of samples with their scatter, form the cluster
+    the samples form: the same count, mean and covariance."""
+    groups = [rng.normal(c, 0.02, (30, 3)) for c in ([0.0, 0.0, 0.0], [0.05, 0.0, 0.0])]
+    samples = np.concatenate(groups)
+    means = np.array([g.mean(axis=0) for g in groups])
+    scatter = np.array([(g - g.mean(0)).T @ (g - g.mean(0)) for g in groups])
+    pooled = quick_means(means, 0.5, 0.5, 4, rng, np.array([30.0, 30.0]), scatter)
+    direct = quick_means(samples, 0.5, 0.5, 4, rng)
+    assert len(pooled.means) == len(direct.means) == 1
+    assert pooled.counts[0] == direct.counts[0] == 60
+    np.testing.assert_allclose(pooled.means, direct.means, atol=1e-12)
+    np.testing.assert_allclose(pooled.covariances, direct.covariances, atol=1e-12)
+
+
 def test_every_point_lies_within_inner_radius_of_its_seed(rng):
     points = _cloud(rng)
     result = quick_means(points, 0.25, 0.4, 5, rng)

@@ -3,16 +3,11 @@
 import numpy as np
 import pytest
 
-from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.features import SparseFeatures
 from ehm.core.sgd import (
     blocked_order,
     loss_weights,
     sgd_pass,
     sgd_pass_reference,
-    train_weights,
-    weighted_visits,
 )
 
 
@@ -81,42 +76,27 @@ def test_blocked_order_visits_every_sample_once_a_block_at_a_time():
     assert len(blocked_order(0, rng)) == 0
 
 
-def test_heavy_samples_are_visited_as_often_as_they_weigh():
-    sample_of_visit, per_visit = weighted_visits(np.array([1.0, 3.0, 0.4, 2.6]))
-    np.testing.assert_array_equal(sample_of_visit, [0, 1, 1, 1, 2, 3, 3, 3])
-    np.testing.assert_allclose(per_visit, [1.0, 1.0, 0.4, 2.6 / 3])
-    sample_of_visit, per_visit = weighted_visits(np.array([1.0, 0.4, 1.2]))
-    np.testing.assert_array_equal(sample_of_visit, [0, 1, 2])
-    np.testing.assert_array_equal(per_visit, [1.0, 0.4, 1.2])
-
-
-def test_a_sample_weighing_three_learns_as_three_copies():
-    """Two samples weighing 3 and 2 train exactly as the five copies they stand for: the
-    passes visit the same rows in the same random order."""
-
-    def train(features, occupied, weights):
-        clusters = ClusterSet.empty(2)
-        clusters.append(
-            np.zeros((2, 2)),
-            np.tile(np.eye(2), (2, 1, 1)),
-            np.ones(2),
-            np.zeros(2, bool),
-            np.array([True, False]),
-        )
-        bias_state = np.zeros(2)
-        config = MapConfig(epochs=3)
-        rng = np.random.default_rng(5)
-        train_weights(features, occupied, weights, clusters, bias_state, config, rng)
-        return clusters.weights, bias_state
-
-    heavy = SparseFeatures(
-        np.array([0, 2, 4]), np.array([0, 1, 0, 1]), np.array([0.9, 0.2, 0.1, 0.7])
+@pytest.mark.parametrize("weight", [1.0, 4.0, 250.0])
+def test_a_sample_standing_for_w_moves_a_fresh_weight_by_sqrt_w_steps(weight):
+    """One sample of weight w: its squared gradient counts w times in the accumulator and its
+    gradient w times in the step, so a fresh weight moves lr sqrt(w), as w single samples
+    would to within a factor of 2."""
+    weights, grad_sq, bias = np.zeros(1), np.zeros(1), np.zeros(2)
+    sgd_pass(
+        np.array([0, 1]),
+        np.array([0]),
+        np.array([0.8]),
+        np.array([1.0]),
+        np.array([weight]),
+        np.array([0]),
+        weights,
+        grad_sq,
+        bias,
+        0.3,
+        0.0,
     )
-    copies = SparseFeatures(
-        np.arange(0, 12, 2), np.tile([0, 1], 5), np.array([0.9, 0.2] * 3 + [0.1, 0.7] * 2)
-    )
-    got = train(heavy, np.array([True, False]), np.array([3.0, 2.0]))
-    want = train(copies, np.array([True] * 3 + [False] * 2), np.ones(5))
-    for a, b in zip(got, want, strict=True):
-        np.testing.assert_array_equal(a, b)
-    assert got[0][0] > 0 > got[0][1]
+    gradient = 0.5 * 0.8  # (sigmoid(0) - 1) * phi, negated
+    assert grad_sq[0] == pytest.approx(weight * gradient**2)
+    assert weights[0] == pytest.approx(0.3 * np.sqrt(weight), rel=1e-6)
+    assert bias[0] == pytest.approx(0.3 * np.sqrt(weight), rel=1e-6)
+    assert bias[1] == pytest.approx(weight * 0.25)

@@ -126,11 +126,10 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     """Files written in format 3, before the random generator's state was stored: a 2D plan
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
     They answer as when they were written (to rounding), hold no sensor path, and a map built
-    now from the same scans with the same settings (no sample memory then, the nearest
-    clusters' features, no thinning, each scan learned as it came) classifies nearly every
-    point the same: SGD has visited the samples in another random order since (measured: the
-    same class at 97.6 % of the room's points and 99.2 % of the plan's, 0.04 apart on
-    average)."""
+    now from the same scans with the same settings (no memory of past evidence then, the
+    nearest clusters' features, each scan learned as it came) classifies nearly every point
+    the same, though evidence is now learned per cell and SGD visits it in another order
+    (measured: 0.06 apart on average in the room)."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
@@ -145,15 +144,19 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
         np.testing.assert_allclose(loaded.occupancy(points, mode), answers, rtol=0, atol=1e-14)
         again = rebuilt.occupancy(points, mode)
         assert np.mean((again > 0.5) == (answers > 0.5)) > 0.95
-        assert np.mean(np.abs(again - answers)) < 0.06
+        assert np.mean(np.abs(again - answers)) < 0.08
 
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
-    before_format_9 = {"samples_per_cell": 0, "batch_rays": 0}
+    before_format_9 = {"batch_rays": 0}
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
-            features="nearest", neighbours=6, anchor_layers=2, memory_per_cell=0, **before_format_9
+            features="nearest",
+            neighbours=6,
+            anchor_layers=2,
+            keep_evidence=False,
+            **before_format_9,
         )
         scans = floor_plan_2d(seed=0).scans
     else:
@@ -162,7 +165,7 @@ def rebuild_v3_map(name: str) -> ehm.HilbertMap:
             planar_kernel=True,
             merge_coplanar=True,
             anisotropic_search=True,
-            memory_per_cell=0,
+            keep_evidence=False,
             **before_format_9,
         )
         (scan,) = virtual_room(seed=0, rings=16, azimuths=240).scans
@@ -186,3 +189,63 @@ def test_the_sensor_path_is_kept_and_saved(plan, tmp_path):
     refit = ehm.HilbertMap().fit(plan.scans)
     np.testing.assert_array_equal(refit.sensor_path, [scan.origin for scan in plan.scans])
     assert ehm.HilbertMap().sensor_path.shape == (0, 3)
+
+
+class _OldSettings:
+    """Settings as a map file of format 12 held them: a sample memory of 8 per cell."""
+
+    def __init__(self, config):
+        self.settings = {k: v for k, v in config.to_dict().items() if k != "keep_evidence"}
+        self.settings.update(memory_per_cell=8, samples_per_cell=0)
+
+    def to_dict(self):
+        return self.settings
+
+
+class _OldMemory:
+    """The arrays of a format-12 sample memory: a cell around hits keeping 3 of the 12
+    occupied samples it saw, which formed part of a cluster, and one along rays keeping 1 of
+    its 2 free samples, which did not."""
+
+    def arrays(self):
+        points = np.zeros((2, 8, 2), dtype=np.float32)
+        points[0, :3] = [[0.01, 0.02], [0.05, 0.05], [0.1, 0.02]]
+        points[1, 0] = [2.0, 2.0]
+        priority = np.full((2, 8), 2**32 - 1, dtype=np.uint32)
+        priority[0, :3], priority[1, 0] = [5, 9, 7], 3
+        return {
+            "keys": np.array([10, 20]),
+            "cell_of_key": np.array([0, 1]),
+            "seen": np.array([12.0, 2.0]),
+            "filled": np.array([3, 1]),
+            "at_surface": np.array([True, False]),
+            "points": points,
+            "occupied": np.array([[True] * 8, [False] * 8]),
+            "clustered": np.array([[True] * 8, [False] * 8]),
+            "priority": priority,
+        }
+
+
+def test_maps_of_format_12_load_their_kept_samples_as_evidence(small_map, tmp_path, monkeypatch):
+    """A sample memory of format 12 loads as evidence: each kept sample weighs its cell's
+    samples seen over those kept, and what waited for a cluster still waits."""
+    import dataclasses
+
+    from ehm.io import map_file
+
+    state = small_map.state()
+    old = dataclasses.replace(state, config=_OldSettings(state.config), memory=_OldMemory())
+    monkeypatch.setattr(map_file, "FORMAT_VERSION", 12)
+    (tmp_path / "old.ehm").write_bytes(map_file.map_bytes(old))
+    monkeypatch.undo()
+    loaded = ehm.load(tmp_path / "old.ehm")
+    assert loaded.config.keep_evidence and loaded.config == small_map.config
+    evidence = loaded.memory_.samples()
+    assert evidence.weight.sum() == pytest.approx(14.0)
+    assert sorted(evidence.weight.tolist()) == pytest.approx([2.0, 4.0, 4.0, 4.0])
+    assert evidence.occupied.sum() == 3 and evidence.weight[~evidence.occupied] == 2.0
+    waiting = loaded.memory_.pending(loaded.memory_.visit(evidence))
+    np.testing.assert_allclose(waiting.samples.points, [[2.0, 2.0]], atol=1e-6)
+    np.testing.assert_allclose(
+        loaded.occupancy(evidence.points), small_map.occupancy(evidence.points), atol=1e-12
+    )

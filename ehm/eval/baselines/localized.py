@@ -14,12 +14,12 @@ SCAN_BY_SCAN = ("ehm", "ehm-alone")
 KINDS = {
     "ehm": (
         "EHM, incremental: one integrate per scan (Alg. 2, 3), small scans gathered into "
-        "batches, past samples replayed",
+        "batches, past evidence replayed",
         {},
     ),
     "ehm-alone": (
         "EHM, incremental, each scan learned from its own samples alone (Alg. 2 as published)",
-        {"memory_per_cell": 0, "batch_rays": 0},
+        {"keep_evidence": False, "batch_rays": 0},
     ),
     "ehm-batch": ("EHM, single batch: every scan in one fit (Alg. 2, 3)", {}),
     "lls-hm": (

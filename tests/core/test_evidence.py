@@ -1,0 +1,87 @@
+"""Evidence gathered per cell and kind: the compiled pass against the samples it stands for."""
+
+import numpy as np
+import pytest
+
+from ehm.config import MapConfig
+from ehm.core.evidence import evidence_reference, gather_evidence
+from ehm.core.samples import ray_randoms, samples_of_rays, scan_rays
+from ehm.core.scan import Scan
+from ehm.errors import InputError
+
+
+def _scan(rng, n, dim, hits=0.7, spread=8.0):
+    origin = rng.normal(size=dim)
+    directions = rng.normal(size=(n, dim))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    ends = origin + directions * rng.uniform(0.5, spread, n)[:, None]
+    return Scan(ends, origin, rng.random(n) < hits)
+
+
+def _sorted(samples):
+    order = np.lexsort((*np.round(samples.points.T, 9), samples.occupied, samples.at_surface))
+    return samples.subset(order)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("box", [False, True])
+def test_compiled_evidence_matches_reference(rng, dim, box):
+    config = MapConfig(free_spacing=0.3, max_free_samples=12)
+    if box:
+        config = config.replace(learn_box=(-2.0,) * dim + (3.0,) * dim)
+    scans = [_scan(rng, 1500, dim), _scan(rng, 700, dim)]
+    rays = scan_rays(scans, config)
+    got = _sorted(gather_evidence(scans, config, np.random.default_rng(5)))
+    want = _sorted(
+        evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(5)), config)
+    )
+    assert len(got) == len(want) > 100
+    np.testing.assert_allclose(got.points, want.points, atol=1e-9)
+    np.testing.assert_allclose(got.weight, want.weight)
+    np.testing.assert_allclose(got.scatter, want.scatter, atol=1e-9)
+    np.testing.assert_array_equal(got.occupied, want.occupied)
+    np.testing.assert_array_equal(got.at_surface, want.at_surface)
+
+
+def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng):
+    """Per kind, the weights add up to the samples drawn, and their weighted means and
+    scatter are the samples' own."""
+    config = MapConfig()
+    scan = _scan(rng, 3000, 3, spread=2.0)
+    rays = scan_rays([scan], config)
+    randoms = ray_randoms(len(rays), np.random.default_rng(2))
+    samples = samples_of_rays(rays, randoms, config)
+    evidence = gather_evidence([scan], config, np.random.default_rng(2))
+    assert len(evidence) < 0.7 * len(samples)
+    for occupied, at_surface in ((True, True), (False, True), (False, False)):
+        drawn = samples.subset((samples.occupied == occupied) & (samples.at_surface == at_surface))
+        cells = evidence.subset(
+            (evidence.occupied == occupied) & (evidence.at_surface == at_surface)
+        )
+        assert cells.weight.sum() == len(drawn)
+        mean = drawn.points.mean(axis=0)
+        np.testing.assert_allclose(cells.weight @ cells.points / cells.weight.sum(), mean)
+        offsets = cells.points - mean
+        total = cells.scatter.sum(axis=0) + np.einsum("n,ni,nj->ij", cells.weight, offsets, offsets)
+        np.testing.assert_allclose(total, (drawn.points - mean).T @ (drawn.points - mean))
+
+
+def test_a_batch_with_more_cells_than_rays_grows_its_table(rng):
+    """The table starts at the number of rays: 40 long rays with dense free samples fill it
+    many times over, and the pass goes on in larger ones without losing a cell."""
+    config = MapConfig(free_spacing=0.02)
+    scan = _scan(rng, 40, 3, spread=30.0)
+    rays = scan_rays([scan], config)
+    got = _sorted(gather_evidence([scan], config, np.random.default_rng(1)))
+    want = _sorted(
+        evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(1)), config)
+    )
+    assert len(got) == len(want) > 20 * len(rays)
+    np.testing.assert_allclose(got.weight, want.weight)
+    np.testing.assert_allclose(got.points, want.points, atol=1e-9)
+
+
+def test_samples_beyond_the_cells_reach_are_refused(rng):
+    far = Scan(np.array([[1e9, 0.0, 0.0]]), np.zeros(3))
+    with pytest.raises(InputError, match="set max_range"):
+        gather_evidence([far], MapConfig(), rng)
