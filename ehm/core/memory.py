@@ -76,13 +76,14 @@ def region_ranges(
 
 
 def _region_keys(regions: np.ndarray, along_ray: np.ndarray) -> np.ndarray:
-    """(n,) int64: the integer `regions` (n, d) packed REGION_BITS_PER_AXIS bits an axis
-    from the world origin, then the along_ray bit, then REGION_BITS zeros."""
+    """(n,) int64: the integer `regions` (n, d), counted from the world origin, packed in
+    (62 - REGION_BITS) // d bits an axis, then the along_ray bit, then REGION_BITS zeros;
+    InputError for a region beyond their reach."""
     bits = (63 - 1 - REGION_BITS) // regions.shape[1]
     half = 1 << (bits - 1)
     if len(regions) and not (regions.min() >= -half and regions.max() < half):
         raise InputError(
-            "evidence lies beyond the reach of the sample memory's cells: set max_range "
+            "evidence lies beyond the reach of the memory's cells: set max_range "
             "(ehm map --max-range) to cut rays longer than the sensor's"
         )
     keys = np.zeros(len(regions), dtype=np.int64)
