@@ -19,9 +19,10 @@ The cells the replay and the waiting evidence are drawn from are the regions a b
 cells of the cluster radius of each kind (`cluster_radius` around hits, `free_cluster_radius`
 along rays), each holding FINE_CELLS_PER_RADIUS (COARSE_CELLS_PER_RADIUS) evidence cells along
 every axis. An entry's key is its region's, then its kind, then its cell within the region
-(REGION_BITS), so the entries of a region are one run of sorted keys. Per entry: the weight
-seen (float64), the mean's offset from its cell's corner (float32 per axis) and whether it
-formed part of a cluster.
+(REGION_BITS), so the entries of a region are one run of sorted keys. Per entry, 19 bytes in
+3D: the key, the weight seen (float32), the mean's place in its cell (uint16 per axis, in
+1/65535 of the side: half a micrometre in a 3 cm cell) and whether it formed part of a
+cluster.
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ from ehm.errors import InputError
 # and for those and the kind.
 SUB_BITS = 3 * (FINE_CELLS_PER_RADIUS - 1).bit_length()
 REGION_BITS = KIND_BITS + SUB_BITS
+# Steps of an entry's place along each side of its cell.
+OFFSET_STEPS = 65535
 
 
 def memory_keys(points: np.ndarray, kinds: np.ndarray, sides: tuple[float, float]) -> np.ndarray:
@@ -125,8 +128,8 @@ class EvidenceMemory:
     """Past evidence of a map, one weighted mean per cell and kind (ehm.core.evidence); an
     empty memory that keeps nothing when `enabled` is False.
 
-    keys (n,) int64 sorted; weight (n,) float64; offset (n, d) float32 metres from each
-    cell's corner to the mean; clustered (n,) bool.
+    keys (n,) int64 sorted; weight (n,) float32; place (n, d) uint16, the mean's offset from
+    its cell's corner in OFFSET_STEPS of the cell's side; clustered (n,) bool.
     """
 
     def __init__(self, dim: int, enabled: bool, sides: tuple[float, float]) -> None:
@@ -134,8 +137,8 @@ class EvidenceMemory:
         self.enabled = enabled
         self.sides = (float(sides[0]), float(sides[1]))
         self.keys = np.zeros(0, dtype=np.int64)
-        self.weight = np.zeros(0)
-        self.offset = np.zeros((0, dim), dtype=np.float32)
+        self.weight = np.zeros(0, dtype=np.float32)
+        self.place = np.zeros((0, dim), dtype=np.uint16)
         self.clustered = np.zeros(0, dtype=bool)
 
     @classmethod
@@ -149,7 +152,7 @@ class EvidenceMemory:
 
     @property
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.keys, self.weight, self.offset, self.clustered))
+        return sum(a.nbytes for a in (self.keys, self.weight, self.place, self.clustered))
 
     def _find(self, keys: np.ndarray) -> np.ndarray:
         """(n,) int64 entry of each of `keys`, -1 where there is none."""
@@ -178,13 +181,7 @@ class EvidenceMemory:
         """The entries that formed no cluster yet, in the cells of the visit's samples."""
         entries = np.unique(visit.entries[visit.entries >= 0])
         entries = entries[~self.clustered[entries]]
-        samples = self._samples_at(entries)
-        return PendingSamples(
-            TrainingSamples(
-                samples.points, samples.occupied, samples.at_surface, self.weight[entries]
-            ),
-            entries,
-        )
+        return PendingSamples(self._samples_at(entries), entries)
 
     def mark_clustered(self, pending: PendingSamples, clustered: np.ndarray) -> None:
         """Record which `pending` entries ((p,) bool `clustered`) now formed clusters."""
@@ -202,14 +199,14 @@ class EvidenceMemory:
         replayed = self._samples_at(near)
         total = ratio * samples.weight.sum()
         at_surface_total = ratio * samples.weight[samples.at_surface].sum()
-        groups = replayed.at_surface
+        groups, seen = replayed.at_surface, replayed.weight
         weight = np.zeros(len(near))
         if groups.all() or not groups.any():
-            weight = total * self.weight[near] / self.weight[near].sum()
+            weight = total * seen / seen.sum()
         else:
             for group, share in ((True, at_surface_total), (False, total - at_surface_total)):
                 rows = groups == group
-                weight[rows] = share * self.weight[near[rows]] / self.weight[near[rows]].sum()
+                weight[rows] = share * seen[rows] / seen[rows].sum()
         keep = weight > 0
         return TrainingSamples(
             replayed.points[keep], replayed.occupied[keep], replayed.at_surface[keep], weight[keep]
@@ -228,7 +225,7 @@ class EvidenceMemory:
             position = np.searchsorted(self.keys, missing)
             self.keys = np.insert(self.keys, position, missing)
             self.weight = np.insert(self.weight, position, 0.0)
-            self.offset = np.insert(self.offset, position, 0.0, axis=0)
+            self.place = np.insert(self.place, position, 0, axis=0)
             self.clustered = np.insert(self.clustered, position, False)
         entries = self._find(new_keys)
         corner = self._corners(new_keys)
@@ -241,22 +238,27 @@ class EvidenceMemory:
             ],
             1,
         )
-        old_w = self.weight[entries]
+        old_w = self.weight[entries].astype(np.float64)
         total = old_w + w
-        mean = (old_w[:, None] * self.offset[entries] + (sums - w[:, None] * corner)) / total[
-            :, None
-        ]
+        side = self._sides(new_keys)[:, None]
+        old_offset = self.place[entries] * (side / OFFSET_STEPS)
+        offset = (old_w[:, None] * old_offset + (sums - w[:, None] * corner)) / total[:, None]
         self.weight[entries] = total
-        self.offset[entries] = mean.astype(np.float32)
+        self.place[entries] = np.clip(np.rint(offset / side * OFFSET_STEPS), 0, OFFSET_STEPS)
         formed = np.bincount(key_of_sample, clustered, len(new_keys)) > 0
         self.clustered[entries] |= formed
+
+    def _sides(self, keys: np.ndarray) -> np.ndarray:
+        """(n,) metres, the side of each key's evidence cell."""
+        along_ray = (keys >> SUB_BITS) & (2**KIND_BITS - 1) == FREE_ALONG_RAY
+        return np.where(along_ray, self.sides[1], self.sides[0])
 
     def _corners(self, keys: np.ndarray) -> np.ndarray:
         """(n, d) metres, world frame: the low corner of each key's evidence cell."""
         kinds = (keys >> SUB_BITS) & (2**KIND_BITS - 1)
         along_ray = kinds == FREE_ALONG_RAY
         per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
-        side = np.where(along_ray, self.sides[1], self.sides[0])
+        side = self._sides(keys)
         bits = (63 - 1 - REGION_BITS) // self.dim
         half = 1 << (bits - 1)
         sub = keys & (2**SUB_BITS - 1)
@@ -276,8 +278,9 @@ class EvidenceMemory:
     def _samples_at(self, entries: np.ndarray) -> TrainingSamples:
         keys = self.keys[entries]
         occupied, at_surface = sample_flags((keys >> SUB_BITS) & (2**KIND_BITS - 1))
-        points = self._corners(keys) + self.offset[entries]
-        return TrainingSamples(points, occupied, at_surface, self.weight[entries].copy())
+        offset = self.place[entries] * (self._sides(keys) / OFFSET_STEPS)[:, None]
+        weight = self.weight[entries].astype(np.float64)
+        return TrainingSamples(self._corners(keys) + offset, occupied, at_surface, weight)
 
     # ------------------------------------------------------------ persistence
     @classmethod
@@ -294,7 +297,7 @@ class EvidenceMemory:
         return {
             "keys": self.keys,
             "weight": self.weight,
-            "offset": self.offset,
+            "place": self.place,
             "clustered": self.clustered,
         }
 
