@@ -42,6 +42,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/bag_stream.py
 	$(BIN)/python benchmarks/viewer.py
 	$(BIN)/python benchmarks/tiles.py
+	$(BIN)/python benchmarks/peers.py --seeds 0 --fractions 0.8
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -115,20 +115,28 @@ def measure(
     return found
 
 
+def scans_and_scene(name: str) -> tuple[list[Scan], Scene | None] | None:
+    """The scans of data set `name` and, for a simulated one, its scene; None, with a
+    message, for a real data set whose files are absent."""
+    if name in SIMULATED:
+        data = SIMULATED[name]()
+        return data.scans, data.scene
+    try:
+        return load_dataset(name), None
+    except DataMissingError as missing:
+        print(f"{name}: left out ({missing})\n")
+        return None
+
+
 def main() -> None:
     sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, METHODS)
     seeds, fractions, methods = sweep.seeds, sweep.fractions, sweep.methods
     print(heading("Online mapping", f"seeds {seeds}, train fractions {fractions}"))
     for name in sweep.datasets:
-        if name in SIMULATED:
-            data = SIMULATED[name]()
-            scans, scene = data.scans, data.scene
-        else:
-            try:
-                scans, scene = load_dataset(name), None
-            except DataMissingError as missing:
-                print(f"{name}: left out ({missing})\n")
-                continue
+        loaded = scans_and_scene(name)
+        if loaded is None:
+            continue
+        scans, scene = loaded
         rows = []
         for fraction in fractions:
             runs = [measure(name, scans, scene, fraction, seed, methods) for seed in seeds]

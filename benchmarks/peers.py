@@ -1,0 +1,165 @@
+"""OctoMap, wavemap and EHM side by side on every data set, in one process.
+
+    python benchmarks/peers.py [--seeds 0] [--fractions 0.8] [--datasets street,...]
+
+For each data set and split (held-out rays, DESIGN.md), every method maps the training scans
+at the data set's resolution (OctoMap's and wavemap's smallest cell; EHM through
+`MapConfig.for_resolution`, scan by scan) and answers the test points. Build seconds hold
+everything a map learns before it can answer: EHM's last batch of scans, wavemap's threshold
+and prune. Query seconds are for every test point at once; memory is each method's own count
+of what it keeps. Held-out F1 of the occupied class at 0.5; on the simulated scenes also F1
+against the exact occupancy at points within 0.3 m of training hits, where a training ray
+reached (benchmarks/online_mapping.py). Each method maps a small scan first, untimed, so
+compilation is not timed. wavemap (../shared/peers/wavemap, built by its build.sh) is left
+out, with a message, where it is not built and on 2D data.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
+from online_mapping import SIMULATED, near_surface_test_points, scans_and_scene
+
+from ehm.core.scan import Scan
+from ehm.eval.baselines import make_mapper
+from ehm.eval.metrics import f1_score
+from ehm.eval.protocol import held_out_rays
+from ehm.eval.runner import _warm_up
+
+DATASETS = (
+    "octomap_scan",
+    "tum_fr2_pioneer_slam2",
+    "pcl_room",
+    "intel_lab",
+    *SIMULATED,
+)
+METHODS = ("octomap", "wavemap", "ehm")
+PEERS = Path(__file__).resolve().parents[2] / "shared" / "peers" / "wavemap"
+
+
+class WavemapMapper:
+    """wavemap through the peer wrapper beside its archive: a Mapper of the evaluation."""
+
+    description = "wavemap (Reijgwart et al. 2023), projective integrator"
+
+    def __init__(self, resolution: float) -> None:
+        sys.path.insert(0, str(PEERS))
+        from wavemap_peer import WavemapPeer
+
+        self.peer = WavemapPeer(resolution)
+
+    def build(self, scans: list[Scan]) -> None:
+        for scan in scans:
+            self.peer.integrate(scan.points_world, scan.origin, scan.hit_mask)
+        self.peer.finish()
+
+    def occupancy(self, points: np.ndarray) -> np.ndarray:
+        return self.peer.occupancy(points)
+
+    def memory_bytes(self) -> int:
+        return self.peer.memory_bytes()
+
+
+def mapper_of(method: str, resolution: float, seed: int):
+    """A fresh mapper of `method`, or the reason there is none."""
+    if method != "wavemap":
+        return make_mapper(method, resolution, seed)
+    try:
+        return WavemapMapper(resolution)
+    except ImportError:
+        return "not built: run ../shared/peers/wavemap/build.sh .venv"
+
+
+def warm_up(method: str, dim: int) -> None:
+    """Map a small scan once, untimed, so compiled code is ready."""
+    if method != "wavemap":
+        _warm_up(method, dim)
+        return
+    mapper = mapper_of(method, RESOLUTION, 0)
+    if not isinstance(mapper, str):
+        directions = np.random.default_rng(0).normal(size=(400, 3))
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        mapper.build([Scan(2.0 * directions, np.zeros(3))])
+        mapper.occupancy(directions)
+
+
+def measure(name: str, scans: list[Scan], scene, fraction: float, seed: int) -> dict:
+    """Per method: build s, query s, memory MB, held-out F1, and near F1 on a scene; or the
+    reason it was left out."""
+    resolution = RESOLUTIONS.get(name, RESOLUTION)
+    split = held_out_rays(scans, fraction, resolution, seed)
+    near = truth = None
+    if scene is not None:
+        near = near_surface_test_points(split.train, 100_000, np.random.default_rng(seed))
+        truth = scene.occupied(near)
+    found = {}
+    for method in METHODS:
+        if method == "wavemap" and scans[0].dim == 2:
+            found[method] = "3D only"
+            continue
+        mapper = mapper_of(method, resolution, seed)
+        if isinstance(mapper, str):
+            found[method] = mapper
+            continue
+        start = time.perf_counter()
+        mapper.build(split.train)
+        built = time.perf_counter()
+        probability = mapper.occupancy(split.points)
+        row = {
+            "build s": built - start,
+            "query s": time.perf_counter() - built,
+            "memory MB": mapper.memory_bytes() / 1e6,
+            "held-out F1": f1_score(split.occupied, probability > 0.5),
+        }
+        if near is not None:
+            row["near F1 (exact)"] = f1_score(truth, mapper.occupancy(near) > 0.5)
+        found[method] = row
+    return found
+
+
+def main() -> None:
+    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS)
+    print(heading("Peers", f"seeds {sweep.seeds}, train fractions {sweep.fractions}"))
+    for method in METHODS:
+        for dim in (2, 3):
+            warm_up(method, dim)
+    header = ["data set", "train", "method", "build s", "query s", "memory MB"]
+    header += ["held-out F1", "near F1 (exact)", "build / OctoMap's", "memory / OctoMap's"]
+    rows = []
+    for name in sweep.datasets:
+        loaded = scans_and_scene(name)
+        if loaded is None:
+            continue
+        scans, scene = loaded
+        for fraction in sweep.fractions:
+            runs = [measure(name, scans, scene, fraction, seed) for seed in sweep.seeds]
+            means = {}
+            for method in METHODS:
+                if isinstance(runs[0][method], str):
+                    means[method] = runs[0][method]
+                    continue
+                keys = runs[0][method]
+                means[method] = {k: statistics.fmean(r[method][k] for r in runs) for k in keys}
+            octomap = means["octomap"]
+            for method, values in means.items():
+                cells = [name, f"{fraction:.0%}", method]
+                if isinstance(values, str):
+                    rows.append(cells + [values] + [""] * (len(header) - 4))
+                    continue
+                cells += [f"{values['build s']:.2f}", f"{values['query s']:.3f}"]
+                cells += [f"{values['memory MB']:.2f}", f"{values['held-out F1']:.3f}"]
+                near = values.get("near F1 (exact)")
+                cells.append("" if near is None else f"{near:.3f}")
+                cells.append(f"{values['build s'] / octomap['build s']:.2f}")
+                cells.append(f"{values['memory MB'] / octomap['memory MB']:.3f}")
+                rows.append(cells)
+    print(markdown_table(header, rows, text_columns=3))
+
+
+if __name__ == "__main__":
+    main()
