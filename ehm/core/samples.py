@@ -33,9 +33,10 @@ class TrainingSamples:
     def __post_init__(self) -> None:
         if self.weight is None:
             object.__setattr__(self, "weight", np.ones(len(self.points)))
-        if self.scatter is None:
+        if self.scatter is None:  # zeros, held by one (d, d) block until copied
             d = self.points.shape[1]
-            object.__setattr__(self, "scatter", np.zeros((len(self.points), d, d)))
+            zeros = np.broadcast_to(np.zeros((d, d)), (len(self.points), d, d))
+            object.__setattr__(self, "scatter", zeros)
 
     def __len__(self) -> int:
         return len(self.points)
