@@ -227,9 +227,10 @@ class HilbertMap:
         )
 
     def _memory(self) -> EvidenceMemory:
-        """The sample memory, made with the clusters: there is one whenever there are clusters."""
+        """The memory of past evidence, made with the clusters: there is one whenever there are
+        clusters."""
         if self.memory_ is None:
-            raise EmptyMapError("the map has no sample memory before it has learned")
+            raise EmptyMapError("the map has no memory of past evidence before it has learned")
         return self.memory_
 
     def _learned(self, action: str) -> ClusterSet:
@@ -381,7 +382,7 @@ class HilbertMap:
             replayed = memory.replay(cfg.replay_ratio, visit)
             # Shuffled once here, SGD reads the features in order (ehm.core.sgd.blocked_order).
             shuffle = self._rng.permutation(n_new + len(replayed))
-            train = (samples + replayed).subset(shuffle)
+            train = (samples.without_scatter() + replayed).subset(shuffle)
             groups = None
             if cfg.features == "nearest" and cfg.train_search == "group":
                 new_groups = PointGroups(

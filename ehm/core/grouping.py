@@ -75,7 +75,8 @@ def group_samples(
     for rows, radius, is_coarse in parts:
         points = samples.points[rows]
         outer = radius * config.outer_radius_factor
-        weights, scatter = samples.weight[rows], samples.scatter[rows]
+        weights = samples.weight[rows]
+        scatter = None if samples.scatter is None else samples.scatter[rows]
         result = quick_means(points, radius, outer, config.min_cluster_size, rng, weights, scatter)
         result = kmeans_refine(points, result, config.kmeans_iterations, weights, scatter)
         group_of_point[rows] = result.owner + n_groups

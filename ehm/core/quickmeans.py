@@ -5,9 +5,9 @@ points within the outer radius r_o (its cluster when there are at least `min_siz
 takes the points within the inner radius r_i out of the pool. Points may carry weights and
 scatter: each then stands for `weight` samples whose mean it is and whose scatter about it is
 given (ehm.core.evidence), and a cluster's count, mean and covariance are those of all the
-samples its points stand for. Drawing uniformly from the pool
-at every step is the same as walking one random permutation and skipping points already taken,
-which is what the kernel does. Neighbours are found through a hash of cells of side
+samples its points stand for. Drawing uniformly from the pool at every step is the same as
+walking one random permutation and skipping points already taken, which is what the kernel
+does. Neighbours are found through a hash of cells of side
 r_o / CELLS_PER_RADIUS.
 """
 
@@ -100,9 +100,9 @@ def _quick_means_kernel(
     (strides[0] == 1); cell_keys: sorted, one per cell, with the start and size of the cell's
     points in sorted_points (their coordinates, cell by cell) and sorted_index (their rows in
     `points`), sorted_weights their weights, sorted_scatter (n, d, d) their own scatter, or
-    (0, d, d) for none. Points taken out of the pool leave their cell
-    (sizes and the sorted arrays change in place), so a seed reads only points still
-    available, one after the other in memory. Returns (seeds, owner, counts, sums, scatter),
+    (0, d, d) for none. Points taken out of the pool leave their cell (sizes and the sorted
+    arrays change in place), so a seed reads only points still available, one after the other
+    in memory. Returns (seeds, owner, counts, sums, scatter),
     sums and scatter about each seed, each point's weighing its weight.
     """
     n, d = points.shape
@@ -193,11 +193,11 @@ def _quick_means_kernel(
     return seeds[:s].copy(), owner, counts[:s].copy(), sums[:s].copy(), scatter[:s].copy()
 
 
-def _cell_hash(points: np.ndarray, cell: float, weights: np.ndarray):
+def _cell_hash(points: np.ndarray, cell: float, weights: np.ndarray, scatter: np.ndarray):
     """Integer cells of side `cell` of (n, d) points, their linear keys (sorted, one per
     cell), where each cell's points start and how many there are, and the points' coordinates,
-    rows and `weights` sorted cell by cell (the arguments of _quick_means_kernel after
-    `points`)."""
+    rows, `weights` and `scatter` ((0, d, d) for none) sorted cell by cell (the arguments of
+    _quick_means_kernel after `points`)."""
     hashed = cell_keys(points, cell)
     sorted_index = np.argsort(hashed.keys)
     sorted_keys = hashed.keys[sorted_index]
@@ -213,6 +213,7 @@ def _cell_hash(points: np.ndarray, cell: float, weights: np.ndarray):
         points[sorted_index],
         sorted_index,
         weights[sorted_index],
+        scatter[sorted_index] if len(scatter) else scatter,
     )
 
 
@@ -242,13 +243,10 @@ def quick_means(
     order = rng.permutation(len(points))
     cell = r_outer / CELLS_PER_RADIUS
     weights = np.ones(len(points)) if weights is None else np.asarray(weights, np.float64)
-    hashed = _cell_hash(points, cell, weights)
-    sorted_index = hashed[-2]
-    sorted_scatter = np.zeros((0, d, d)) if scatter is None else scatter[sorted_index]
+    scatter = np.zeros((0, d, d)) if scatter is None else np.asarray(scatter, np.float64)
     seeds, owner, counts, sums, scatter = _quick_means_kernel(
         points,
-        *hashed,
-        sorted_scatter,
+        *_cell_hash(points, cell, weights, scatter),
         order,
         float(r_inner),
         float(r_outer),

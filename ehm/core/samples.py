@@ -21,22 +21,18 @@ class TrainingSamples:
     True for the samples drawn around hits (both classes), False for free samples along rays.
     weight: (n,) float64, how many drawn samples each stands for in the loss (None gives
     ones). scatter: (n, d, d) float64, m^2, the scatter of those samples about the point, for
-    a point that is their mean (ehm.core.evidence; None gives zeros).
+    a point that is their mean (ehm.core.evidence), or None: none (zero) for every sample.
     """
 
     points: np.ndarray
     occupied: np.ndarray
     at_surface: np.ndarray
     weight: np.ndarray = None  # type: ignore[assignment]
-    scatter: np.ndarray = None  # type: ignore[assignment]
+    scatter: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.weight is None:
             object.__setattr__(self, "weight", np.ones(len(self.points)))
-        if self.scatter is None:  # zeros, held by one (d, d) block until copied
-            d = self.points.shape[1]
-            zeros = np.broadcast_to(np.zeros((d, d)), (len(self.points), d, d))
-            object.__setattr__(self, "scatter", zeros)
 
     def __len__(self) -> int:
         return len(self.points)
@@ -49,7 +45,7 @@ class TrainingSamples:
         # np.take gathers rows of a 2D array several times faster than fancy indexing.
         return TrainingSamples(
             *(
-                np.take(values, rows, axis=0)
+                None if values is None else np.take(values, rows, axis=0)
                 for values in (
                     self.points,
                     self.occupied,
@@ -59,6 +55,10 @@ class TrainingSamples:
                 )
             )
         )
+
+    def without_scatter(self) -> TrainingSamples:
+        """The same samples with no scatter (learning needs none, clustering does)."""
+        return TrainingSamples(self.points, self.occupied, self.at_surface, self.weight)
 
     def __add__(self, other: TrainingSamples) -> TrainingSamples:
         """This set's samples followed by `other`'s."""
@@ -71,8 +71,19 @@ class TrainingSamples:
             np.concatenate([p.occupied for p in parts]),
             np.concatenate([p.at_surface for p in parts]),
             np.concatenate([p.weight for p in parts]),
-            np.concatenate([p.scatter for p in parts]),
+            _scatter_of(parts),
         )
+
+
+def _scatter_of(parts: list[TrainingSamples]) -> np.ndarray | None:
+    """The scatter of `parts` one after the other: None when none has any, else zeros for the
+    parts without."""
+    if all(p.scatter is None for p in parts):
+        return None
+    d = parts[0].points.shape[1]
+    return np.concatenate(
+        [np.zeros((len(p), d, d)) if p.scatter is None else p.scatter for p in parts]
+    )
 
 
 @dataclass(frozen=True)

@@ -228,7 +228,7 @@ def _kept_samples(arrays: dict[str, np.ndarray]) -> tuple[TrainingSamples, np.nd
     over those kept, and which formed part of a cluster; None for no memory."""
     if not arrays:
         return None
-    kept = arrays["priority"] != np.uint32(2**32 - 1)
+    kept = arrays["priority"] != np.uint32(2**32 - 1)  # the priority of an empty slot
     cell, _ = np.nonzero(kept)
     share = arrays["seen"] / np.maximum(arrays["filled"], 1)
     samples = TrainingSamples(
