@@ -29,3 +29,22 @@ def hash_slot(table_keys, key):  # pragma: no cover - compiled
     while table_keys[s] != key and table_keys[s] != EMPTY_KEY:
         s = (s + 1) & mask
     return s
+
+
+@numba.njit(cache=True)
+def unique_keys(keys):  # pragma: no cover - compiled
+    """Sorted distinct values of `keys` (n,) int64 >= 0: np.unique, with the duplicates
+    dropped in one pass over a table before the sort, so only distinct keys are sorted."""
+    size = 64
+    while size < 2 * len(keys):
+        size *= 2
+    table = np.full(size, EMPTY_KEY, dtype=np.int64)
+    distinct = np.empty(len(keys), dtype=np.int64)
+    n = 0
+    for key in keys:
+        s = hash_slot(table, key)
+        if table[s] == EMPTY_KEY:
+            table[s] = key
+            distinct[n] = key
+            n += 1
+    return np.sort(distinct[:n])

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ehm.config import MapConfig
@@ -41,6 +42,7 @@ from ehm.core.evidence import (
     kinds_of,
     sample_flags,
 )
+from ehm.core.hashing import unique_keys
 from ehm.core.samples import TrainingSamples
 from ehm.errors import InputError
 
@@ -74,7 +76,7 @@ def region_ranges(
     per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
     side = np.where(along_ray, sides[1], sides[0])
     cells = np.floor(points / side[:, None]).astype(np.int64)
-    low = np.unique(_region_keys(np.floor_divide(cells, per_region[:, None]), along_ray))
+    low = unique_keys(_region_keys(np.floor_divide(cells, per_region[:, None]), along_ray))
     return low, low + (1 << REGION_BITS)
 
 
@@ -100,6 +102,79 @@ def _in_ranges(keys: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarra
     start, stop = np.searchsorted(keys, low), np.searchsorted(keys, high)
     lengths = stop - start
     return np.repeat(start - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
+
+
+@numba.njit(cache=True)
+def merge_entries(
+    keys, weight, place, clustered, new_keys, new_weight, place_sums, formed
+):  # pragma: no cover - compiled
+    """The entries (keys (m,) sorted, weight (m,) float32, place (m, d) uint16, clustered (m,)
+    bool) with new evidence added in one pass: new_keys (n,) sorted distinct, new_weight (n,)
+    its weight, place_sums (n, d) the sum of weight times place of its samples (in
+    OFFSET_STEPS), formed (n,) bool. Returns the four arrays, with an entry for every key."""
+    m, n, d = len(keys), len(new_keys), place.shape[1]
+    missing = 0
+    i = 0
+    for j in range(n):
+        while i < m and keys[i] < new_keys[j]:
+            i += 1
+        if i == m or keys[i] != new_keys[j]:
+            missing += 1
+    size = m + missing
+    out_keys = np.empty(size, dtype=np.int64)
+    out_weight = np.empty(size, dtype=np.float32)
+    out_place = np.empty((size, d), dtype=np.uint16)
+    out_clustered = np.empty(size, dtype=np.bool_)
+    i = j = 0
+    for o in range(size):
+        take_new = i == m or (j < n and new_keys[j] <= keys[i])
+        old_w = 0.0
+        if i < m and (not take_new or keys[i] == new_keys[j]):
+            out_keys[o] = keys[i]
+            out_weight[o] = weight[i]
+            out_place[o] = place[i]
+            out_clustered[o] = clustered[i]
+            old_w = np.float64(weight[i])
+            i += 1
+        else:
+            out_keys[o] = new_keys[j]
+            out_clustered[o] = False
+        if take_new:
+            total = old_w + new_weight[j]
+            for a in range(d):
+                value = np.rint((old_w * out_place[o, a] + place_sums[j, a]) / total)
+                out_place[o, a] = min(max(value, 0.0), OFFSET_STEPS)
+            out_weight[o] = total
+            out_clustered[o] = out_clustered[o] or formed[j]
+            j += 1
+    return out_keys, out_weight, out_place, out_clustered
+
+
+def merge_entries_reference(
+    keys: np.ndarray,
+    weight: np.ndarray,
+    place: np.ndarray,
+    clustered: np.ndarray,
+    new_keys: np.ndarray,
+    new_weight: np.ndarray,
+    place_sums: np.ndarray,
+    formed: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `merge_entries`."""
+    missing = ~np.isin(new_keys, keys)
+    position = np.searchsorted(keys, new_keys[missing])
+    keys = np.insert(keys, position, new_keys[missing])
+    weight = np.insert(weight, position, 0.0)
+    place = np.insert(place, position, 0, axis=0)
+    clustered = np.insert(clustered, position, False)
+    rows = np.searchsorted(keys, new_keys)
+    old_w = weight[rows].astype(np.float64)
+    total = old_w + new_weight
+    value = np.rint((old_w[:, None] * place[rows] + place_sums) / total[:, None])
+    place[rows] = np.clip(value, 0.0, OFFSET_STEPS)
+    weight[rows] = total
+    clustered[rows] |= formed
+    return keys, weight, place, clustered
 
 
 @dataclass(frozen=True)
@@ -166,10 +241,12 @@ class EvidenceMemory:
     # -------------------------------------------------------------- learning
     def visit(self, samples: TrainingSamples) -> Visit:
         """Where `samples` fall in this memory: the start of every step below."""
+        none = np.zeros(0, dtype=np.int64)
         if not self.enabled:
-            none = np.zeros(0, dtype=np.int64)
             return Visit(samples, none, np.full(len(samples), -1, dtype=np.int64), none)
         keys = memory_keys(samples.points, kinds_of(samples), self.sides)
+        if len(self.keys) == 0:
+            return Visit(samples, keys, np.full(len(samples), -1, dtype=np.int64), none)
         n = len(samples)
         # The regions of both kinds around every sample.
         points = np.concatenate([samples.points, samples.points])
@@ -218,35 +295,19 @@ class EvidenceMemory:
         samples = visit.samples
         if not self.enabled or len(samples) == 0:
             return
-        new_keys, key_of_sample = np.unique(visit.keys, return_inverse=True)
-        key_of_sample = key_of_sample.ravel()
-        missing = new_keys[self._find(new_keys) < 0]
-        if len(missing):
-            position = np.searchsorted(self.keys, missing)
-            self.keys = np.insert(self.keys, position, missing)
-            self.weight = np.insert(self.weight, position, 0.0)
-            self.place = np.insert(self.place, position, 0, axis=0)
-            self.clustered = np.insert(self.clustered, position, False)
-        entries = self._find(new_keys)
-        corner = self._corners(new_keys)
-        d = self.dim
-        w = np.bincount(key_of_sample, samples.weight, len(new_keys))
-        sums = np.stack(
-            [
-                np.bincount(key_of_sample, samples.weight * samples.points[:, a], len(new_keys))
-                for a in range(d)
-            ],
-            1,
+        order = np.argsort(visit.keys, kind="stable")
+        keys = visit.keys[order]
+        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+        new_keys = keys[starts]
+        weight = samples.weight[order]
+        w = np.add.reduceat(weight, starts)
+        sums = np.add.reduceat(weight[:, None] * samples.points[order], starts)
+        steps = (OFFSET_STEPS / self._sides(new_keys))[:, None]
+        place_sums = (sums - w[:, None] * self._corners(new_keys)) * steps
+        formed = np.logical_or.reduceat(clustered[order], starts)
+        self.keys, self.weight, self.place, self.clustered = merge_entries(
+            self.keys, self.weight, self.place, self.clustered, new_keys, w, place_sums, formed
         )
-        old_w = self.weight[entries].astype(np.float64)
-        total = old_w + w
-        side = self._sides(new_keys)[:, None]
-        old_offset = self.place[entries] * (side / OFFSET_STEPS)
-        offset = (old_w[:, None] * old_offset + (sums - w[:, None] * corner)) / total[:, None]
-        self.weight[entries] = total
-        self.place[entries] = np.clip(np.rint(offset / side * OFFSET_STEPS), 0, OFFSET_STEPS)
-        formed = np.bincount(key_of_sample, clustered, len(new_keys)) > 0
-        self.clustered[entries] |= formed
 
     def _sides(self, keys: np.ndarray) -> np.ndarray:
         """(n,) metres, the side of each key's evidence cell."""

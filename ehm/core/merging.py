@@ -107,11 +107,13 @@ def match_new_clusters(
     pair_new, pair_old = pair_new[alike], pair_old[alike]
     if len(pair_new) == 0:
         return targets
+    # Each covariance's square root once, however many pairs it is in.
+    old_rows, old_of_pair = np.unique(pair_old, return_inverse=True)
     distances = anisotropic_distances(
         new.means[pair_new],
         covariance_square_roots(new.covariances, min_std)[pair_new],
         clusters.means[pair_old],
-        covariance_square_roots(clusters.covariances[pair_old], min_std),
+        covariance_square_roots(clusters.covariances[old_rows], min_std)[old_of_pair.ravel()],
     )
     # The closest candidate of each new cluster: the first of its pairs by distance.
     order = np.lexsort((distances, pair_new))

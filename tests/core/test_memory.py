@@ -6,7 +6,14 @@ import pytest
 
 from ehm.config import MapConfig
 from ehm.core.evidence import FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED, sample_flags
-from ehm.core.memory import SUB_BITS, EvidenceMemory, memory_keys
+from ehm.core.memory import (
+    OFFSET_STEPS,
+    SUB_BITS,
+    EvidenceMemory,
+    memory_keys,
+    merge_entries,
+    merge_entries_reference,
+)
 from ehm.core.samples import TrainingSamples
 
 # Fine cells of 0.25 m (regions of 1 m around hits), coarse ones of 2.5 m (regions of 5 m).
@@ -109,3 +116,23 @@ def test_arrays_round_trip_and_kept_samples_load_as_evidence(rng):
     for name, array in memory.arrays().items():
         np.testing.assert_array_equal(getattr(again, name), array)
     assert memory.weight.sum() == pytest.approx(samples.weight.sum())
+
+
+def test_merging_entries_agrees_with_its_numpy_twin(rng):
+    m, n = 400, 300
+    keys = np.sort(rng.choice(2000, m, replace=False)).astype(np.int64)
+    memory = (
+        keys,
+        rng.uniform(1, 5, m).astype(np.float32),
+        rng.integers(0, OFFSET_STEPS + 1, (m, 3)).astype(np.uint16),
+        rng.random(m) < 0.5,
+    )
+    new_keys = np.sort(rng.choice(2000, n, replace=False)).astype(np.int64)
+    new_weight = rng.uniform(1, 5, n)
+    batch = (new_keys, new_weight, new_weight[:, None] * rng.uniform(0, OFFSET_STEPS, (n, 3)))
+    formed = rng.random(n) < 0.5
+    merged = merge_entries(*memory, *batch, formed)
+    expected = merge_entries_reference(*memory, *batch, formed)
+    assert len(merged[0]) == len(np.union1d(keys, new_keys))
+    for got, want in zip(merged, expected, strict=True):
+        np.testing.assert_array_equal(got, want)
