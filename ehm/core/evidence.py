@@ -21,14 +21,16 @@ half a radius lost 0.005-0.016 held-out F1 in one batch (BENCHMARKS.md).
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from itertools import repeat
 
 import numba
 import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.cells import packed_cell_keys
-from ehm.core.hashing import EMPTY_KEY, hash_slot, table_size
+from ehm.core.hashing import EMPTY_KEY, hash_slot, key_part, table_size
 from ehm.core.samples import (
     ScanRays,
     TrainingSamples,
@@ -52,6 +54,10 @@ KIND_BITS = 2
 # held-out F1 on the PCL room scan by scan, 15 cm ones cost 40 % more cells for no gain.
 FINE_CELLS_PER_RADIUS = 4
 COARSE_CELLS_PER_RADIUS = 3
+# A batch is gathered on several threads when each gets at least this many samples (a sweep
+# of 88,000 rays gives 1.1 million): every thread places every sample and keeps those of its
+# part of the cells (key_part), in a table of its own.
+PARALLEL_MIN_SAMPLES = 50_000
 
 
 @dataclass
@@ -107,9 +113,12 @@ def _rehash(keys, index, new_keys, new_index):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _add_sample(point, inv_side, side, kind, half, bits, cell, table, used):  # pragma: no cover
+def _add_sample(
+    point, inv_side, side, kind, half, bits, part, parts, cell, table, used
+):  # pragma: no cover - compiled
     """Add `point` (d,) to the statistics of its cell of `kind` in `table` (the arrays of a
-    _CellTable, `used` cells filled); returns the cells used."""
+    _CellTable, `used` cells filled) when the cell is in `part` of `parts`; returns the cells
+    used."""
     keys, index, weight, sums, scatter, anchor, kinds = table
     d = point.shape[0]
     key = np.int64(0)
@@ -117,6 +126,8 @@ def _add_sample(point, inv_side, side, kind, half, bits, cell, table, used):  # 
         cell[a] = np.floor(point[a] * inv_side)
         key = (key << bits) | (np.int64(cell[a]) + half)
     key = (key << KIND_BITS) | kind
+    if parts > 1 and key_part(key, parts) != part:
+        return used
     s = hash_slot(keys, key)
     if keys[s] == EMPTY_KEY:
         keys[s] = key
@@ -136,7 +147,7 @@ def _add_sample(point, inv_side, side, kind, half, bits, cell, table, used):  # 
     return used
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def gather_kernel(
     first_ray,
     origins,
@@ -153,6 +164,8 @@ def gather_kernel(
     fine_side,
     coarse_side,
     bits,
+    part,
+    parts,
     table,
     used,
 ):  # pragma: no cover - compiled
@@ -170,12 +183,13 @@ def gather_kernel(
     (ehm.core.samples.ray_randoms); box (2, d), or (0, d) for none: samples around hits
     outside it are left out; bits: bits per axis of a key.
     """
-    n, d = directions.shape
+    d = directions.shape[1]
     half = np.int64(1) << (bits - 1)
     inv_fine, inv_coarse = 1.0 / fine_side, 1.0 / coarse_side
     capacity = min(len(table[2]), len(table[0]) // 2)
     point = np.empty(d)
     cell = np.empty(d)
+    n = directions.shape[0]
     for r in range(first_ray, n):
         if used + 3 + free_counts[r] > capacity:
             return r, used
@@ -194,16 +208,40 @@ def gather_kernel(
                 if inside:
                     kind = FREE_AT_SURFACE if j == 2 else OCCUPIED
                     used = _add_sample(
-                        point, inv_fine, fine_side, kind, half, bits, cell, table, used
+                        point, inv_fine, fine_side, kind, half, bits, part, parts, cell, table, used
                     )
         for k in range(free_counts[r]):
             t = free_start[r] + (k + random[r, 2]) * spacing[r]
             for a in range(d):
                 point[a] = origins[r, a] + directions[r, a] * t
             used = _add_sample(
-                point, inv_coarse, coarse_side, FREE_ALONG_RAY, half, bits, cell, table, used
+                point,
+                inv_coarse,
+                coarse_side,
+                FREE_ALONG_RAY,
+                half,
+                bits,
+                part,
+                parts,
+                cell,
+                table,
+                used,
             )
     return n, used
+
+
+def _gather_part(arguments: tuple, part: int, parts: int) -> _CellTable:
+    """The cells of part `part` of `parts` (see gather_kernel) of the samples of every ray
+    (`arguments`: gather_kernel's from `origins` to `bits`), in a table grown as they fill it."""
+    n, dim = arguments[1].shape
+    table = _CellTable.empty(n, dim)
+    counts = arguments[6]
+    ray = 0
+    while ray < n:
+        if table.used + 3 + counts[ray] > len(table.weight):
+            table = table.grown()
+        ray, table.used = gather_kernel(ray, *arguments, part, parts, table.arrays(), table.used)
+    return table
 
 
 def cell_sides(config: MapConfig) -> tuple[float, float]:
@@ -219,7 +257,8 @@ def gather_evidence(
     scans: list[Scan], config: MapConfig, rng: np.random.Generator
 ) -> TrainingSamples:
     """The evidence of `scans`: their training samples (ehm.core.samples), one weighted
-    sample per cell and kind, with its scatter, in the order the cells were met."""
+    sample per cell and kind, with its scatter, in the order the cells were met (part by
+    part, when gathered on several threads)."""
     rays = scan_rays(scans, config)
     randoms = ray_randoms(len(rays), rng)
     fine, coarse = cell_sides(config)
@@ -228,31 +267,38 @@ def gather_evidence(
     _check_reach(rays, config, fine, bits)
     box = learn_box(config, dim) if config.learn_box else np.zeros((0, dim))
     counts = free_sample_counts(rays, randoms, config.max_free_samples)
-    origins = np.ascontiguousarray(rays.origins)
-    table = _CellTable.empty(len(rays), dim)
-    ray = 0
-    while ray < len(rays):
-        if table.used + 3 + counts[ray] > len(table.weight):
-            table = table.grown()
-        ray, table.used = gather_kernel(
-            ray,
-            origins,
-            rays.directions,
-            rays.lengths,
-            rays.hits,
-            rays.free_start,
-            rays.spacing,
-            counts,
-            randoms,
-            box,
-            config.occupied_depth,
-            config.surface_margin,
-            fine,
-            coarse,
-            bits,
-            table.arrays(),
-            table.used,
-        )
+    arguments = (
+        np.ascontiguousarray(rays.origins),
+        rays.directions,
+        rays.lengths,
+        rays.hits,
+        rays.free_start,
+        rays.spacing,
+        counts,
+        randoms,
+        box,
+        config.occupied_depth,
+        config.surface_margin,
+        fine,
+        coarse,
+        bits,
+    )
+    parts = _parts(int(counts.sum() + 3 * rays.hits.sum()), numba.get_num_threads())
+    if parts == 1:
+        return _evidence_of_table(_gather_part(arguments, 0, 1))
+    with ThreadPoolExecutor(parts) as pool:
+        tables = pool.map(_gather_part, repeat(arguments), range(parts), repeat(parts))
+        return TrainingSamples.concatenate([_evidence_of_table(table) for table in tables])
+
+
+def _parts(n_samples: int, threads: int) -> int:
+    """Parts of the cells a batch of n_samples is gathered in, one per thread: at most
+    `threads`, with PARALLEL_MIN_SAMPLES samples each."""
+    return max(1, min(threads, n_samples // PARALLEL_MIN_SAMPLES))
+
+
+def _evidence_of_table(table: _CellTable) -> TrainingSamples:
+    """The weighted samples of the cells of `table`."""
     n = table.used
     return _evidence_of_sums(
         table.weight[:n], table.sums[:n], table.scatter[:n], table.anchor[:n], table.kind[:n]

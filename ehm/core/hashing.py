@@ -48,3 +48,11 @@ def unique_keys(keys):  # pragma: no cover - compiled
             distinct[n] = key
             n += 1
     return np.sort(distinct[:n])
+
+
+@numba.njit(cache=True, inline="always")
+def key_part(key, parts):  # pragma: no cover - compiled
+    """Which of `parts` parts of the keys `key` belongs to: about as many keys in each,
+    wherever they lie."""
+    mixed = np.uint64(key) * _HASH_MULTIPLIER
+    return np.int64(mixed >> np.uint64(40)) % parts

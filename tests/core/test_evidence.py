@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
+from ehm.core import evidence
 from ehm.core.evidence import evidence_reference, gather_evidence
 from ehm.core.samples import ray_randoms, samples_of_rays, scan_rays
 from ehm.core.scan import Scan
@@ -85,3 +86,19 @@ def test_samples_beyond_the_cells_reach_are_refused(rng):
     far = Scan(np.array([[1e9, 0.0, 0.0]]), np.zeros(3))
     with pytest.raises(InputError, match="set max_range"):
         gather_evidence([far], MapConfig(), rng)
+
+
+def test_evidence_gathered_on_several_threads_is_the_same(rng, monkeypatch):
+    """Each thread keeping its part of the cells, a batch gives the cells one pass gives."""
+    config = MapConfig(free_spacing=0.3)
+    scans = [_scan(rng, 3000, 3)]
+    whole = _sorted(gather_evidence(scans, config, np.random.default_rng(3)))
+    monkeypatch.setattr(evidence, "PARALLEL_MIN_SAMPLES", 1000)
+    monkeypatch.setattr(evidence.numba, "get_num_threads", lambda: 3)
+    assert evidence._parts(20_000, 3) == 3
+    split = _sorted(gather_evidence(scans, config, np.random.default_rng(3)))
+    assert len(split) == len(whole) > 1000
+    np.testing.assert_allclose(split.points, whole.points, atol=1e-9)
+    np.testing.assert_allclose(split.weight, whole.weight)
+    np.testing.assert_allclose(split.scatter, whole.scatter, atol=1e-9)
+    np.testing.assert_array_equal(split.occupied, whole.occupied)
