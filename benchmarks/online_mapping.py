@@ -5,13 +5,13 @@ against the exact occupancy.
     python benchmarks/online_mapping.py [--seeds 0,1,2] [--fractions 0.8,0.4]
                                         [--datasets warehouse,street,...] [--methods ehm,...]
 
-For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the
-four methods: held-out F1 of the occupied class at p = 0.5, every method at the data set's
-resolution (0.05 m, on the street 0.2 m). On the simulated scenes the same
-maps are also scored against the exact occupancy at points near surfaces: uniform in balls of
-0.3 m around training hits (both sides of each surface), kept where some training ray
-reached; precision, recall and F1 of the occupied class there; and where the scene has thin
-solids (posts at most 0.1 m across), the share of points inside them within 0.1 m of a
+For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the four
+methods: held-out F1 of the occupied class at p = 0.5, every method at the data set's
+resolution (0.05 m; on the street 0.2 m, on the outdoor LiDAR scans 0.1 m). On the simulated
+scenes the same maps are also scored against the exact occupancy at points near surfaces:
+uniform in balls of 0.3 m around training hits (both sides of each surface), kept where some
+training ray reached; precision, recall and F1 of the occupied class there; and where the scene
+has thin solids (posts at most 0.1 m across), the share of points inside them within 0.1 m of a
 training hit that read occupied (thin recall). Prints markdown tables, mean
 ± standard deviation over seeds.
 """
@@ -27,14 +27,26 @@ from scipy.spatial import cKDTree
 
 from ehm.core.scan import Scan
 from ehm.eval.baselines import make_mapper
-from ehm.eval.datasets import DataMissingError, load_dataset, street, virtual_room, warehouse
+from ehm.eval.datasets import (
+    DataMissingError,
+    load_dataset,
+    outdoor_lidar,
+    street,
+    virtual_room,
+    warehouse,
+)
 from ehm.eval.datasets.scene import Scene
 from ehm.eval.metrics import f1_score, precision_recall
 from ehm.eval.protocol import held_out_rays, observed_mask
 from ehm.eval.runner import run_method
 
 METHODS = ("ehm", "ehm-alone", "ehm-batch", "octomap")
-SIMULATED = {"virtual_room": virtual_room, "warehouse": warehouse, "street": street}
+SIMULATED = {
+    "virtual_room": virtual_room,
+    "warehouse": warehouse,
+    "street": street,
+    "outdoor_lidar": outdoor_lidar,
+}
 DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab", "octomap_scan")
 # Test points near surfaces: uniform in balls of this radius around training hits, metres.
 NEAR = 0.3

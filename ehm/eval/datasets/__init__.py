@@ -9,6 +9,7 @@ from ehm.eval.datasets.scene import Scene
 from ehm.eval.datasets.simulated import (
     SimulatedDataset,
     floor_plan_2d,
+    outdoor_lidar,
     street,
     virtual_room,
     warehouse,
@@ -38,6 +39,7 @@ __all__ = [
     "SimulatedDataset",
     "floor_plan_2d",
     "load_dataset",
+    "outdoor_lidar",
     "street",
     "virtual_room",
     "warehouse",

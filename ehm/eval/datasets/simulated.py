@@ -1,5 +1,5 @@
 """Embedded synthetic scenes with exact occupancy: the virtual room, a warehouse and an outdoor
-street (3D), and a floor plan and a 100 m office corridor (2D).
+street seen by two LiDARs (3D), and a floor plan and a 100 m office corridor (2D).
 
 All are deterministic for a seed; the seed only draws the range noise.
 """
@@ -205,6 +205,26 @@ def street(
         for x in np.arange(-25.0, 26.0, 10.0)
     ]
     return SimulatedDataset("street", scans, scene)
+
+
+def outdoor_lidar(
+    seed: int = 0,
+    rings: int = 64,
+    azimuths: int = 1563,
+    noise_std: float = 0.02,
+    max_range: float = 30.0,
+) -> SimulatedDataset:
+    """Three scans of a 64-ring LiDAR (rings x azimuths rays, about 100,000; elevations -25
+    to +15 degrees, 1.8 m up, `max_range` metres) 15 m apart down the street's south lane: a
+    long-range outdoor scene for maps of 0.1 m."""
+    directions = lidar_directions(rings, azimuths, 15.0, -25.0)
+    scene = street_scene()
+    rng = np.random.default_rng(seed)
+    scans = [
+        simulate_scan(scene, np.array([x, -2.0, 1.8]), directions, max_range, noise_std, rng)
+        for x in (-15.0, 0.0, 15.0)
+    ]
+    return SimulatedDataset("outdoor_lidar", scans, scene)
 
 
 def floor_plan_scene() -> Scene:
