@@ -54,10 +54,12 @@ KIND_BITS = 2
 # held-out F1 on the PCL room scan by scan, 15 cm ones cost 40 % more cells for no gain.
 FINE_CELLS_PER_RADIUS = 4
 COARSE_CELLS_PER_RADIUS = 3
-# A batch is gathered on several threads when each gets at least this many samples (a sweep
-# of 88,000 rays gives 1.1 million): every thread places every sample and keeps those of its
-# part of the cells (key_part), in a table of its own.
-PARALLEL_MIN_SAMPLES = 50_000
+# A batch of at least PARALLEL_MIN_SAMPLES samples (a sweep of 88,000 rays gives 1.1 million)
+# is gathered in GATHER_PARTS parts of its cells (key_part), each on a thread of its own as
+# far as there are threads: every part places every sample and keeps those in its cells, in a
+# table of its own. The parts do not follow the threads, so a map is the same on any machine.
+PARALLEL_MIN_SAMPLES = 100_000
+GATHER_PARTS = 2
 
 
 @dataclass
@@ -283,18 +285,12 @@ def gather_evidence(
         coarse,
         bits,
     )
-    parts = _parts(int(counts.sum() + 3 * rays.hits.sum()), numba.get_num_threads())
+    parts = GATHER_PARTS if counts.sum() + 3 * rays.hits.sum() >= PARALLEL_MIN_SAMPLES else 1
     if parts == 1:
         return _evidence_of_table(_gather_part(arguments, 0, 1))
-    with ThreadPoolExecutor(parts) as pool:
+    with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
         tables = pool.map(_gather_part, repeat(arguments), range(parts), repeat(parts))
         return TrainingSamples.concatenate([_evidence_of_table(table) for table in tables])
-
-
-def _parts(n_samples: int, threads: int) -> int:
-    """Parts of the cells a batch of n_samples is gathered in, one per thread: at most
-    `threads`, with PARALLEL_MIN_SAMPLES samples each."""
-    return max(1, min(threads, n_samples // PARALLEL_MIN_SAMPLES))
 
 
 def _evidence_of_table(table: _CellTable) -> TrainingSamples:

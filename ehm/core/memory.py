@@ -19,10 +19,11 @@ The cells the replay and the waiting evidence are drawn from are the regions a b
 cells of the cluster radius of each kind (`cluster_radius` around hits, `free_cluster_radius`
 along rays), each holding FINE_CELLS_PER_RADIUS (COARSE_CELLS_PER_RADIUS) evidence cells along
 every axis. An entry's key is its region's, then its kind, then its cell within the region
-(REGION_BITS), so the entries of a region are one run of sorted keys. Per entry, 19 bytes in
-3D: the key, the weight seen (float32), the mean's place in its cell (uint16 per axis, in
-1/65535 of the side: half a micrometre in a 3 cm cell) and whether it formed part of a
-cluster.
+(REGION_BITS, one byte), so the entries of a region are one run of sorted keys, and the
+memory keeps each region's key once with how many entries it holds. Per entry, about 11 bytes
+in 3D: its kind and cell in the region (one byte), its share of its region's key and count,
+the weight seen (float32), the mean's place in its cell (a byte per axis, in 1/255 of the
+side: 0.1 mm in a 3 cm cell, 0.8 mm in a 20 cm one) and whether it formed part of a cluster.
 """
 
 from __future__ import annotations
@@ -50,8 +51,9 @@ from ehm.errors import InputError
 # and for those and the kind.
 SUB_BITS = 3 * (FINE_CELLS_PER_RADIUS - 1).bit_length()
 REGION_BITS = KIND_BITS + SUB_BITS
+assert REGION_BITS <= 8, "an entry's kind and cell in its region are kept in one byte"
 # Steps of an entry's place along each side of its cell.
-OFFSET_STEPS = 65535
+OFFSET_STEPS = 255
 
 
 def memory_keys(points: np.ndarray, kinds: np.ndarray, sides: tuple[float, float]) -> np.ndarray:
@@ -97,6 +99,16 @@ def _region_keys(regions: np.ndarray, along_ray: np.ndarray) -> np.ndarray:
     return ((keys << 1) | along_ray) << REGION_BITS
 
 
+def _find(sorted_keys: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """(n,) int64 row of each of `keys` in `sorted_keys`, -1 where it is not there."""
+    found = np.full(len(keys), -1, dtype=np.int64)
+    position = np.searchsorted(sorted_keys, keys)
+    inside = np.flatnonzero(position < len(sorted_keys))
+    hit = inside[sorted_keys[position[inside]] == keys[inside]]
+    found[hit] = position[hit]
+    return found
+
+
 def _in_ranges(keys: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """(m,) int64 rows of sorted `keys` inside any of the ranges [low, high)."""
     start, stop = np.searchsorted(keys, low), np.searchsorted(keys, high)
@@ -108,7 +120,7 @@ def _in_ranges(keys: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarra
 def merge_entries(
     keys, weight, place, clustered, new_keys, new_weight, place_sums, formed
 ):  # pragma: no cover - compiled
-    """The entries (keys (m,) sorted, weight (m,) float32, place (m, d) uint16, clustered (m,)
+    """The entries (keys (m,) sorted, weight (m,) float32, place (m, d) uint8, clustered (m,)
     bool) with new evidence added in one pass: new_keys (n,) sorted distinct, new_weight (n,)
     its weight, place_sums (n, d) the sum of weight times place of its samples (in
     OFFSET_STEPS), formed (n,) bool. Returns the four arrays, with an entry for every key."""
@@ -123,7 +135,7 @@ def merge_entries(
     size = m + missing
     out_keys = np.empty(size, dtype=np.int64)
     out_weight = np.empty(size, dtype=np.float32)
-    out_place = np.empty((size, d), dtype=np.uint16)
+    out_place = np.empty((size, d), dtype=np.uint8)
     out_clustered = np.empty(size, dtype=np.bool_)
     i = j = 0
     for o in range(size):
@@ -182,12 +194,13 @@ class Visit:
     """Where a batch of evidence falls in a memory. samples: the batch; keys: (n,) int64 the
     key of each sample's cell; entries: (n,) int64 row of that cell's entry, -1 where the
     memory has none yet; near: (c,) int64 rows of the entries, of any kind, in the cells the
-    batch reaches."""
+    batch reaches; memory_keys: (m,) int64 the key of every entry of the memory visited."""
 
     samples: TrainingSamples
     keys: np.ndarray
     entries: np.ndarray
     near: np.ndarray
+    memory_keys: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -203,17 +216,22 @@ class EvidenceMemory:
     """Past evidence of a map, one weighted mean per cell and kind (ehm.core.evidence); an
     empty memory that keeps nothing when `enabled` is False.
 
-    keys (n,) int64 sorted; weight (n,) float32; place (n, d) uint16, the mean's offset from
-    its cell's corner in OFFSET_STEPS of the cell's side; clustered (n,) bool.
+    Entries are sorted by key and kept region by region: regions (R,) int64 sorted, the key of
+    each region holding entries shifted right by REGION_BITS, region_sizes (R,) uint8 its
+    entries, cells (n,) uint8 each entry's kind and cell in its region (the low REGION_BITS of
+    its key). weight (n,) float32; place (n, d) uint8, the mean's offset from its cell's
+    corner in OFFSET_STEPS of the cell's side; clustered (n,) bool.
     """
 
     def __init__(self, dim: int, enabled: bool, sides: tuple[float, float]) -> None:
         self.dim = dim
         self.enabled = enabled
         self.sides = (float(sides[0]), float(sides[1]))
-        self.keys = np.zeros(0, dtype=np.int64)
+        self.regions = np.zeros(0, dtype=np.int64)
+        self.region_sizes = np.zeros(0, dtype=np.uint8)
+        self.cells = np.zeros(0, dtype=np.uint8)
         self.weight = np.zeros(0, dtype=np.float32)
-        self.place = np.zeros((0, dim), dtype=np.uint16)
+        self.place = np.zeros((0, dim), dtype=np.uint8)
         self.clustered = np.zeros(0, dtype=bool)
 
     @classmethod
@@ -223,42 +241,47 @@ class EvidenceMemory:
 
     def __len__(self) -> int:
         """Entries kept."""
-        return len(self.keys)
+        return len(self.cells)
 
     @property
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.keys, self.weight, self.place, self.clustered))
+        return sum(a.nbytes for a in self.arrays().values())
 
-    def _find(self, keys: np.ndarray) -> np.ndarray:
-        """(n,) int64 entry of each of `keys`, -1 where there is none."""
-        found = np.full(len(keys), -1, dtype=np.int64)
-        position = np.searchsorted(self.keys, keys)
-        inside = np.flatnonzero(position < len(self.keys))
-        hit = inside[self.keys[position[inside]] == keys[inside]]
-        found[hit] = position[hit]
-        return found
+    def keys(self) -> np.ndarray:
+        """(n,) int64 sorted: the key of every entry."""
+        regions = np.repeat(self.regions, self.region_sizes)
+        return (regions << REGION_BITS) | self.cells
+
+    def _keep_keys(self, keys: np.ndarray) -> None:
+        """Keep sorted `keys` (n,) int64, one per entry, region by region."""
+        regions = keys >> REGION_BITS
+        starts = np.flatnonzero(np.r_[True, regions[1:] != regions[:-1]]) if len(keys) else keys
+        self.regions = regions[starts]
+        self.region_sizes = np.diff(np.r_[starts, len(keys)]).astype(np.uint8)
+        self.cells = (keys & (2**REGION_BITS - 1)).astype(np.uint8)
 
     # -------------------------------------------------------------- learning
     def visit(self, samples: TrainingSamples) -> Visit:
         """Where `samples` fall in this memory: the start of every step below."""
         none = np.zeros(0, dtype=np.int64)
         if not self.enabled:
-            return Visit(samples, none, np.full(len(samples), -1, dtype=np.int64), none)
+            return Visit(samples, none, np.full(len(samples), -1, dtype=np.int64), none, none)
         keys = memory_keys(samples.points, kinds_of(samples), self.sides)
-        if len(self.keys) == 0:
-            return Visit(samples, keys, np.full(len(samples), -1, dtype=np.int64), none)
+        if len(self) == 0:
+            return Visit(samples, keys, np.full(len(samples), -1, dtype=np.int64), none, none)
         n = len(samples)
         # The regions of both kinds around every sample.
         points = np.concatenate([samples.points, samples.points])
         along_ray = np.repeat([False, True], n)
         low, high = region_ranges(points, along_ray, self.sides)
-        return Visit(samples, keys, self._find(keys), _in_ranges(self.keys, low, high))
+        kept = self.keys()
+        return Visit(samples, keys, _find(kept, keys), _in_ranges(kept, low, high), kept)
 
     def pending(self, visit: Visit) -> PendingSamples:
         """The entries that formed no cluster yet, in the cells of the visit's samples."""
         entries = np.unique(visit.entries[visit.entries >= 0])
         entries = entries[~self.clustered[entries]]
-        return PendingSamples(self._samples_at(entries), entries)
+        return PendingSamples(self._samples_at(entries, visit.memory_keys), entries)
 
     def mark_clustered(self, pending: PendingSamples, clustered: np.ndarray) -> None:
         """Record which `pending` entries ((p,) bool `clustered`) now formed clusters."""
@@ -272,8 +295,8 @@ class EvidenceMemory:
         samples = visit.samples
         near = visit.near
         if len(near) == 0 or ratio == 0:
-            return self._samples_at(np.zeros(0, dtype=np.int64))
-        replayed = self._samples_at(near)
+            return self._samples_at(near[:0], visit.memory_keys)
+        replayed = self._samples_at(near, visit.memory_keys)
         total = ratio * samples.weight.sum()
         at_surface_total = ratio * samples.weight[samples.at_surface].sum()
         groups, seen = replayed.at_surface, replayed.weight
@@ -305,9 +328,17 @@ class EvidenceMemory:
         steps = (OFFSET_STEPS / self._sides(new_keys))[:, None]
         place_sums = (sums - w[:, None] * self._corners(new_keys)) * steps
         formed = np.logical_or.reduceat(clustered[order], starts)
-        self.keys, self.weight, self.place, self.clustered = merge_entries(
-            self.keys, self.weight, self.place, self.clustered, new_keys, w, place_sums, formed
+        keys, self.weight, self.place, self.clustered = merge_entries(
+            visit.memory_keys,
+            self.weight,
+            self.place,
+            self.clustered,
+            new_keys,
+            w,
+            place_sums,
+            formed,
         )
+        self._keep_keys(keys)
 
     def _sides(self, keys: np.ndarray) -> np.ndarray:
         """(n,) metres, the side of each key's evidence cell."""
@@ -334,10 +365,12 @@ class EvidenceMemory:
 
     def samples(self) -> TrainingSamples:
         """Every entry as a weighted sample at its mean (metres, world frame)."""
-        return self._samples_at(np.arange(len(self.keys)))
+        return self._samples_at(np.arange(len(self)), self.keys())
 
-    def _samples_at(self, entries: np.ndarray) -> TrainingSamples:
-        keys = self.keys[entries]
+    def _samples_at(self, entries: np.ndarray, memory_keys: np.ndarray) -> TrainingSamples:
+        """The entries (e,) int64 as weighted samples; memory_keys: (n,) the key of every
+        entry."""
+        keys = memory_keys[entries]
         occupied, at_surface = sample_flags((keys >> SUB_BITS) & (2**KIND_BITS - 1))
         offset = self.place[entries] * (self._sides(keys) / OFFSET_STEPS)[:, None]
         weight = self.weight[entries].astype(np.float64)
@@ -356,7 +389,9 @@ class EvidenceMemory:
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {
-            "keys": self.keys,
+            "regions": self.regions,
+            "region_sizes": self.region_sizes,
+            "cells": self.cells,
             "weight": self.weight,
             "place": self.place,
             "clustered": self.clustered,
@@ -366,7 +401,14 @@ class EvidenceMemory:
     def from_arrays(
         cls, dim: int, config: MapConfig, arrays: dict[str, np.ndarray]
     ) -> EvidenceMemory:
+        """The memory of `arrays` (see `arrays`); a memory of format 13 (keys (n,) int64, place
+        (n, d) uint16 in 65535 steps) is kept region by region, its places to OFFSET_STEPS."""
         memory = cls.of_config(dim, config)
+        arrays = dict(arrays)
+        if "keys" in arrays:
+            memory._keep_keys(arrays.pop("keys"))
+            place = arrays.pop("place").astype(np.float64) * (OFFSET_STEPS / 65535)
+            arrays["place"] = np.rint(place).astype(np.uint8)
         for name, array in arrays.items():
             setattr(memory, name, array)
         return memory

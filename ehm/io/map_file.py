@@ -59,7 +59,9 @@ SENSOR_PATH = "sensor_path"
 # Version 13 maps keep past evidence per cell (ehm.core.memory, MapConfig.keep_evidence) where
 # older ones kept samples (memory_per_cell, and samples_per_cell thinned them): their kept
 # samples load as evidence, each weighing its cell's samples seen over those kept.
-FORMAT_VERSION = 13
+# Version 14 keeps the past evidence region by region, each entry's place in a byte an axis;
+# version 13 files load their keys so, and their places to the nearest 1/255 of a cell.
+FORMAT_VERSION = 14
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -114,7 +116,7 @@ def map_bytes(state: MapState) -> bytes:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 13); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 14); MapFileError
     names what is wrong otherwise."""
     return map_state_of_bytes(read_bytes(path), path)
 

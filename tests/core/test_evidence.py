@@ -88,15 +88,21 @@ def test_samples_beyond_the_cells_reach_are_refused(rng):
         gather_evidence([far], MapConfig(), rng)
 
 
-def test_evidence_gathered_on_several_threads_is_the_same(rng, monkeypatch):
-    """Each thread keeping its part of the cells, a batch gives the cells one pass gives."""
+def test_evidence_gathered_in_parts_is_the_same_on_any_number_of_threads(rng, monkeypatch):
+    """Gathered in parts of its cells, a batch gives the cells one pass gives, and in the same
+    order whatever the threads, so a map does not depend on the machine."""
     config = MapConfig(free_spacing=0.3)
     scans = [_scan(rng, 3000, 3)]
     whole = _sorted(gather_evidence(scans, config, np.random.default_rng(3)))
     monkeypatch.setattr(evidence, "PARALLEL_MIN_SAMPLES", 1000)
-    monkeypatch.setattr(evidence.numba, "get_num_threads", lambda: 3)
-    assert evidence._parts(20_000, 3) == 3
-    split = _sorted(gather_evidence(scans, config, np.random.default_rng(3)))
+    monkeypatch.setattr(evidence, "GATHER_PARTS", 3)
+    runs = []
+    for threads in (1, 2, 3):
+        monkeypatch.setattr(evidence.numba, "get_num_threads", lambda n=threads: n)
+        runs.append(gather_evidence(scans, config, np.random.default_rng(3)))
+    for run in runs[1:]:
+        np.testing.assert_array_equal(run.points, runs[0].points)
+    split = _sorted(runs[0])
     assert len(split) == len(whole) > 1000
     np.testing.assert_allclose(split.points, whole.points, atol=1e-9)
     np.testing.assert_allclose(split.weight, whole.weight)

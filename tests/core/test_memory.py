@@ -10,6 +10,7 @@ from ehm.core.memory import (
     OFFSET_STEPS,
     SUB_BITS,
     EvidenceMemory,
+    _find,
     memory_keys,
     merge_entries,
     merge_entries_reference,
@@ -49,12 +50,16 @@ def test_an_entry_sums_the_weight_and_mean_of_its_cell_and_kind():
     # Another kind in the same cell, and another cell: entries of their own.
     insert(memory, samples_at([[0.1, 0.1]], kind=OCCUPIED))
     insert(memory, samples_at([[0.3, 0.1]]))
-    assert len(memory) == 3 and np.all(np.diff(memory.keys) > 0)
-    entry = memory._find(memory_keys(np.array([[0.1, 0.1]]), np.array([FREE_AT_SURFACE]), SIDES))
+    assert len(memory) == 3 and np.all(np.diff(memory.keys()) > 0)
+    entry = _find(
+        memory.keys(), memory_keys(np.array([[0.1, 0.1]]), np.array([FREE_AT_SURFACE]), SIDES)
+    )
     assert memory.weight[entry[0]] == 8.0
     mean = (1.0 * np.array([0.05, 0.05]) + 3.0 * np.array([0.15, 0.2]) + 4.0 * 0.1) / 8.0
-    # The mean's place in its cell of 0.25 m is kept to 0.25 / 65535 m.
-    np.testing.assert_allclose(memory._samples_at(entry).points[0], mean, atol=4e-6)
+    # The mean's place in its cell of 0.25 m is kept to a step of 0.25 / 255 m.
+    np.testing.assert_allclose(
+        memory._samples_at(entry, memory.keys()).points[0], mean, atol=0.25 / 255
+    )
 
 
 def test_replay_weighs_ratio_times_the_batch_in_each_group_in_proportion_to_seen():
@@ -124,7 +129,7 @@ def test_merging_entries_agrees_with_its_numpy_twin(rng):
     memory = (
         keys,
         rng.uniform(1, 5, m).astype(np.float32),
-        rng.integers(0, OFFSET_STEPS + 1, (m, 3)).astype(np.uint16),
+        rng.integers(0, OFFSET_STEPS + 1, (m, 3)).astype(np.uint8),
         rng.random(m) < 0.5,
     )
     new_keys = np.sort(rng.choice(2000, n, replace=False)).astype(np.int64)
@@ -136,3 +141,20 @@ def test_merging_entries_agrees_with_its_numpy_twin(rng):
     assert len(merged[0]) == len(np.union1d(keys, new_keys))
     for got, want in zip(merged, expected, strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+def test_a_memory_of_format_13_keeps_its_entries(rng):
+    """Keys (n,) int64 and places in 65535 steps, as format 13 kept them, load region by
+    region with their places to the nearest of OFFSET_STEPS."""
+    config = MapConfig()
+    memory = EvidenceMemory.of_config(3, config)
+    insert(memory, samples_at(rng.uniform(-3, 3, (500, 3)), weight=rng.uniform(1, 4, 500)))
+    old = {
+        "keys": memory.keys(),
+        "weight": memory.weight,
+        "place": (memory.place.astype(np.uint16) * 257),
+        "clustered": memory.clustered,
+    }
+    loaded = EvidenceMemory.from_arrays(3, config, old)
+    for name, array in memory.arrays().items():
+        np.testing.assert_array_equal(getattr(loaded, name), array, err_msg=name)
