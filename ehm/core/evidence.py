@@ -183,15 +183,15 @@ def gather_kernel(
     begin, spacing (n,) metres between them, free_counts (n,) how many; random (n, 3)
     uniforms in [0, 1): depth behind the hit, depth in front, offset of the free samples
     (ehm.core.samples.ray_randoms); box (2, d), or (0, d) for none: samples around hits
-    outside it are left out; bits: bits per axis of a key.
+    outside it are left out; bits: bits per axis of a key; only the cells of part `part` of
+    `parts` (ehm.core.hashing.key_part) are kept.
     """
-    d = directions.shape[1]
+    n, d = directions.shape
     half = np.int64(1) << (bits - 1)
     inv_fine, inv_coarse = 1.0 / fine_side, 1.0 / coarse_side
     capacity = min(len(table[2]), len(table[0]) // 2)
     point = np.empty(d)
     cell = np.empty(d)
-    n = directions.shape[0]
     for r in range(first_ray, n):
         if used + 3 + free_counts[r] > capacity:
             return r, used
@@ -260,7 +260,7 @@ def gather_evidence(
 ) -> TrainingSamples:
     """The evidence of `scans`: their training samples (ehm.core.samples), one weighted
     sample per cell and kind, with its scatter, in the order the cells were met (part by
-    part, when gathered on several threads)."""
+    part, for a batch gathered in parts)."""
     rays = scan_rays(scans, config)
     randoms = ray_randoms(len(rays), rng)
     fine, coarse = cell_sides(config)

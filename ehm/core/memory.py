@@ -218,9 +218,10 @@ class EvidenceMemory:
 
     Entries are sorted by key and kept region by region: regions (R,) int64 sorted, the key of
     each region holding entries shifted right by REGION_BITS, region_sizes (R,) uint8 its
-    entries, cells (n,) uint8 each entry's kind and cell in its region (the low REGION_BITS of
-    its key). weight (n,) float32; place (n, d) uint8, the mean's offset from its cell's
-    corner in OFFSET_STEPS of the cell's side; clustered (n,) bool.
+    entries (at most 128: two kinds in 64 cells around hits, one in 27 along rays), cells (n,)
+    uint8 each entry's kind and cell in its region (the low REGION_BITS of its key). weight (n,)
+    float32; place (n, d) uint8, the mean's offset from its cell's corner in OFFSET_STEPS of the
+    cell's side; clustered (n,) bool.
     """
 
     def __init__(self, dim: int, enabled: bool, sides: tuple[float, float]) -> None:
