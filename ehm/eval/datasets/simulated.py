@@ -198,13 +198,8 @@ def street(
     m up, `max_range` metres) driven 50 m down the street's south lane, a scan every 10 m:
     ground seen at grazing angles out to 30 m and more, facades, thin poles and tree crowns."""
     directions = lidar_directions(rings, azimuths, 10.0, -25.0)
-    scene = street_scene()
-    rng = np.random.default_rng(seed)
-    scans = [
-        simulate_scan(scene, np.array([x, -2.0, 1.8]), directions, max_range, noise_std, rng)
-        for x in np.arange(-25.0, 26.0, 10.0)
-    ]
-    return SimulatedDataset("street", scans, scene)
+    stops = np.arange(-25.0, 26.0, 10.0)
+    return _street_drive("street", directions, stops, max_range, noise_std, seed)
 
 
 def outdoor_lidar(
@@ -218,13 +213,27 @@ def outdoor_lidar(
     to +15 degrees, 1.8 m up, `max_range` metres) 15 m apart down the street's south lane: a
     long-range outdoor scene for maps of 0.1 m."""
     directions = lidar_directions(rings, azimuths, 15.0, -25.0)
+    stops = np.array([-15.0, 0.0, 15.0])
+    return _street_drive("outdoor_lidar", directions, stops, max_range, noise_std, seed)
+
+
+def _street_drive(
+    name: str,
+    directions: np.ndarray,
+    stops: np.ndarray,
+    max_range: float,
+    noise_std: float,
+    seed: int,
+) -> SimulatedDataset:
+    """Scans of the street scene along unit `directions` (n, 3), one at each x of `stops`,
+    metres, in the south lane 1.8 m up."""
     scene = street_scene()
     rng = np.random.default_rng(seed)
     scans = [
         simulate_scan(scene, np.array([x, -2.0, 1.8]), directions, max_range, noise_std, rng)
-        for x in (-15.0, 0.0, 15.0)
+        for x in stops
     ]
-    return SimulatedDataset("outdoor_lidar", scans, scene)
+    return SimulatedDataset(name, scans, scene)
 
 
 def floor_plan_scene() -> Scene:
