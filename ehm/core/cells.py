@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ehm.errors import InputError
@@ -11,9 +12,11 @@ from ehm.errors import InputError
 
 @dataclass(frozen=True)
 class CellKeys:
-    """cells: (n, d) int64 cell of each point, counted from the set's lower corner. extents:
-    (d,) cells per axis. strides: (d,) key step per axis. keys: (n,) int64, cells @ strides."""
+    """cells: (n, d) int64 cell of each point, counted from the set's lower corner `low` (d,)
+    metres. extents: (d,) cells per axis. strides: (d,) key step per axis. keys: (n,) int64,
+    cells @ strides."""
 
+    low: np.ndarray
     cells: np.ndarray
     extents: np.ndarray
     strides: np.ndarray
@@ -23,12 +26,40 @@ class CellKeys:
 def cell_keys(points: np.ndarray, cell: float) -> CellKeys:
     """Cells of side `cell` metres of (n >= 1, d) points, metres; InputError when the keys would
     overflow 64 bits."""
-    cells = np.floor((points - points.min(axis=0)) / cell).astype(np.int64)
-    extents = cells.max(axis=0) + 1
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    low, high = _bounds(points)
+    extents = np.floor((high - low) / cell).astype(np.int64) + 1
     if np.prod(extents.astype(np.float64)) > 2.0**62:
         raise InputError(f"points span too many cells of {cell} m: cell keys overflow")
     strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
-    return CellKeys(cells, extents, strides, cells @ strides)
+    cells, keys = _cells_and_keys(points, low, float(cell), strides)
+    return CellKeys(low, cells, extents, strides, keys)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bounds(points):  # pragma: no cover - compiled
+    """(d,) lowest and (d,) highest coordinate of (n >= 1, d) points along each axis."""
+    low = points[0].copy()
+    high = points[0].copy()
+    for i in range(1, points.shape[0]):
+        for a in range(points.shape[1]):
+            low[a] = min(low[a], points[i, a])
+            high[a] = max(high[a], points[i, a])
+    return low, high
+
+
+@numba.njit(cache=True, nogil=True)
+def _cells_and_keys(points, low, cell, strides):  # pragma: no cover - compiled
+    """(n, d) int64 cell of each point, floor((point - low) / cell), and (n,) its key, the
+    cell's dot product with `strides`."""
+    n, d = points.shape
+    cells = np.empty((n, d), dtype=np.int64)
+    keys = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        for a in range(d):
+            cells[i, a] = np.int64(np.floor((points[i, a] - low[a]) / cell))
+            keys[i] += cells[i, a] * strides[a]
+    return cells, keys
 
 
 def packed_cell_keys(

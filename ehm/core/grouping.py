@@ -3,14 +3,21 @@ samples, giving the new clusters and the groups of samples that share a neighbou
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from itertools import repeat
 
+import numba
 import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.features import PointGroups
-from ehm.core.quickmeans import kmeans_refine, quick_means
+from ehm.core.quickmeans import QuickMeansResult, kmeans_refine, quick_means_in_order
 from ehm.core.samples import TrainingSamples
+
+# The kinds of samples (occupied, free around hits, free along rays) are clustered apart, each
+# on a thread of its own as far as there are threads (up to CLUSTER_THREADS).
+CLUSTER_THREADS = 2
 
 
 @dataclass(frozen=True)
@@ -53,6 +60,25 @@ class SampleGroups:
     in_cluster: np.ndarray
 
 
+def _cluster_part(
+    samples: TrainingSamples,
+    part: tuple[np.ndarray, float, bool],
+    order: np.ndarray,
+    config: MapConfig,
+) -> QuickMeansResult:
+    """Quick-means (and k-means refinement) of the samples at rows `part[0]`, with inner
+    radius `part[1]`, seeds drawn in `order`."""
+    rows, radius, _ = part
+    points = samples.points[rows]
+    weights = samples.weight[rows]
+    scatter = None if samples.scatter is None else samples.scatter[rows]
+    outer = radius * config.outer_radius_factor
+    result = quick_means_in_order(
+        points, radius, outer, config.min_cluster_size, order, weights, scatter
+    )
+    return kmeans_refine(points, result, config.kmeans_iterations, weights, scatter)
+
+
 def group_samples(
     samples: TrainingSamples, config: MapConfig, rng: np.random.Generator
 ) -> SampleGroups:
@@ -72,26 +98,25 @@ def group_samples(
     in_cluster = np.empty(len(samples), dtype=bool)
     centres, means, covariances, counts, coarse, occupied = [], [], [], [], [], []
     n_groups = 0
-    for rows, radius, is_coarse in parts:
-        points = samples.points[rows]
-        outer = radius * config.outer_radius_factor
-        weights = samples.weight[rows]
-        scatter = None if samples.scatter is None else samples.scatter[rows]
-        result = quick_means(points, radius, outer, config.min_cluster_size, rng, weights, scatter)
-        result = kmeans_refine(points, result, config.kmeans_iterations, weights, scatter)
-        group_of_point[rows] = result.owner + n_groups
-        in_cluster[rows] = result.kept[result.owner]
-        n_groups += len(result.means)
-        centres.append(result.means)
-        means.append(result.means[result.kept])
-        covariances.append(result.covariances[result.kept])
-        counts.append(result.counts[result.kept])
-        coarse.append(np.full(int(result.kept.sum()), is_coarse))
-        # Label: the majority of the samples each seed took out of the pool.
-        n_seeds = len(result.means)
-        n_occupied = np.bincount(result.owner, weights * samples.occupied[rows], n_seeds)
-        majority = 2 * n_occupied > np.bincount(result.owner, weights, n_seeds)
-        occupied.append(majority[result.kept])
+    # Seed orders drawn here, one part after the other, so the threads do not share `rng`.
+    orders = [rng.permutation(len(rows)) for rows, _, _ in parts]
+    with ThreadPoolExecutor(min(len(parts), CLUSTER_THREADS, numba.get_num_threads())) as pool:
+        results = pool.map(_cluster_part, repeat(samples), parts, orders, repeat(config))
+        for (rows, _, is_coarse), result in zip(parts, results, strict=True):
+            weights = samples.weight[rows]
+            group_of_point[rows] = result.owner + n_groups
+            in_cluster[rows] = result.kept[result.owner]
+            n_groups += len(result.means)
+            centres.append(result.means)
+            means.append(result.means[result.kept])
+            covariances.append(result.covariances[result.kept])
+            counts.append(result.counts[result.kept])
+            coarse.append(np.full(int(result.kept.sum()), is_coarse))
+            # Label: the majority of the samples each seed took out of the pool.
+            n_seeds = len(result.means)
+            n_occupied = np.bincount(result.owner, weights * samples.occupied[rows], n_seeds)
+            majority = 2 * n_occupied > np.bincount(result.owner, weights, n_seeds)
+            occupied.append(majority[result.kept])
     return SampleGroups(
         PointGroups(group_of_point, np.concatenate(centres)),
         NewClusters(

@@ -11,7 +11,8 @@ EMPTY_KEY = np.int64(-1)
 _HASH_MULTIPLIER = np.uint64(11400714819323198485)  # 2^64 / golden ratio
 
 
-def table_size(n_keys: int) -> int:
+@numba.njit(cache=True, nogil=True)
+def table_size(n_keys: int) -> int:  # pragma: no cover - compiled
     """Slots for a table that holds n_keys keys at most half full: a power of 2, at least 64."""
     size = 64
     while size < 2 * n_keys:
@@ -31,14 +32,11 @@ def hash_slot(table_keys, key):  # pragma: no cover - compiled
     return s
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def unique_keys(keys):  # pragma: no cover - compiled
     """Sorted distinct values of `keys` (n,) int64 >= 0: np.unique, with the duplicates
     dropped in one pass over a table before the sort, so only distinct keys are sorted."""
-    size = 64
-    while size < 2 * len(keys):
-        size *= 2
-    table = np.full(size, EMPTY_KEY, dtype=np.int64)
+    table = np.full(table_size(len(keys)), EMPTY_KEY, dtype=np.int64)
     distinct = np.empty(len(keys), dtype=np.int64)
     n = 0
     for key in keys:
@@ -56,3 +54,30 @@ def key_part(key, parts):  # pragma: no cover - compiled
     wherever they lie."""
     mixed = np.uint64(key) * _HASH_MULTIPLIER
     return np.int64(mixed >> np.uint64(40)) % parts
+
+
+@numba.njit(cache=True, nogil=True)
+def group_by_key(keys):  # pragma: no cover - compiled
+    """Rows of `keys` (n,) int64 >= 0 grouped by key: (distinct (u,) int64, sorted; starts
+    (u,) int64, where each key's rows begin in `order`; order (n,) int64, the rows, key by key
+    and in their own order within a key), as a stable argsort of the keys gives them."""
+    distinct = unique_keys(keys)
+    table = np.full(table_size(len(distinct)), EMPTY_KEY, dtype=np.int64)
+    rank = np.empty(len(table), dtype=np.int64)
+    for r in range(len(distinct)):
+        s = hash_slot(table, distinct[r])
+        table[s] = distinct[r]
+        rank[s] = r
+    row_rank = np.empty(len(keys), dtype=np.int64)
+    starts = np.zeros(len(distinct) + 1, dtype=np.int64)
+    for i in range(len(keys)):
+        row_rank[i] = rank[hash_slot(table, keys[i])]
+        starts[row_rank[i] + 1] += 1
+    for r in range(len(distinct)):
+        starts[r + 1] += starts[r]
+    filled = starts[:-1].copy()
+    order = np.empty(len(keys), dtype=np.int64)
+    for i in range(len(keys)):
+        order[filled[row_rank[i]]] = i
+        filled[row_rank[i]] += 1
+    return distinct, starts[:-1].copy(), order

@@ -20,6 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ehm.core.cells import cell_keys
+from ehm.core.hashing import group_by_key
 
 
 @dataclass(frozen=True)
@@ -75,7 +76,7 @@ def _row_reach(seed_offset, steps, cell):  # pragma: no cover - compiled
     return gap * gap
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _quick_means_kernel(
     points,
     cells,
@@ -86,8 +87,8 @@ def _quick_means_kernel(
     cell_sizes,
     sorted_points,
     sorted_index,
-    sorted_weights,
-    sorted_scatter,
+    weights,
+    point_scatter,
     order,
     r_inner,
     r_outer,
@@ -99,10 +100,10 @@ def _quick_means_kernel(
     cells (n, d): each point's cell of side `cell` from the corner `low`, keyed by `strides`
     (strides[0] == 1); cell_keys: sorted, one per cell, with the start and size of the cell's
     points in sorted_points (their coordinates, cell by cell) and sorted_index (their rows in
-    `points`), sorted_weights their weights, sorted_scatter (n, d, d) their own scatter, or
-    (0, d, d) for none. Points taken out of the pool leave their cell (sizes and the sorted
-    arrays change in place), so a seed reads only points still available, one after the other
-    in memory. Returns (seeds, owner, counts, sums, scatter),
+    `points`); weights (n,) and point_scatter (n, d, d) (or (0, d, d) for none): each
+    point's weight and own scatter, by row. Points taken out of the pool leave their cell
+    (sizes and the sorted arrays change in place), so a seed reads only points still
+    available, one after the other in memory. Returns (seeds, owner, counts, sums, scatter),
     sums and scatter about each seed, each point's weighing its weight.
     """
     n, d = points.shape
@@ -112,7 +113,7 @@ def _quick_means_kernel(
     owner = np.full(n, -1, dtype=np.int64)
     seeds = np.empty(n, dtype=np.int64)
     counts = np.zeros(n)
-    with_scatter = sorted_scatter.shape[0] > 0
+    with_scatter = point_scatter.shape[0] > 0
     sums = np.empty((n, d))  # rows written as seeds are drawn: no pages touched for the rest
     scatter = np.empty((n, d, d))
     ri2 = r_inner * r_inner
@@ -158,7 +159,8 @@ def _quick_means_kernel(
                         if dist2 >= ro2:
                             m += 1
                             continue
-                        w = sorted_weights[m]
+                        p = sorted_index[m]
+                        w = weights[p]
                         counts[s] += w
                         for a in range(d):
                             sums[s, a] += w * diff[a]
@@ -167,9 +169,8 @@ def _quick_means_kernel(
                         if with_scatter:
                             for a in range(d):
                                 for b in range(d):
-                                    scatter[s, a, b] += sorted_scatter[m, a, b]
+                                    scatter[s, a, b] += point_scatter[p, a, b]
                         if dist2 < ri2:
-                            p = sorted_index[m]
                             available[p] = False
                             owner[p] = s
                             # Out of the cell: the cell's last point takes its place.
@@ -177,13 +178,6 @@ def _quick_means_kernel(
                             tail = cell_starts[slot] + cell_sizes[slot]
                             sorted_index[m] = sorted_index[tail]
                             sorted_index[tail] = p
-                            sorted_weights[m], sorted_weights[tail] = sorted_weights[tail], w
-                            if with_scatter:
-                                for a in range(d):
-                                    for b in range(d):
-                                        held = sorted_scatter[m, a, b]
-                                        sorted_scatter[m, a, b] = sorted_scatter[tail, a, b]
-                                        sorted_scatter[tail, a, b] = held
                             for a in range(d):
                                 sorted_points[m, a] = sorted_points[tail, a]
                         else:
@@ -193,27 +187,23 @@ def _quick_means_kernel(
     return seeds[:s].copy(), owner, counts[:s].copy(), sums[:s].copy(), scatter[:s].copy()
 
 
-def _cell_hash(points: np.ndarray, cell: float, weights: np.ndarray, scatter: np.ndarray):
+def _cell_hash(points: np.ndarray, cell: float) -> tuple[np.ndarray, ...]:
     """Integer cells of side `cell` of (n, d) points, their linear keys (sorted, one per
-    cell), where each cell's points start and how many there are, and the points' coordinates,
-    rows, `weights` and `scatter` ((0, d, d) for none) sorted cell by cell (the arguments of
-    _quick_means_kernel after `points`)."""
+    cell), where each cell's points start and how many there are, and the points' coordinates
+    and rows cell by cell (the arguments of _quick_means_kernel from `cells` to
+    `sorted_index`), after the cells' lower corner (d,) metres."""
     hashed = cell_keys(points, cell)
-    sorted_index = np.argsort(hashed.keys)
-    sorted_keys = hashed.keys[sorted_index]
-    starts = np.flatnonzero(np.diff(sorted_keys, prepend=sorted_keys[0] - 1))
-    sizes = np.diff(starts, append=len(sorted_keys))
-    return (
+    distinct, starts, sorted_index = group_by_key(hashed.keys)
+    sizes = np.diff(starts, append=len(points))
+    return hashed.low, (
         hashed.cells,
         hashed.strides,
         hashed.extents,
-        sorted_keys[starts],
+        distinct,
         starts,
         sizes,
         points[sorted_index],
         sorted_index,
-        weights[sorted_index],
-        scatter[sorted_index] if len(scatter) else scatter,
     )
 
 
@@ -226,11 +216,28 @@ def quick_means(
     weights: np.ndarray | None = None,
     scatter: np.ndarray | None = None,
 ) -> QuickMeansResult:
-    """Cluster (N, d) points, metres, with inner radius r_inner and outer radius r_outer.
+    """Cluster (N, d) points, metres, with inner radius r_inner and outer radius r_outer,
+    seeds drawn in a random order from `rng` (see quick_means_in_order for the rest)."""
+    order = rng.permutation(len(points))
+    return quick_means_in_order(points, r_inner, r_outer, min_size, order, weights, scatter)
+
+
+def quick_means_in_order(
+    points: np.ndarray,
+    r_inner: float,
+    r_outer: float,
+    min_size: float,
+    order: np.ndarray,
+    weights: np.ndarray | None = None,
+    scatter: np.ndarray | None = None,
+) -> QuickMeansResult:
+    """Cluster (N, d) points, metres, with inner radius r_inner and outer radius r_outer,
+    drawing seeds in `order` (N,) int64, a permutation of the rows.
 
     weights: (N,) float64 samples each point stands for (None: one each); scatter: (N, d, d)
     m^2, those samples' scatter about the point (None: none); a cluster is kept when its
-    weight reaches min_size."""
+    weight reaches min_size. The compiled pass holds no lock: parts of a batch may be
+    clustered on threads of their own."""
     points = np.ascontiguousarray(points, dtype=np.float64)
     d = points.shape[1]
     if len(points) == 0:
@@ -240,18 +247,20 @@ def quick_means(
         )
     if not 0 < r_inner <= r_outer:
         raise ValueError(f"quick-means needs 0 < r_inner <= r_outer, got {r_inner}, {r_outer}")
-    order = rng.permutation(len(points))
     cell = r_outer / CELLS_PER_RADIUS
     weights = np.ones(len(points)) if weights is None else np.asarray(weights, np.float64)
     scatter = np.zeros((0, d, d)) if scatter is None else np.asarray(scatter, np.float64)
+    low, hashed = _cell_hash(points, cell)
     seeds, owner, counts, sums, scatter = _quick_means_kernel(
         points,
-        *_cell_hash(points, cell, weights, scatter),
-        order,
+        *hashed,
+        weights,
+        scatter,
+        np.asarray(order, dtype=np.int64),
         float(r_inner),
         float(r_outer),
         cell,
-        points.min(axis=0),
+        low,
     )
     means, covariances = _statistics(counts, sums, scatter, points[seeds])
     return QuickMeansResult(seeds, owner, counts, means, covariances, counts >= min_size)

@@ -3,6 +3,7 @@
 import numpy as np
 
 from ehm.config import MapConfig
+from ehm.core import grouping
 from ehm.core.grouping import group_samples
 from ehm.core.samples import TrainingSamples, training_samples
 
@@ -52,3 +53,20 @@ def test_samples_know_whether_their_seed_made_a_cluster():
     grouped = group_samples(samples, MapConfig(min_cluster_size=3), np.random.default_rng(0))
     np.testing.assert_array_equal(grouped.in_cluster, [True, True, True, False])
     assert len(grouped.clusters) == 1 and len(grouped.groups.centres) == 2
+
+
+def test_kinds_clustered_on_threads_group_as_on_one(room, monkeypatch):
+    """Each kind clusters on a thread of its own with its seed order drawn beforehand, so the
+    groups and clusters do not depend on the threads."""
+    scan = room.scans[0].subset(np.arange(len(room.scans[0])) % 4 == 0)
+    samples = training_samples(scan, MapConfig(), np.random.default_rng(0))
+    runs = []
+    for threads in (1, 2):
+        monkeypatch.setattr(grouping.numba, "get_num_threads", lambda n=threads: n)
+        runs.append(group_samples(samples, MapConfig(), np.random.default_rng(5)))
+    one, two = runs
+    np.testing.assert_array_equal(one.groups.group_of_point, two.groups.group_of_point)
+    np.testing.assert_array_equal(one.groups.centres, two.groups.centres)
+    np.testing.assert_array_equal(one.clusters.covariances, two.clusters.covariances)
+    np.testing.assert_array_equal(one.in_cluster, two.in_cluster)
+    assert len(one.clusters) > 100
