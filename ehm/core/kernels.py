@@ -18,6 +18,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ehm.core.eigen import symmetric_eigen
+
 TWO_PI = 2.0 * np.pi
 # Standard deviations the planar-surface kernel spans on each side of its mean (Eq. 13).
 PLANAR_SPAN = 2.0
@@ -71,7 +73,7 @@ def cluster_kernel_reference(projected: np.ndarray, planar: np.ndarray) -> np.nd
 
 def floored_eigen(covariances: np.ndarray, min_std: float) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (M, d), floored at min_std^2, and eigenvectors (M, d, d) as columns."""
-    eigenvalues, eigenvectors = np.linalg.eigh(covariances)
+    eigenvalues, eigenvectors = symmetric_eigen(covariances)
     return np.maximum(eigenvalues, min_std**2), eigenvectors
 
 
@@ -93,14 +95,14 @@ def planar_clusters(covariances: np.ndarray, ratio: float) -> np.ndarray:
     next smallest (unfloored), so their spread across one axis is small against the others."""
     if len(covariances) == 0:
         return np.zeros(0, dtype=bool)
-    eigenvalues = np.linalg.eigvalsh(covariances)
+    eigenvalues, _ = symmetric_eigen(covariances)
     return eigenvalues[:, 0] <= ratio * eigenvalues[:, 1]
 
 
 def cluster_normals(covariances: np.ndarray) -> np.ndarray:
     """(M, d) unit eigenvectors of the smallest eigenvalue: the normal of planar clusters
     (sign arbitrary)."""
-    return np.linalg.eigh(covariances)[1][:, :, 0]
+    return symmetric_eigen(covariances)[1][:, :, 0]
 
 
 def covariance_square_roots(covariances: np.ndarray, min_std: float) -> np.ndarray:

@@ -1,0 +1,116 @@
+"""Time of one integrate, stage by stage, on the scans the real-time targets name: OctoMap's
+sample scan (88,206 rays, 0.05 m), a TUM depth frame (0.05 m) and a sweep of the simulated
+street's 32-ring LiDAR (0.2 m); OctoMap's insertPointCloud of the same scans alongside.
+
+    python benchmarks/integrate_times.py [--repeats 5]
+
+A scan of a sequence is learned into the map of the scans before it, as a robot's would be:
+each scan after the first is timed once and the medians over them are reported; the sample
+scan, alone, is learned `repeats` times into a fresh map. Kernels are compiled before any
+timing. Prints one markdown table of milliseconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from common import heading, markdown_table
+
+import ehm
+from ehm.eval.baselines.octree import OctoMapMapper
+from ehm.eval.datasets import DataMissingError, load_dataset, street
+
+STAGES = ("samples", "clustering", "length_scales", "features", "sgd", "memory")
+
+
+@dataclass(frozen=True)
+class Case:
+    """A data set, the map detail it is learned at (metres) and the target time (ms)."""
+
+    name: str
+    scans: Callable[[], list[ehm.Scan]]
+    resolution: float
+    target_ms: float
+
+
+CASES = (
+    Case("octomap_scan", lambda: load_dataset("octomap_scan"), 0.05, 100.0),
+    Case("tum_fr2_pioneer_slam2", lambda: load_dataset("tum_fr2_pioneer_slam2"), 0.05, 100.0),
+    Case("street", lambda: street().scans, 0.2, 50.0),
+)
+
+
+def ehm_times(scans: list[ehm.Scan], resolution: float, repeats: int) -> list[dict[str, float]]:
+    """Seconds of each timed integrate: 'total' and the map's stage timings."""
+    config = ehm.MapConfig.for_resolution(resolution)
+    runs = []
+    if len(scans) == 1:
+        for _ in range(repeats):
+            hilbert_map = ehm.HilbertMap(config)
+            start = time.perf_counter()
+            hilbert_map.integrate_scan(scans[0])
+            runs.append({"total": time.perf_counter() - start, **hilbert_map.timings_})
+        return runs
+    hilbert_map = ehm.HilbertMap(config).integrate_scan(scans[0])
+    for scan in scans[1:]:
+        start = time.perf_counter()
+        hilbert_map.integrate_scan(scan)
+        runs.append({"total": time.perf_counter() - start, **hilbert_map.timings_})
+    return runs
+
+
+def octomap_times(scans: list[ehm.Scan], resolution: float, repeats: int) -> list[float]:
+    """Seconds of OctoMap's insertPointCloud of the scans ehm_times times, into the same
+    maps (a fresh tree for a lone scan, the tree of the scans before for a sequence)."""
+    seconds = []
+    mapper = OctoMapMapper(resolution)
+    mapper.build(scans[:1] if len(scans) > 1 else [])
+    for scan in scans[1:] if len(scans) > 1 else scans * repeats:
+        if len(scans) == 1:
+            mapper = OctoMapMapper(resolution)
+            mapper.build([])
+        start = time.perf_counter()
+        mapper.insert(scan)
+        seconds.append(time.perf_counter() - start)
+    return seconds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    rows = []
+    for case in CASES:
+        try:
+            scans = case.scans()
+        except DataMissingError as missing:
+            print(f"skipped {case.name}: {missing}")
+            continue
+        ehm.HilbertMap(ehm.MapConfig.for_resolution(case.resolution)).fit(scans[:1])  # compile
+        runs = ehm_times(scans, case.resolution, args.repeats)
+        octomap = statistics.median(octomap_times(scans, case.resolution, args.repeats))
+        median = {key: 1e3 * statistics.median(run[key] for run in runs) for key in runs[0]}
+        rest = median["total"] - sum(median.get(stage, 0.0) for stage in STAGES)
+        rows.append(
+            [
+                case.name,
+                f"{len(scans[-1]):,}",
+                f"{median['total']:.0f}",
+                f"{case.target_ms:.0f}",
+                f"{1e3 * octomap:.0f}",
+                f"{median['total'] / (1e3 * octomap):.2f}",
+                *(f"{median.get(stage, 0.0):.0f}" for stage in STAGES),
+                f"{rest:.0f}",
+            ]
+        )
+    header = ["data set", "rays", "integrate ms", "target ms", "OctoMap ms", "/ OctoMap"]
+    print(heading("Integrate times", f"medians, {args.repeats} repeats of a lone scan"))
+    print(markdown_table([*header, *STAGES, "other"], rows))
+
+
+if __name__ == "__main__":
+    main()
