@@ -15,10 +15,6 @@ from ehm.core.features import PointGroups
 from ehm.core.quickmeans import QuickMeansResult, kmeans_refine, quick_means_in_order
 from ehm.core.samples import TrainingSamples
 
-# The kinds of samples (occupied, free around hits, free along rays) are clustered apart, each
-# on a thread of its own as far as there are threads (up to CLUSTER_THREADS).
-CLUSTER_THREADS = 2
-
 
 @dataclass(frozen=True)
 class NewClusters:
@@ -98,9 +94,10 @@ def group_samples(
     in_cluster = np.empty(len(samples), dtype=bool)
     centres, means, covariances, counts, coarse, occupied = [], [], [], [], [], []
     n_groups = 0
-    # Seed orders drawn here, one part after the other, so the threads do not share `rng`.
+    # Each kind is clustered on a thread of its own as far as there are threads, with its seed
+    # order drawn here, one after the other, so the threads do not share `rng`.
     orders = [rng.permutation(len(rows)) for rows, _, _ in parts]
-    with ThreadPoolExecutor(min(len(parts), CLUSTER_THREADS, numba.get_num_threads())) as pool:
+    with ThreadPoolExecutor(min(len(parts), numba.get_num_threads())) as pool:
         results = pool.map(_cluster_part, repeat(samples), parts, orders, repeat(config))
         for (rows, _, is_coarse), result in zip(parts, results, strict=True):
             weights = samples.weight[rows]
