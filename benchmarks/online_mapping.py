@@ -25,7 +25,7 @@ import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
 from scipy.spatial import cKDTree
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines import make_mapper
 from ehm.eval.datasets import (
     DataMissingError,

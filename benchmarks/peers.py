@@ -25,7 +25,7 @@ import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
 from online_mapping import SIMULATED, near_surface_test_points, scans_and_scene
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines import make_mapper
 from ehm.eval.metrics import f1_score
 from ehm.eval.protocol import held_out_rays

@@ -21,7 +21,7 @@ import numpy as np
 from common import RESOLUTION, heading, markdown_table, octomap_mapper
 
 import ehm
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.eval.datasets import DataMissingError, load_dataset, virtual_room, warehouse
 
 MAX_RANGE = 30.0

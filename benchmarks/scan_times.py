@@ -19,7 +19,7 @@ import numpy as np
 from common import RESOLUTION, heading, markdown_table
 
 import ehm
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines.octree import OctoMapMapper
 from ehm.eval.datasets import DataMissingError, load_dataset, warehouse
 from ehm.eval.datasets.simulated import corridor_2d

@@ -27,7 +27,7 @@ import numpy as np
 from common import heading, markdown_table
 
 import ehm
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.eval.datasets import warehouse
 from ehm.eval.datasets.simulated import corridor_2d, warehouse_drive
 

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from ehm.config import MapConfig
-    from ehm.core.scan import Scan
+    from ehm.core.sensor.scan import Scan
     from ehm.errors import (
         EhmError,
         EmptyMapError,
@@ -38,7 +38,7 @@ _HOMES = {
     "HilbertMap": "ehm.hilbert_map",
     "MapConfig": "ehm.config",
     "MapFileError": "ehm.io.map_file",
-    "Scan": "ehm.core.scan",
+    "Scan": "ehm.core.sensor.scan",
     "TiledMap": "ehm.tiles.tiled_map",
     "evaluate": "ehm.eval.runner",
     "load": "ehm.maps",

@@ -41,7 +41,8 @@ class MapConfig:
     (DEFAULT_RESOLUTION); `MapConfig.for_resolution` gives the settings for another detail.
     """
 
-    # Which rays are learned, and the training samples drawn from each (ehm.core.samples).
+    # Which rays are learned, and the training samples drawn from each
+    # (ehm.core.observations.samples).
     min_range: float = 0.0
     """Rays shorter than this are left out, metres: returns from the robot itself."""
     max_range: float = 0.0
@@ -98,7 +99,7 @@ class MapConfig:
     per group of points (kd-trees or anchor layers); kernels beyond them are left out, so
     point queries differ from grids (Sec. 3.5), which sum every kernel. 'support': every
     kernel that is not zero there, found in a spatial hash of the kernels' supports that is
-    updated in time proportional to what changed (ehm.core.supports), so training, point
+    updated in time proportional to what changed (ehm.core.search.supports), so training, point
     queries and grids share one model. Not the default yet: where coarse kernels overlap
     more than `coarse_neighbours`, all of them weigh in, and on sparse scans that erodes
     surfaces (a 16-ring warehouse: held-out F1 0.647 against 0.672 scan by scan); on dense
@@ -158,9 +159,9 @@ class MapConfig:
     merge_threshold: float = 1.0
     """Anisotropic distance (Eq. 14) below which a new cluster merges into the map's."""
     update_rule: UpdateRule = "sgd"
-    """How each scan's samples update the weights: 'sgd', AdaGrad stochastic gradient descent
-    on the regularised loss (Alg. 2); 'posterior', a Gaussian posterior per weight updated with
-    the previous one as prior (ehm.core.posterior). 'sgd' by default: on TUM (80 % of the rays,
+    """How each scan's samples update the weights: 'sgd', AdaGrad stochastic gradient descent on the
+    regularised loss (Alg. 2); 'posterior', a Gaussian posterior per weight updated with the
+    previous one as prior (ehm.core.weights.posterior). 'sgd' by default: on TUM (80 % of the rays,
     seed 0, no sample memory) 'posterior' scores held-out F1 0.858 scan by scan and 0.922 in one
     batch, against 0.904 and 0.977; with balance_classes 0.897 and 0.971, and more sweeps score
     lower. Replayed samples would count twice in a posterior that already holds them."""
@@ -170,13 +171,13 @@ class MapConfig:
     """L2 regularisation of the weights (the R(w) of Eq. 2; 'sgd')."""
     prior_precision: float = 1.0
     """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0: the log-odds
-    variance of never-observed space (occupancy std 0.21 at 1; ehm.core.uncertainty), and
+    variance of never-observed space (occupancy std 0.21 at 1; ehm.core.weights.uncertainty), and
     under 'posterior' the prior the first update starts from."""
     keep_evidence: bool = True
-    """Keep the evidence of past scans, one weighted mean per cell and kind (ehm.core.memory):
-    it is replayed with later scans that reach its place, and what formed no cluster yet is
-    clustered again with a later scan's evidence in its cell. False: each scan is learned from
-    its own evidence alone, as Alg. 2 does."""
+    """Keep the evidence of past scans, one weighted mean per cell and kind
+    (ehm.core.observations.memory): it is replayed with later scans that reach its place, and what
+    formed no cluster yet is clustered again with a later scan's evidence in its cell. False: each
+    scan is learned from its own evidence alone, as Alg. 2 does."""
     replay_ratio: float = 1.0
     """Weight of the past evidence replayed with each batch, per unit of the batch's own: from
     the cells around hits as much as the batch has there (times the ratio), the rest from the

@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.anchors import AnchorLayers
-from ehm.core.clusters import ClusterSet, ClusterView
-from ehm.core.coplanar import merge_coplanar
-from ehm.core.evidence import gather_evidence
-from ehm.core.features import (
+from ehm.core.clustering.coplanar import merge_coplanar
+from ehm.core.clustering.grouping import group_samples
+from ehm.core.clustering.merging import MergeCandidates, absorb_clusters
+from ehm.core.model.clusters import ClusterSet, ClusterView
+from ehm.core.model.features import (
     PointGroups,
     SparseFeatures,
     decision_values,
@@ -32,15 +32,13 @@ from ehm.core.features import (
     group_neighbours,
     training_features,
 )
-from ehm.core.gradient import logit_gradients
-from ehm.core.grouping import group_samples
-from ehm.core.index import ClusterIndex
-from ehm.core.kernels import kernel_reach
-from ehm.core.logistic import sigmoid
-from ehm.core.memory import EvidenceMemory
-from ehm.core.merging import MergeCandidates, absorb_clusters
-from ehm.core.posterior import update_posterior
-from ehm.core.raycast import (
+from ehm.core.model.kernels import kernel_reach
+from ehm.core.model.logistic import sigmoid
+from ehm.core.observations.evidence import gather_evidence
+from ehm.core.observations.memory import EvidenceMemory
+from ehm.core.observations.samples import TrainingSamples
+from ehm.core.queries.gradient import logit_gradients
+from ehm.core.queries.raycast import (
     CandidateCells,
     GridLogOdds,
     checked_rays,
@@ -49,21 +47,23 @@ from ehm.core.raycast import (
     refine_guesses,
     segment_rays,
 )
-from ehm.core.samples import TrainingSamples
-from ehm.core.scan import Scan
-from ehm.core.sgd import loss_weights, train_weights
+from ehm.core.search.anchors import AnchorLayers
+from ehm.core.search.index import ClusterIndex
+from ehm.core.search.supports import SupportHash
+from ehm.core.sensor.scan import Scan
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
-from ehm.core.supports import SupportHash
 from ehm.core.timing import StageTimer
-from ehm.core.uncertainty import add_curvature, logit_variance, occupancy_std
+from ehm.core.weights.posterior import update_posterior
+from ehm.core.weights.sgd import loss_weights, train_weights
+from ehm.core.weights.uncertainty import add_curvature, logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.io.map_file import read_map, write_map
 
 # Side of the cells that tell rays where the occupancy may rise above the level, in cluster
-# radii (ehm.core.raycast.CandidateCells).
+# radii (ehm.core.queries.raycast.CandidateCells).
 RAY_CELLS_PER_RADIUS = 4.0
 # The grid of log-odds rays march first: voxels of one cluster radius, at most this large
 # (a larger map's rays march the exact log-odds all the way).
@@ -337,9 +337,9 @@ class HilbertMap:
 
     def _learn(self, samples: TrainingSamples, timer: StageTimer) -> None:
         """Alg. 2 from the batch's evidence on (one weighted sample per cell and kind,
-        ehm.core.evidence), one step per stage of the paper's Table 2, with the past evidence
-        of the places it reaches (ehm.core.memory): what formed no cluster yet joins the
-        clustering, and all of it is replayed with the new."""
+        ehm.core.observations.evidence), one step per stage of the paper's Table 2, with the past
+        evidence of the places it reaches (ehm.core.observations.memory): what formed no cluster yet
+        joins the clustering, and all of it is replayed with the new."""
         cfg = self.config
         if self.clusters_ is None or self.memory_ is None:
             dim = samples.points.shape[1]
@@ -380,7 +380,8 @@ class HilbertMap:
             self._relist(changed)
         with timer("replay"):
             replayed = memory.replay(cfg.replay_ratio, visit)
-            # Shuffled once here, SGD reads the features in order (ehm.core.sgd.blocked_order).
+            # Shuffled once here, SGD reads the features in order
+            # (ehm.core.weights.sgd.blocked_order).
             shuffle = self._rng.permutation(n_new + len(replayed))
             train = (samples.without_scatter() + replayed).subset(shuffle)
             groups = None
@@ -417,7 +418,7 @@ class HilbertMap:
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n,) float64 probability that each point is occupied; with return_std, the pair
         (probability, std): std (n,) float64 is the standard deviation of the occupancy
-        probability under the weights' Gaussian posterior (ehm.core.uncertainty), high where
+        probability under the weights' Gaussian posterior (ehm.core.weights.uncertainty), high where
         nothing was observed (0.21 with prior_precision 1) and shrinking as a place is seen
         again.
 
@@ -448,16 +449,16 @@ class HilbertMap:
         """(n,) float64 log-odds of occupancy: w^T phi(x), plus the intercept b when
         config.query_intercept is set (Alg. 3); with return_variance, the pair (log-odds,
         variance): (n,) float64 variance of the log-odds under the weights' posterior, from
-        which `occupancy`'s std follows (ehm.core.uncertainty.occupancy_std)."""
+        which `occupancy`'s std follows (ehm.core.weights.uncertainty.occupancy_std)."""
         scores, variance = self._scores(points, mode, return_variance)
         return (scores, variance) if return_variance else scores
 
     def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """(n, d) float64 gradient of the occupancy log-odds (`decision_function`) with
-        respect to position, 1/m, world frame, at (n, d) points, metres: it points toward
-        more occupied space, and p(1 - p) times it is the gradient of the probability. Over
-        the same kernels as `decision_function` in `mode`; planar-surface kernels are flat
-        (0 or 1) and add nothing (ehm.core.gradient). NaN rows where points are not finite."""
+        """(n, d) float64 gradient of the occupancy log-odds (`decision_function`) with respect to
+        position, 1/m, world frame, at (n, d) points, metres: it points toward more occupied space,
+        and p(1 - p) times it is the gradient of the probability. Over the same kernels as
+        `decision_function` in `mode`; planar-surface kernels are flat (0 or 1) and add nothing
+        (ehm.core.queries.gradient). NaN rows where points are not finite."""
         clusters = self._learned("query it")
         points, finite, query = self._query_points(points)
         indptr, rows = self._query_clusters(
@@ -489,7 +490,7 @@ class HilbertMap:
         one for all rays or (n,). Rays march cluster_radius / 2 apart through a grid of the
         log-odds (made on the first call, kept until the map learns), and the crossing near
         the grid's is found in the exact log-odds and located to cluster_radius / 10
-        (ehm.core.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it stops
+        (ehm.core.queries.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it stops
         no ray at the default level."""
         clusters = self._learned("cast rays through it")
         origins, directions, max_range = checked_rays(origins, directions, max_range, self.dim)

@@ -20,7 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 from ehm.hilbert_map import HilbertMap
 

@@ -8,8 +8,8 @@ import pytest
 
 import ehm
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.features import SparseFeatures
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.features import SparseFeatures
 from ehm.eval.datasets import floor_plan_2d, virtual_room
 from ehm.eval.datasets.real import DataMissingError
 

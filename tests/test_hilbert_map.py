@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import ehm
-from ehm.core.uncertainty import occupancy_std
+from ehm.core.weights.uncertainty import occupancy_std
 from ehm.eval.datasets import warehouse
 from ehm.eval.metrics import roc_auc, score
 from ehm.eval.protocol import exact_test_points, held_out_rays, near_surface_points, observed_mask

@@ -13,9 +13,9 @@ class MapSnapshot:
     """The kernels of a map at one moment, as read-only arrays, one row per cluster.
 
     means: (M, d) float64, metres, world frame. transforms: (M, d, d) float64, 1/m, kernel
-    transforms (see ehm.core.kernels). weights: (M,) float64. precision: (M,) float64, each
+    transforms (see ehm.core.model.kernels). weights: (M,) float64. precision: (M,) float64, each
     weight's posterior precision, and prior_precision the background feature's (see
-    ehm.core.uncertainty). planar_kernel: (M,) bool, the planar-surface kernel. intercept:
+    ehm.core.weights.uncertainty). planar_kernel: (M,) bool, the planar-surface kernel. intercept:
     log-odds every query adds. lineage: identifies the map's learning history; it changes when
     the map is refitted, so a grid can tell a map that grew from one that started over.
     """

@@ -8,10 +8,10 @@ from typing import Any
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.anchors import AnchorLayers
-from ehm.core.clusters import ClusterSet
-from ehm.core.memory import EvidenceMemory
-from ehm.core.scan import Scan
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.observations.memory import EvidenceMemory
+from ehm.core.search.anchors import AnchorLayers
+from ehm.core.sensor.scan import Scan
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
 

@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from ehm.config import DEFAULT_RESOLUTION
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 from ehm.eval.baselines import METHODS, Mapper, make_mapper, method_names
 from ehm.eval.datasets import DATASETS, DataMissingError, load_dataset

@@ -1,7 +1,7 @@
 """Local grids (Sec. 3.5, Eq. 17): each cluster's weighted kernel over the voxels its support
 covers, added into a global score grid s_g = sum_m w_m k(x_g, M_m), and, for the occupancy's
 uncertainty, into the sums sum_m k(x_g, M_m)^2 / lambda_m and sum_m k(x_g, M_m) (see
-ehm.core.uncertainty).
+ehm.core.weights.uncertainty).
 
 A cluster's local grid is the box of voxels around its kernel's support, the ellipsoid
 |T_m (x - mu_m)| < 1 (`length_scale` standard deviations along its eigen-axes, 3 by default)
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ehm.core.kernels import cluster_kernel, cluster_kernel_reference
+from ehm.core.model.kernels import cluster_kernel, cluster_kernel_reference
 from ehm.core.snapshot import MapSnapshot
 from ehm.grid.bounds import support_half_widths
 

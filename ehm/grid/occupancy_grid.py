@@ -2,7 +2,7 @@
 
 The local grids of a map's clusters (ehm.grid.local_grids) add up to a global score grid
 s_g = sum_m w_m k(x_g, M_m) (Eq. 17), and p_g = sigmoid(s_g) (Eq. 18); a grid made with the
-occupancy's standard deviation also sums what its variance needs (ehm.core.uncertainty).
+occupancy's standard deviation also sums what its variance needs (ehm.core.weights.uncertainty).
 Kernel values are recomputed when needed rather than stored, which keeps a grid's memory at
 its voxels.
 
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ehm.core.logistic import sigmoid
+from ehm.core.model.logistic import sigmoid
 from ehm.core.snapshot import MapSnapshot
-from ehm.core.uncertainty import logit_variance, occupancy_std
+from ehm.core.weights.uncertainty import logit_variance, occupancy_std
 from ehm.errors import InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, bytes_per_voxel, grid_shape, support_bounds
 from ehm.grid.local_grids import Lattice, LocalGrids, accumulate_local_grids
@@ -148,7 +148,7 @@ class OccupancyGrid:
     @property
     def std(self) -> np.ndarray:
         """Standard deviation of p(occupied) per voxel under the weights' posterior
-        (ehm.core.uncertainty), float64 array of `shape` (computed once per update);
+        (ehm.core.weights.uncertainty), float64 array of `shape` (computed once per update);
         InputError for a grid made without it."""
         self._require_std()
         if self._std is None:

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.core.frames import FrameTree
-from ehm.core.geometry import quaternion_to_matrix, transform_points
-from ehm.core.scan import Scan
+from ehm.core.sensor.frames import FrameTree
+from ehm.core.sensor.geometry import quaternion_to_matrix, transform_points
+from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.poses import read_poses
 

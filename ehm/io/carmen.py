@@ -6,7 +6,7 @@ from os import PathLike
 
 import numpy as np
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError
 from ehm.io.files import read_text
 

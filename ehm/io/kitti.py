@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.core.geometry import transform_points
-from ehm.core.scan import Scan
+from ehm.core.sensor.geometry import transform_points
+from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.files import read_bytes
 from ehm.io.poses import read_kitti_calibration, read_poses

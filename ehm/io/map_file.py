@@ -23,11 +23,11 @@ from os import PathLike
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.anchors import AnchorLayers
-from ehm.core.clusters import ClusterSet
-from ehm.core.memory import EvidenceMemory
-from ehm.core.samples import TrainingSamples
-from ehm.core.scan import Scan
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.observations.memory import EvidenceMemory
+from ehm.core.observations.samples import TrainingSamples
+from ehm.core.search.anchors import AnchorLayers
+from ehm.core.sensor.scan import Scan
 from ehm.core.state import MapState
 from ehm.errors import EhmError, FileReadError
 from ehm.io.files import read_bytes, write_atomically
@@ -56,9 +56,10 @@ SENSOR_PATH = "sensor_path"
 # Version 11 maps keep the origin of every scan given (the sensor path); older files load
 # with none.
 # Version 12 maps may learn inside a box only (MapConfig.learn_box: the tiles of a TiledMap).
-# Version 13 maps keep past evidence per cell (ehm.core.memory, MapConfig.keep_evidence) where
-# older ones kept samples (memory_per_cell, and samples_per_cell thinned them): their kept
-# samples load as evidence, each weighing its cell's samples seen over those kept.
+# Version 13 maps keep past evidence per cell (ehm.core.observations.memory,
+# MapConfig.keep_evidence) where older ones kept samples (memory_per_cell, and samples_per_cell
+# thinned them): their kept samples load as evidence, each weighing its cell's samples seen over
+# those kept.
 # Version 14 keeps the past evidence region by region, each entry's place in a byte an axis;
 # version 13 files load their keys so, and their places to the nearest 1/255 of a cell.
 FORMAT_VERSION = 14

@@ -7,8 +7,8 @@ from os import PathLike
 
 import numpy as np
 
-from ehm.core.geometry import quaternion_to_matrix, transform_points
-from ehm.core.scan import Scan
+from ehm.core.sensor.geometry import quaternion_to_matrix, transform_points
+from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.files import read_bytes
 

@@ -7,7 +7,7 @@ from os import PathLike
 
 import numpy as np
 
-from ehm.core.geometry import quaternion_to_matrix
+from ehm.core.sensor.geometry import quaternion_to_matrix
 from ehm.errors import FileReadError, InputError
 from ehm.io.files import read_text
 

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.core.geometry import transform_points
-from ehm.core.scan import Scan
+from ehm.core.sensor.geometry import transform_points
+from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen

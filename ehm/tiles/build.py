@@ -38,7 +38,7 @@ from ehm.tiles.store import TileKey, TileRecord
 from ehm.tiles.tiling import Tiling, scan_box
 
 if TYPE_CHECKING:
-    from ehm.core.scan import Scan
+    from ehm.core.sensor.scan import Scan
 
 # Scans each binning task reads.
 BIN_CHUNK = 16

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Protocol, runtime_checkable
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ehm.core.kernels import kernel_reach
+from ehm.core.model.kernels import kernel_reach
 from ehm.errors import FileReadError, OutputError
 from ehm.io.files import read_text, write_atomically
 from ehm.io.outputs import check_output_map_directory

@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.logistic import sigmoid
-from ehm.core.raycast import checked_rays, first_crossings, log_odds_level, segment_rays
-from ehm.core.scan import Scan
-from ehm.core.uncertainty import logit_variance, occupancy_std
+from ehm.core.model.logistic import sigmoid
+from ehm.core.queries.raycast import checked_rays, first_crossings, log_odds_level, segment_rays
+from ehm.core.sensor.scan import Scan
+from ehm.core.weights.uncertainty import logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError, SettingsError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, bytes_per_voxel, grid_shape
 from ehm.grid.occupancy_grid import OccupancyGrid
@@ -440,7 +440,7 @@ class TiledMap:
         rises above `level`; inf where none does within `max_range` (see HilbertMap.raycast
         for the arguments). Rays march the blended log-odds cluster_radius / 2 apart all the
         way (a single map's grid and candidate cells are not kept across tiles), and each
-        crossing is located to cluster_radius / 10 (ehm.core.raycast.first_crossings)."""
+        crossing is located to cluster_radius / 10 (ehm.core.queries.raycast.first_crossings)."""
         dim = self._require_dim("cast rays through it")
         origins, directions, max_range = checked_rays(origins, directions, max_range, dim)
         threshold = log_odds_level(level)

@@ -7,8 +7,8 @@ from itertools import product
 
 import numpy as np
 
-from ehm.core.boxes import ray_box_intervals
-from ehm.core.scan import Scan
+from ehm.core.sensor.boxes import ray_box_intervals
+from ehm.core.sensor.scan import Scan
 from ehm.errors import SettingsError
 
 TileKey = tuple[int, ...]
@@ -105,7 +105,7 @@ class Tiling:
     def clip(self, scan: Scan, key: TileKey) -> Scan | None:
         """The rays of `scan` that cross tile `key`'s learn box (None if none does). The rays
         are whole; a map with MapConfig.learn_box set to that box learns only their part in
-        it (ehm.core.samples)."""
+        it (ehm.core.observations.samples)."""
         offsets = scan.points_world - scan.origin
         lengths = np.linalg.norm(offsets, axis=1)
         directions = offsets / np.where(lengths > 0, lengths, 1.0)[:, None]

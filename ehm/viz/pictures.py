@@ -8,7 +8,7 @@ from os import PathLike
 
 import numpy as np
 
-from ehm.core.uncertainty import occupancy_std
+from ehm.core.weights.uncertainty import occupancy_std
 from ehm.errors import InputError
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap

@@ -136,8 +136,8 @@ class MapViewer:
         add_plane_image(self.server, "/grid", self.grid, _heat_map(self.grid.probability), 0.0)
 
     def _show_samples(self) -> None:
-        """The occupied evidence the map keeps near surfaces (ehm.core.memory), as points (a
-        tiled map keeps it in its tiles, which the viewer does not read one by one)."""
+        """The occupied evidence the map keeps near surfaces (ehm.core.observations.memory), as
+        points (a tiled map keeps it in its tiles, which the viewer does not read one by one)."""
         memory = getattr(self.map, "memory_", None)
         if memory is None or len(memory) == 0:
             return

@@ -3,8 +3,13 @@
 import numpy as np
 
 import ehm
-from ehm.core.anchors import AnchorLayers, AnchorTree, search_top_down, search_top_down_reference
-from ehm.core.index import ClusterIndex
+from ehm.core.search.anchors import (
+    AnchorLayers,
+    AnchorTree,
+    search_top_down,
+    search_top_down_reference,
+)
+from ehm.core.search.index import ClusterIndex
 
 
 def anchored(clusters, layers=1, factor=4.0):

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.boxes import points_in_box, ray_box_intervals
+from ehm.core.sensor.boxes import points_in_box, ray_box_intervals
 
 
 def test_ray_box_intervals_agree_with_points_marched_along_each_ray(rng):

@@ -3,8 +3,8 @@
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet, ClusterView
-from ehm.core.kernels import kernel_transforms
+from ehm.core.model.clusters import ClusterSet, ClusterView
+from ehm.core.model.kernels import kernel_transforms
 
 
 def three_clusters() -> ClusterSet:

@@ -5,8 +5,8 @@ import pytest
 
 import ehm
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.coplanar import coplanar_pairs, merge_coplanar
+from ehm.core.clustering.coplanar import coplanar_pairs, merge_coplanar
+from ehm.core.model.clusters import ClusterSet
 from ehm.eval.datasets.scene import Scene, room_shell
 from ehm.eval.datasets.simulated import simulate_scan
 

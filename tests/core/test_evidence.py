@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core import evidence
-from ehm.core.evidence import evidence_reference, gather_evidence
-from ehm.core.samples import ray_randoms, samples_of_rays, scan_rays
-from ehm.core.scan import Scan
+from ehm.core.observations import evidence
+from ehm.core.observations.evidence import evidence_reference, gather_evidence
+from ehm.core.observations.samples import ray_randoms, samples_of_rays, scan_rays
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.features import (
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.features import (
     PointGroups,
     SparseFeatures,
     compress_rows_reference,
@@ -17,8 +17,8 @@ from ehm.core.features import (
     kernel_values_reference,
     training_features,
 )
-from ehm.core.index import ClusterIndex
-from ehm.core.kernels import kernel_transforms
+from ehm.core.model.kernels import kernel_transforms
+from ehm.core.search.index import ClusterIndex
 
 
 def _random_problem(rng, dim):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import ehm
-from ehm.core.geometry import quaternion_to_matrix, transform_points
+from ehm.core.sensor.geometry import quaternion_to_matrix, transform_points
 
 
 def test_quaternions_of_known_rotations():

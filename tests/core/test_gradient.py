@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 import ehm
-from ehm.core.gradient import (
+from ehm.core.model.kernels import sparse_kernel_reference
+from ehm.core.queries.gradient import (
     logit_gradients,
     logit_gradients_reference,
     sparse_kernel_slope_reference,
 )
-from ehm.core.kernels import sparse_kernel_reference
 
 
 def test_kernel_slope_is_the_derivative_of_the_kernel():

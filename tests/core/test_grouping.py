@@ -3,9 +3,9 @@
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core import grouping
-from ehm.core.grouping import group_samples
-from ehm.core.samples import TrainingSamples, training_samples
+from ehm.core.clustering import grouping
+from ehm.core.clustering.grouping import group_samples
+from ehm.core.observations.samples import TrainingSamples, training_samples
 
 
 def test_samples_of_each_kind_are_clustered_apart(room):

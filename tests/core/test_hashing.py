@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.hashing import group_by_key, key_part, table_size, unique_keys
+from ehm.core.search.hashing import group_by_key, key_part, table_size, unique_keys
 
 
 def test_unique_keys_is_np_unique(rng):

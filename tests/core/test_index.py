@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.index import ClusterIndex, KernelRanking, kernel_radii, kernel_radii_reference
+from ehm.core.search.index import ClusterIndex, KernelRanking, kernel_radii, kernel_radii_reference
 
 
 def test_index_returns_nearest_fine_then_nearest_coarse_clusters(rng):

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.kernels import (
+from ehm.core.model.kernels import (
     cluster_kernel,
     cluster_kernel_reference,
     cluster_normals,

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core.evidence import FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED, sample_flags
-from ehm.core.memory import (
+from ehm.core.observations.evidence import FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED, sample_flags
+from ehm.core.observations.memory import (
     OFFSET_STEPS,
     SUB_BITS,
     EvidenceMemory,
@@ -15,7 +15,7 @@ from ehm.core.memory import (
     merge_entries,
     merge_entries_reference,
 )
-from ehm.core.samples import TrainingSamples
+from ehm.core.observations.samples import TrainingSamples
 
 # Fine cells of 0.25 m (regions of 1 m around hits), coarse ones of 2.5 m (regions of 5 m).
 SIDES = (0.25, 2.5)

@@ -4,10 +4,8 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.grouping import NewClusters
-from ehm.core.index import ClusterIndex
-from ehm.core.merging import (
+from ehm.core.clustering.grouping import NewClusters
+from ehm.core.clustering.merging import (
     MergeCandidates,
     absorb_clusters,
     anisotropic_distances,
@@ -15,7 +13,9 @@ from ehm.core.merging import (
     merge_average,
     merge_pooled,
 )
-from ehm.core.supports import SupportHash
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.search.index import ClusterIndex
+from ehm.core.search.supports import SupportHash
 
 
 def _set_from(groups, coarse=None, occupied=None):

@@ -3,8 +3,8 @@ the posterior does."""
 
 import numpy as np
 
-from ehm.core.posterior import posterior_update, posterior_update_reference
-from ehm.core.uncertainty import curvature_sum
+from ehm.core.weights.posterior import posterior_update, posterior_update_reference
+from ehm.core.weights.uncertainty import curvature_sum
 
 
 def test_compiled_update_matches_reference(rng, sparse_batch):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import ehm
-from ehm.core.raycast import (
+from ehm.core.queries.raycast import (
     CandidateCells,
     first_crossings,
     first_crossings_reference,
@@ -111,7 +111,7 @@ def test_ray_mistakes_are_named(room_map):
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_grid_marching_agrees_with_scipy_interpolation(rng, d):
-    from ehm.core.raycast import grid_crossings, grid_crossings_reference
+    from ehm.core.queries.raycast import grid_crossings, grid_crossings_reference
 
     scores = rng.normal(-2.0, 1.0, (12,) * d)
     scores[tuple(rng.integers(0, 12, (d, 40)))] = 3.0  # a few occupied voxels
@@ -130,7 +130,7 @@ def test_grid_marching_agrees_with_scipy_interpolation(rng, d):
 
 
 def test_guesses_are_refined_or_refused():
-    from ehm.core.raycast import refine_guesses
+    from ehm.core.queries.raycast import refine_guesses
 
     def log_odds(points):  # occupied from x = 1 to x = 1.2
         return np.where((points[:, 0] > 1.0) & (points[:, 0] < 1.2), 1.0, -1.0)

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core.samples import TrainingSamples, samples_of_scans, training_samples
-from ehm.core.scan import Scan
+from ehm.core.observations.samples import TrainingSamples, samples_of_scans, training_samples
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 
 
 def test_nan_and_inf_points_are_dropped_and_counted():

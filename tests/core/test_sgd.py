@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.sgd import (
+from ehm.core.weights.sgd import (
     blocked_order,
     loss_weights,
     sgd_pass,

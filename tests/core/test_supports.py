@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.supports import SupportHash, support_boxes, support_features_reference
+from ehm.core.search.supports import SupportHash, support_boxes, support_features_reference
 
 
 def _listed(clusters, sides=(0.3, 1.0)):
@@ -46,7 +46,7 @@ def test_features_are_every_kernel_not_zero_at_each_point(rng, random_clusters):
 
 def test_2d_kernels_and_points_far_outside(rng):
     from ehm.config import MapConfig
-    from ehm.core.clusters import ClusterSet
+    from ehm.core.model.clusters import ClusterSet
 
     n = 200
     clusters = ClusterSet.empty(2)

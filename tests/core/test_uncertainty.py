@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from ehm.core.uncertainty import (
+from ehm.core.weights.uncertainty import (
     curvature_sum,
     curvature_sum_reference,
     logit_variance,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.kernels import kernel_transforms
+from ehm.core.model.kernels import kernel_transforms
 from ehm.core.snapshot import MapSnapshot
 from ehm.grid.local_grids import (
     Lattice,

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 import ehm
-from ehm.core.features import decision_values
+from ehm.core.model.features import decision_values
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.frames import FrameTree, interpolate_pose
+from ehm.core.sensor.frames import FrameTree, interpolate_pose
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans
 

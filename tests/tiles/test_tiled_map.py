@@ -5,8 +5,8 @@ import pytest
 
 import ehm
 from ehm.config import MapConfig
-from ehm.core.raycast import first_crossings_reference
-from ehm.core.uncertainty import occupancy_std
+from ehm.core.queries.raycast import first_crossings_reference
+from ehm.core.weights.uncertainty import occupancy_std
 from ehm.errors import EmptyMapError, InputError, OutputError, SettingsError
 from ehm.eval.metrics import f1_score
 from ehm.eval.protocol import held_out_rays

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from ehm.core.boxes import points_in_box
-from ehm.core.scan import Scan
+from ehm.core.sensor.boxes import points_in_box
+from ehm.core.sensor.scan import Scan
 from ehm.errors import SettingsError
 from ehm.tiles.tiling import Tiling, scan_box
 

@@ -17,8 +17,8 @@ from scipy.optimize import minimize
 from scipy.special import log_ndtr, ndtr
 
 from ehm.config import MapConfig
-from ehm.core.samples import samples_of_scans
-from ehm.core.scan import Scan
+from ehm.core.observations.samples import samples_of_scans
+from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines.hilbert_maps import rbf_kernel
 
 LENGTH_SCALES = (0.1, 0.2, 0.4, 0.8, 1.6)

@@ -8,8 +8,8 @@ stochastic gradient descent.
 - 'grid': the sparse kernel k_SP (Eq. 8) on inducing points on a regular grid covering the
   training samples (Eq. 9).
 
-The training samples are the ones EHM learns from (ehm.core.samples with the default MapConfig),
-so the comparison is between models, not between samplings.
+The training samples are the ones EHM learns from (ehm.core.observations.samples with the default
+MapConfig), so the comparison is between models, not between samplings.
 """
 
 from __future__ import annotations
@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.kernels import sparse_kernel_reference
-from ehm.core.logistic import sigmoid
-from ehm.core.samples import samples_of_scans
-from ehm.core.scan import Scan
-from ehm.core.sgd import EPSILON
+from ehm.core.model.kernels import sparse_kernel_reference
+from ehm.core.model.logistic import sigmoid
+from ehm.core.observations.samples import samples_of_scans
+from ehm.core.sensor.scan import Scan
+from ehm.core.weights.sgd import EPSILON
 
 FEATURES = ("fourier", "nystrom", "grid")
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ehm.config import DEFAULT_RESOLUTION, MapConfig
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.hilbert_map import HilbertMap
 from ehm.pipeline import MappingPipeline
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.io.octomap_bindings import octomap_module
 
 

@@ -2,7 +2,7 @@
 
 from collections.abc import Callable
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 from ehm.eval.datasets.real import REAL_DATASETS, DataMissingError
 from ehm.eval.datasets.scene import Scene

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.io.carmen import read_carmen
 from ehm.io.pcd import read_pcd
 from ehm.io.tum import read_tum

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.eval.datasets.scene import Scene, room_shell
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.kernels import sparse_kernel_reference
+from ehm.core.model.kernels import sparse_kernel_reference
 from ehm.eval.baselines.hilbert_maps import (
     FourierFeatures,
     GridFeatures,

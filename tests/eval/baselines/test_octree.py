@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.scan import Scan
+from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines import make_mapper
 
 

@@ -2,7 +2,7 @@
 exactly and without a nearest-neighbour search.
 
 Both kernels vanish outside a bounded support: the ellipsoid |T_m (x - mu_m)| < 1 of k_SP and
-the box max_a |T_m (x - mu_m)|_a < 1 of the planar kernel (ehm.core.kernels). The hash lists
+the box max_a |T_m (x - mu_m)|_a < 1 of the planar kernel (ehm.core.model.kernels). The hash lists
 each kernel in every cell that the bounding box of its support overlaps; the kernels of a point
 are among those its cell lists, and evaluating them keeps exactly the ones that are not zero.
 So a point's features are all its kernels, the sum the grids take (Sec. 3.5), and training,
@@ -26,9 +26,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ehm.core.features import SparseFeatures, add_to_sums, kernel_at
-from ehm.core.hashing import EMPTY_KEY, hash_slot
-from ehm.core.kernels import cluster_kernel_reference
+from ehm.core.model.features import SparseFeatures, add_to_sums, kernel_at
+from ehm.core.model.kernels import cluster_kernel_reference
+from ehm.core.search.hashing import EMPTY_KEY, hash_slot
 from ehm.errors import InputError
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,

@@ -16,7 +16,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from ehm.core.geometry import quaternion_to_matrix
+from ehm.core.sensor.geometry import quaternion_to_matrix
 from ehm.errors import InputError
 
 

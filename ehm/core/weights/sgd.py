@@ -4,12 +4,12 @@ Each weight has its own AdaGrad step size lr / sqrt(sum of its squared gradients
 added with weight 0 learns quickly while well-observed clusters settle. Labels are 1 (occupied)
 and 0 (free); p(occupied | x) = sigmoid(w^T phi(x) + b).
 
-A sample that stands for w samples (ehm.core.evidence) is one step: its gradient counts w
-times in the step and w times its square in the accumulator, so for a fresh weight the step is
-lr sqrt(w), about what w steps of one sample each would take, and the cost of a pass follows
-the samples, not what they stand for. Steps of one unweighted sample each would be a million
-on a LiDAR sweep; one weighted step per cell scores the same held-out F1 (BENCHMARKS.md), while
-one step scaled by w alone (no sqrt) lost 0.02-0.05 against stepping w times.
+A sample that stands for w samples (ehm.core.observations.evidence) is one step: its gradient counts
+w times in the step and w times its square in the accumulator, so for a fresh weight the step is lr
+sqrt(w), about what w steps of one sample each would take, and the cost of a pass follows the
+samples, not what they stand for. Steps of one unweighted sample each would be a million on a LiDAR
+sweep; one weighted step per cell scores the same held-out F1 (BENCHMARKS.md), while one step scaled
+by w alone (no sqrt) lost 0.02-0.05 against stepping w times.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ import numba
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.features import SparseFeatures
-from ehm.core.logistic import sigmoid, sigmoid_scalar
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.features import SparseFeatures
+from ehm.core.model.logistic import sigmoid, sigmoid_scalar
 
 EPSILON = 1e-8
 SGD_BLOCK = 4096

@@ -9,11 +9,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.features import SparseFeatures
-from ehm.core.grouping import NewClusters
-from ehm.core.index import ClusterIndex
-from ehm.core.kernels import covariance_square_roots
+from ehm.core.clustering.grouping import NewClusters
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.features import SparseFeatures
+from ehm.core.model.kernels import covariance_square_roots
+from ehm.core.search.index import ClusterIndex
 
 
 @dataclass(frozen=True)

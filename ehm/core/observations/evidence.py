@@ -1,15 +1,15 @@
 """Evidence of a batch of scans, gathered per cell before it is learned.
 
-Every ray gives the training samples the paper assumes (ehm.core.samples describes them): the
-hit and a point up to `occupied_depth` behind it are occupied, a point in the band in front of
-it is free, and free points lie along the ray `free_spacing` apart. Drawn one by one they are
-about twelve samples a ray, and every later step paid for each (a LiDAR sweep of 88,000 rays
-gave 1.1 million). Here they are not kept: each is added where it falls to the statistics of
-its cell and kind (weight, sum and scatter of positions), in one compiled pass over the rays,
-and a batch leaves one weighted sample per cell and kind, at the mean of the samples that fell
-there, with their scatter about it. Clustering pools the statistics exactly
-(ehm.core.quickmeans), and the loss of a cell's samples is, to first order in the cell's size,
-the loss of its mean weighted by their number.
+Every ray gives the training samples the paper assumes (ehm.core.observations.samples describes
+them): the hit and a point up to `occupied_depth` behind it are occupied, a point in the band in
+front of it is free, and free points lie along the ray `free_spacing` apart. Drawn one by one they
+are about twelve samples a ray, and every later step paid for each (a LiDAR sweep of 88,000 rays
+gave 1.1 million). Here they are not kept: each is added where it falls to the statistics of its
+cell and kind (weight, sum and scatter of positions), in one compiled pass over the rays, and a
+batch leaves one weighted sample per cell and kind, at the mean of the samples that fell there, with
+their scatter about it. Clustering pools the statistics exactly (ehm.core.clustering.quickmeans),
+and the loss of a cell's samples is, to first order in the cell's size, the loss of its mean
+weighted by their number.
 
 Kinds: occupied samples and free samples in front of hits live in fine cells, free samples
 along rays in coarse cells (`cell_sides`). Free samples along a ray are stratified, one in
@@ -29,9 +29,7 @@ import numba
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.cells import packed_cell_keys
-from ehm.core.hashing import EMPTY_KEY, hash_slot, key_part, table_size
-from ehm.core.samples import (
+from ehm.core.observations.samples import (
     ScanRays,
     TrainingSamples,
     free_sample_counts,
@@ -40,7 +38,9 @@ from ehm.core.samples import (
     samples_of_rays,
     scan_rays,
 )
-from ehm.core.scan import Scan
+from ehm.core.search.cells import packed_cell_keys
+from ehm.core.search.hashing import EMPTY_KEY, hash_slot, key_part, table_size
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
 # Kinds of samples, in the order the compiled pass numbers them: free samples along rays (in
@@ -64,7 +64,7 @@ GATHER_PARTS = 2
 
 @dataclass
 class _CellTable:
-    """Cells met so far: an open-addressing table of keys (ehm.core.hashing) pointing into
+    """Cells met so far: an open-addressing table of keys (ehm.core.search.hashing) pointing into
     value arrays filled in the order cells are met (see gather_kernel for their layout)."""
 
     keys: np.ndarray
@@ -182,9 +182,9 @@ def gather_kernel(
     each ray's end; hits (n,) bool; free_start (n,) metres: where each ray's free samples
     begin, spacing (n,) metres between them, free_counts (n,) how many; random (n, 3)
     uniforms in [0, 1): depth behind the hit, depth in front, offset of the free samples
-    (ehm.core.samples.ray_randoms); box (2, d), or (0, d) for none: samples around hits
+    (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around hits
     outside it are left out; bits: bits per axis of a key; only the cells of part `part` of
-    `parts` (ehm.core.hashing.key_part) are kept.
+    `parts` (ehm.core.search.hashing.key_part) are kept.
     """
     n, d = directions.shape
     half = np.int64(1) << (bits - 1)
@@ -258,7 +258,7 @@ def cell_sides(config: MapConfig) -> tuple[float, float]:
 def gather_evidence(
     scans: list[Scan], config: MapConfig, rng: np.random.Generator
 ) -> TrainingSamples:
-    """The evidence of `scans`: their training samples (ehm.core.samples), one weighted
+    """The evidence of `scans`: their training samples (ehm.core.observations.samples), one weighted
     sample per cell and kind, with its scatter, in the order the cells were met (part by
     part, for a batch gathered in parts)."""
     rays = scan_rays(scans, config)
@@ -339,8 +339,8 @@ def _check_reach(rays: ScanRays, config: MapConfig, side: float, bits: int) -> N
 
 def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> TrainingSamples:
     """Plain NumPy twin of `gather_evidence` for given rays and randoms, from the samples
-    ehm.core.samples draws, grouped by cell and kind (in the order of their keys, where the
-    compiled pass gives them in the order it meets them)."""
+    ehm.core.observations.samples draws, grouped by cell and kind (in the order of their keys, where
+    the compiled pass gives them in the order it meets them)."""
     samples = samples_of_rays(rays, randoms, config)
     kind = kinds_of(samples)
     fine, coarse = cell_sides(config)

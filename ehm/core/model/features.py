@@ -3,7 +3,7 @@ features of many points, with the nearest clusters searched once per group of po
 
 Point i belongs to group g = group_of_point[i]; its feature vector has non-zeros only at the
 clusters group_neighbours[g] (k of them, -1 where the map has fewer than k clusters). Cluster
-m's kernel is the planar-surface one where planar[m], else k_SP (see ehm.core.kernels).
+m's kernel is the planar-surface one where planar[m], else k_SP (see ehm.core.model.kernels).
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ import numba
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.cells import cell_keys
-from ehm.core.clusters import ClusterSet
-from ehm.core.index import ClusterIndex
-from ehm.core.kernels import cluster_kernel, cluster_kernel_reference, projected_radii
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.kernels import cluster_kernel, cluster_kernel_reference, projected_radii
+from ehm.core.search.cells import cell_keys
+from ehm.core.search.index import ClusterIndex
 
 
 @dataclass(frozen=True)
@@ -211,7 +211,7 @@ def decision_values(
 ):  # pragma: no cover - compiled
     """(n,) float64 w^T phi(x) + bias of each point, without storing the features, and, when
     with_variance, (n, 2) float64 [sum_m phi_m^2 / lambda_m, sum_m phi_m] over its clusters,
-    from inverse_precision (M,) 1 / lambda_m (see ehm.core.uncertainty); else (0, 2)."""
+    from inverse_precision (M,) 1 / lambda_m (see ehm.core.weights.uncertainty); else (0, 2)."""
     n = points.shape[0]
     k = group_neighbours.shape[1]
     scores = np.full(n, bias)

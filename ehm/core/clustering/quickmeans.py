@@ -1,14 +1,13 @@
 """Quick-means clustering (Alg. 1) with optional k-means refinement.
 
-Seeds are drawn at random among the points still available; each seed gathers the available
-points within the outer radius r_o (its cluster when there are at least `min_size` of them) and
-takes the points within the inner radius r_i out of the pool. Points may carry weights and
-scatter: each then stands for `weight` samples whose mean it is and whose scatter about it is
-given (ehm.core.evidence), and a cluster's count, mean and covariance are those of all the
-samples its points stand for. Drawing uniformly from the pool at every step is the same as
-walking one random permutation and skipping points already taken, which is what the kernel
-does. Neighbours are found through a hash of cells of side
-r_o / CELLS_PER_RADIUS.
+Seeds are drawn at random among the points still available; each seed gathers the available points
+within the outer radius r_o (its cluster when there are at least `min_size` of them) and takes the
+points within the inner radius r_i out of the pool. Points may carry weights and scatter: each then
+stands for `weight` samples whose mean it is and whose scatter about it is given
+(ehm.core.observations.evidence), and a cluster's count, mean and covariance are those of all the
+samples its points stand for. Drawing uniformly from the pool at every step is the same as walking
+one random permutation and skipping points already taken, which is what the kernel does. Neighbours
+are found through a hash of cells of side r_o / CELLS_PER_RADIUS.
 """
 
 from __future__ import annotations
@@ -19,8 +18,8 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ehm.core.cells import cell_keys
-from ehm.core.hashing import group_by_key
+from ehm.core.search.cells import cell_keys
+from ehm.core.search.hashing import group_by_key
 
 
 @dataclass(frozen=True)

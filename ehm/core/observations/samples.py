@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.boxes import points_in_box, ray_box_intervals
-from ehm.core.scan import Scan
+from ehm.core.sensor.boxes import points_in_box, ray_box_intervals
+from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
 
@@ -21,7 +21,8 @@ class TrainingSamples:
     True for the samples drawn around hits (both classes), False for free samples along rays.
     weight: (n,) float64, how many drawn samples each stands for in the loss (None gives
     ones). scatter: (n, d, d) float64, m^2, the scatter of those samples about the point, for
-    a point that is their mean (ehm.core.evidence), or None: none (zero) for every sample.
+    a point that is their mean (ehm.core.observations.evidence), or None: none (zero) for
+    every sample.
     """
 
     points: np.ndarray

@@ -16,9 +16,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.kernels import cluster_normals, covariance_square_roots
-from ehm.core.merging import anisotropic_distances, merge_pooled
+from ehm.core.clustering.merging import anisotropic_distances, merge_pooled
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.kernels import cluster_normals, covariance_square_roots
 
 # Nearest planar centres of the same kind each cluster considers as partners.
 CANDIDATES = 8

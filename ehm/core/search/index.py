@@ -13,7 +13,7 @@ out changes no result and prunes most of the tree.
 Two settings change the search: anisotropic search ranks a point's clusters by the radius
 their kernel gives it instead of by the distance to their centres (candidates from the
 Euclidean search, re-ranked), and anchor layers replace the kd-trees by a top-down search
-through clusters of clusters (ehm.core.anchors).
+through clusters of clusters (ehm.core.search.anchors).
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ehm.config import MapConfig
-from ehm.core.anchors import AnchorLayers, AnchorTree
-from ehm.core.clusters import ClusterSet
-from ehm.core.kernels import projected_radii
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.kernels import projected_radii
+from ehm.core.search.anchors import AnchorLayers, AnchorTree
 
 # cKDTree keeps a copy of the data, a permutation and about this many bytes per node.
 _KDTREE_NODE_BYTES = 80

@@ -10,7 +10,7 @@ posterior so far (a new cluster: mean 0, precision `prior_precision`). Coordinat
 minimises J: each weight the batch touches takes, in turn, a Newton step along its own axis
 (clipped to MAX_STEP log-odds), with the scores of the samples it touches kept current; then
 the bias, whose precision then grows by the curvature the batch adds. The weights' precisions
-grow as under every update rule (ehm.core.uncertainty.add_curvature).
+grow as under every update rule (ehm.core.weights.uncertainty.add_curvature).
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ import numba
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.clusters import ClusterSet
-from ehm.core.features import SparseFeatures
-from ehm.core.logistic import sigmoid, sigmoid_scalar
+from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.features import SparseFeatures
+from ehm.core.model.logistic import sigmoid, sigmoid_scalar
 
 # Largest change of one weight in one coordinate step, log-odds.
 MAX_STEP = 4.0

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ehm.core.kernels import TWO_PI
+from ehm.core.model.kernels import TWO_PI
 
 
 @numba.njit(cache=True, inline="always")

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ehm.core.eigen import symmetric_eigen
+from ehm.core.model.eigen import symmetric_eigen
 
 TWO_PI = 2.0 * np.pi
 # Standard deviations the planar-surface kernel spans on each side of its mean (Eq. 13).

@@ -1,5 +1,5 @@
-"""What a map keeps of past evidence so that learning scan by scan does not forget: per cell
-and kind of ehm.core.evidence, the weight of the samples that fell there and their mean.
+"""What a map keeps of past evidence so that learning scan by scan does not forget: per cell and
+kind of ehm.core.observations.evidence, the weight of the samples that fell there and their mean.
 
 Stochastic gradient steps over one batch pull the weights it reaches towards that batch's
 view. With the memory, each batch is learned together with the past evidence of the places it
@@ -34,7 +34,7 @@ import numba
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.evidence import (
+from ehm.core.observations.evidence import (
     COARSE_CELLS_PER_RADIUS,
     FINE_CELLS_PER_RADIUS,
     FREE_ALONG_RAY,
@@ -43,8 +43,8 @@ from ehm.core.evidence import (
     kinds_of,
     sample_flags,
 )
-from ehm.core.hashing import unique_keys
-from ehm.core.samples import TrainingSamples
+from ehm.core.observations.samples import TrainingSamples
+from ehm.core.search.hashing import unique_keys
 from ehm.errors import InputError
 
 # Bits of a key for the cell within its region (FINE_CELLS_PER_RADIUS ** 3 of them at most),
@@ -213,8 +213,8 @@ class PendingSamples:
 
 
 class EvidenceMemory:
-    """Past evidence of a map, one weighted mean per cell and kind (ehm.core.evidence); an
-    empty memory that keeps nothing when `enabled` is False.
+    """Past evidence of a map, one weighted mean per cell and kind (ehm.core.observations.evidence);
+    an empty memory that keeps nothing when `enabled` is False.
 
     Entries are sorted by key and kept region by region: regions (R,) int64 sorted, the key of
     each region holding entries shifted right by REGION_BITS, region_sizes (R,) uint8 its

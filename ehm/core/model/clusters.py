@@ -7,23 +7,23 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.kernels import kernel_reach, kernel_transforms, planar_clusters
+from ehm.core.model.kernels import kernel_reach, kernel_transforms, planar_clusters
 
 
 @dataclass
 class ClusterSet:
     """Inducing points of the map, one row per cluster.
 
-    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2.
-    counts: (M,) float64, samples the statistics summarise. weights: (M,) float64, classifier
-    weights. grad_sq: (M,) float64, AdaGrad accumulators. precision: (M,) float64, precision
-    of each weight's Gaussian posterior (ehm.core.posterior). transforms: (M, d, d) float64, 1/m,
-    kernel transforms derived from the covariances (see ehm.core.kernels). coarse: (M,) bool, True
-    for clusters of open free space (see ehm.core.index). occupied: (M,) bool, True for clusters
-    of occupied samples. planar: (M,) bool, the covariance is flat (see
-    ehm.core.kernels.planar_clusters). planar_kernel: (M,) bool, the cluster uses the
-    planar-surface kernel. Transforms and both planar flags follow from the covariances and
-    the map's settings (`refresh`).
+    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2. counts: (M,)
+    float64, samples the statistics summarise. weights: (M,) float64, classifier weights. grad_sq:
+    (M,) float64, AdaGrad accumulators. precision: (M,) float64, precision of each weight's Gaussian
+    posterior (ehm.core.weights.posterior). transforms: (M, d, d) float64, 1/m, kernel transforms
+    derived from the covariances (see ehm.core.model.kernels). coarse: (M,) bool, True for clusters
+    of open free space (see ehm.core.search.index). occupied: (M,) bool, True for clusters of
+    occupied samples. planar: (M,) bool, the covariance is flat (see
+    ehm.core.model.kernels.planar_clusters). planar_kernel: (M,) bool, the cluster uses the
+    planar-surface kernel. Transforms and both planar flags follow from the covariances and the
+    map's settings (`refresh`).
     """
 
     means: np.ndarray
