@@ -43,6 +43,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/viewer.py
 	$(BIN)/python benchmarks/tiles.py
 	$(BIN)/python benchmarks/peers.py --seeds 0 --fractions 0.8
+	$(BIN)/python benchmarks/nav2_maps.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
