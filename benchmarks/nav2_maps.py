@@ -26,7 +26,7 @@ from ehm.eval.baselines.octree import OctoMapMapper
 from ehm.eval.datasets import DataMissingError, load_dataset
 from ehm.eval.datasets.simulated import corridor_2d
 from ehm.eval.metrics import f1_score
-from ehm.eval.protocol import held_out_rays
+from ehm.eval.protocol import HeldOutSplit, held_out_rays
 from ehm.io.exports import (
     MAP_SERVER_FREE,
     MAP_SERVER_OCCUPIED,
@@ -37,6 +37,7 @@ from ehm.io.exports import (
 from ehm.pipeline import MappingPipeline
 
 DATASETS = ("intel_lab", "office_floor")
+METHODS = ("ehm", "octomap")
 
 
 def office_floor() -> list[ehm.Scan]:
@@ -54,7 +55,8 @@ def trinary(pixels: np.ndarray) -> np.ndarray:
 
 
 def ehm_reading(hilbert_map: ehm.HilbertMap, points: np.ndarray) -> np.ndarray:
-    """The trinary reading of the map_server export of `hilbert_map` at `points` (n, 2)."""
+    """The trinary reading of the map_server export of `hilbert_map` at `points` (n, 2);
+    unknown outside the exported image."""
     bounds = aligned_bounds(hilbert_map.extent(), RESOLUTION)
     grid = hilbert_map.grid(bounds, RESOLUTION)
     with tempfile.TemporaryDirectory() as folder:
@@ -62,26 +64,44 @@ def ehm_reading(hilbert_map: ehm.HilbertMap, points: np.ndarray) -> np.ndarray:
         write_map_server(grid, image_path)
         image = np.asarray(Image.open(image_path))
     cells = np.floor((points - grid.origin) / RESOLUTION).astype(np.int64)
-    cells = np.clip(cells, 0, np.array(grid.shape) - 1)
-    return trinary(image[grid.shape[1] - 1 - cells[:, 1], cells[:, 0]])
+    inside = np.all((cells >= 0) & (cells < np.array(grid.shape)), axis=1)
+    reading = np.full(len(points), -1)
+    x, y = cells[inside].T
+    reading[inside] = trinary(image[grid.shape[1] - 1 - y, x])
+    return reading
 
 
-def octomap_reading(octomap: OctoMapMapper, points: np.ndarray) -> np.ndarray:
-    """The trinary reading at `points` (n, 2) of OctoMap's voxels written as map_server
-    pixels (unknown voxels grey)."""
-    occupancy = octomap.occupancy(points)
+def octomap_reading(occupancy: np.ndarray) -> np.ndarray:
+    """The trinary reading of OctoMap's voxel occupancies (n,) written as map_server pixels
+    (unknown voxels, which read 0.5, grey)."""
     pixels = np.rint(255.0 * (1.0 - occupancy)).astype(np.uint8)
     return trinary(np.where(occupancy == 0.5, MAP_SERVER_UNKNOWN_PIXEL, pixels))
 
 
-def shares(reading: np.ndarray, occupied: np.ndarray) -> list[float]:
-    """Free points read free and unknown; hits read occupied and free."""
-    free, hit = reading[~occupied], reading[occupied]
-    return [np.mean(free == 0), np.mean(free == -1), np.mean(hit == 1), np.mean(hit == 0)]
+def measures(method: str, split: HeldOutSplit) -> list[float]:
+    """For `method` learned from the split's training scans: free points read free and read
+    unknown, hits read occupied and read free (map_server's reading of its export), and
+    held-out F1 (its occupancy at 0.5)."""
+    if method == "ehm":
+        config = ehm.MapConfig.for_resolution(RESOLUTION)
+        hilbert_map = MappingPipeline(split.train, ehm.HilbertMap(config)).run().hilbert_map
+        occupancy = hilbert_map.occupancy(split.points)
+        reading = ehm_reading(hilbert_map, split.points)
+    else:
+        octomap = OctoMapMapper(RESOLUTION)
+        octomap.build(split.train)
+        occupancy = octomap.occupancy(split.points)
+        reading = octomap_reading(occupancy)
+    free, hit = reading[~split.occupied], reading[split.occupied]
+    shares = [np.mean(free == 0), np.mean(free == -1), np.mean(hit == 1), np.mean(hit == 0)]
+    return [*shares, f1_score(split.occupied, occupancy > 0.5)]
 
 
 def main() -> None:
-    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, ["ehm", "octomap"])
+    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, METHODS)
+    unknown = sorted(set(sweep.methods) - set(METHODS))
+    if unknown:
+        raise SystemExit(f"unknown method(s) {', '.join(unknown)}; known: {', '.join(METHODS)}")
     rows = []
     for name in sweep.datasets:
         try:
@@ -90,25 +110,11 @@ def main() -> None:
             print(f"{name}: skipped ({error})")
             continue
         for fraction in sweep.fractions:
-            measured = {"ehm": [], "octomap": []}
-            for seed in sweep.seeds:
-                split = held_out_rays(scans, fraction, RESOLUTION, seed)
-                config = ehm.MapConfig.for_resolution(RESOLUTION)
-                run = MappingPipeline(split.train, ehm.HilbertMap(config)).run()
-                hilbert_map = run.hilbert_map
-                f1 = f1_score(split.occupied, hilbert_map.occupancy(split.points) > 0.5)
-                reading = ehm_reading(hilbert_map, split.points)
-                measured["ehm"].append([*shares(reading, split.occupied), f1])
-                octomap = OctoMapMapper(RESOLUTION)
-                octomap.build(split.train)
-                probability = octomap.occupancy(split.points)
-                reading = octomap_reading(octomap, split.points)
-                f1 = f1_score(split.occupied, probability > 0.5)
-                measured["octomap"].append([*shares(reading, split.occupied), f1])
+            splits = [held_out_rays(scans, fraction, RESOLUTION, seed) for seed in sweep.seeds]
             for method in sweep.methods:
-                means = np.mean(measured[method], axis=0)
+                means = np.mean([measures(method, split) for split in splits], axis=0)
                 rows.append([name, f"{fraction:.0%}", method, *(f"{v:.3f}" for v in means)])
-            print(rows[-2], rows[-1], flush=True)
+                print(rows[-1], flush=True)
     detail = f"seeds {','.join(map(str, sweep.seeds))}, {RESOLUTION} m"
     print(heading("map_server's reading of 2D maps", detail))
     header = [
