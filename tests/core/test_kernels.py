@@ -3,6 +3,7 @@
 import numpy as np
 
 from ehm.core.model.kernels import (
+    TWO_PI,
     cluster_kernel,
     cluster_kernel_reference,
     cluster_normals,
@@ -15,9 +16,15 @@ from ehm.core.model.kernels import (
 
 
 def test_sparse_kernel_matches_reference_and_known_values():
-    radii = np.linspace(0.0, 1.5, 301)
+    radii = np.concatenate([np.linspace(0.0, 1.5, 3001), [1.0 - 1e-12, 1.0, 1.0 + 1e-12]])
     compiled = np.array([sparse_kernel(r) for r in radii])
-    np.testing.assert_allclose(compiled, sparse_kernel_reference(radii), atol=1e-15)
+    # The compiled kernel is a polynomial through Eq. 8 at Chebyshev points.
+    np.testing.assert_allclose(compiled, sparse_kernel_reference(radii), rtol=0, atol=5e-15)
+    assert np.all(compiled[radii >= 1.0] == 0.0)
+    # Near r = 1 Eq. 8 vanishes as (1 - r)^5 (2 pi)^4 / 180, which it cancels to nothing in
+    # floating point; the compiled kernel keeps it, positive.
+    for gap in (1e-2, 1e-3, 1e-5):
+        np.testing.assert_allclose(sparse_kernel(1.0 - gap), gap**5 * TWO_PI**4 / 180, rtol=2e-3)
     assert sparse_kernel_reference(np.array([0.0]))[0] == 1.0
     assert np.all(sparse_kernel_reference(np.array([1.0, 1.2])) == 0.0)
     # Eq. 8 at r = 0.5: (2 + cos(pi)) / 3 * 0.5 + sin(pi) / (2 pi) = 1/6

@@ -28,13 +28,20 @@ def test_the_page_shows_the_map(room_map, tmp_path):
     viewer.server.on_client_connect(lambda client: connected.set())
     shot = tmp_path / "viewer.png"
     try:
-        browser_screenshot(viewer.url, shot)
+        # Chromium's virtual time can run out before the map reaches the page over its
+        # websocket when the machine is busy (1 run in 3 beside two busy processes): the
+        # picture is taken again then, up to three times.
+        for _ in range(3):
+            browser_screenshot(viewer.url, shot)
+            image = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+            colours = len(np.unique(image.reshape(-1, 3), axis=0))
+            if colours > 2000:
+                break
     finally:
         viewer.server.stop()
     assert connected.is_set()  # the page reached the server
-    image = np.asarray(Image.open(shot).convert("RGB")).astype(int)
     assert image.shape == (800, 1200, 3)
-    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 2000  # a picture, not a blank page
+    assert colours > 2000  # a picture, not a blank page
     # Where the camera looks (the map's centre), the surface: coloured pixels, not the white
     # background or the grey floor grid.
     centre = image[300:500, 500:700]
