@@ -1,15 +1,20 @@
 """Reading input files whole, with errors that name the file: missing, a folder, unreadable,
-not text, or a broken bzip2 stream; and writing files whole, atomically."""
+not text, or a broken gzip or bzip2 stream; and writing files whole, atomically."""
 
 from __future__ import annotations
 
 import bz2
+import gzip
 import os
 import tempfile
+import zlib
 from os import PathLike
 from pathlib import Path
 
 from ehm.errors import FileReadError
+
+# Name endings of compressed inputs: the reader is chosen by the ending before them.
+COMPRESSED_SUFFIXES = (".gz", ".bz2")
 
 
 def read_bytes(path: str | PathLike[str]) -> bytes:
@@ -27,16 +32,46 @@ def read_bytes(path: str | PathLike[str]) -> bytes:
     return data
 
 
-def read_text(path: str | PathLike[str]) -> str:
-    """The text (UTF-8) of the file at `path`, decompressed if its name ends in `.bz2`;
-    FileReadError naming the first byte that is not text."""
+def uncompressed_suffix(path: str | PathLike[str]) -> str:
+    """The lower-case extension that names the format of the file at `path`: the one before
+    .gz or .bz2 for a compressed file ('' when there is none), else its own."""
+    path = Path(path)
+    if path.suffix.lower() in COMPRESSED_SUFFIXES:
+        return Path(path.stem).suffix.lower()
+    return path.suffix.lower()
+
+
+def read_input(path: str | PathLike[str]) -> bytes:
+    """The bytes of the input file at `path`, decompressed when its name ends in .gz or .bz2
+    (CARMEN logs and point files are often distributed so); FileReadError for a stream that
+    is broken or cut short."""
     data = read_bytes(path)
-    if Path(path).suffix.lower() == ".bz2":
-        data = _bunzip(path, data)
+    suffix = Path(path).suffix.lower()
+    if suffix == ".bz2":
+        return _bunzip(path, data)
+    if suffix == ".gz":
+        return _gunzip(path, data)
+    return data
+
+
+def read_text(path: str | PathLike[str]) -> str:
+    """The text (UTF-8) of the input file at `path`, decompressed if its name ends in .gz or
+    .bz2; FileReadError naming the first byte that is not text."""
+    data = read_input(path)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as error:
         raise FileReadError(path, "not a text file", f"byte {error.start}") from None
+
+
+def _gunzip(path: str | PathLike[str], data: bytes) -> bytes:
+    """The decompressed gzip members of `data`, one after another."""
+    try:
+        return gzip.decompress(data)
+    except EOFError:
+        raise FileReadError(path, "truncated gzip stream") from None
+    except (OSError, zlib.error) as error:
+        raise FileReadError(path, f"not a gzip stream ({error})") from None
 
 
 def _bunzip(path: str | PathLike[str], data: bytes) -> bytes:

@@ -13,7 +13,7 @@ import numpy as np
 from ehm.core.sensor.geometry import transform_points
 from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
-from ehm.io.files import read_bytes
+from ehm.io.files import read_input
 from ehm.io.poses import read_kitti_calibration, read_poses
 
 # `calib` value for poses that already place the Velodyne (say, from a LiDAR odometry).
@@ -89,7 +89,7 @@ def kitti_frames(
 
 def read_kitti_scan(path: Path, T_world_velodyne: np.ndarray) -> Scan:
     """One Velodyne scan in world frame, placed by its (4, 4) T_world_velodyne."""
-    raw = read_bytes(path)
+    raw = read_input(path)
     if len(raw) % 16:
         raise FileReadError(
             path, f"{len(raw)} bytes is not a whole number of points (16 bytes: x y z i)"

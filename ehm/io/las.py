@@ -11,7 +11,7 @@ from os import PathLike
 import numpy as np
 
 from ehm.errors import FileReadError
-from ehm.io.files import read_bytes
+from ehm.io.files import read_input
 
 INSTALL_HINT = "LAS and LAZ files need laspy (and lazrs for LAZ): pip install 'ehm[las]'"
 
@@ -23,7 +23,7 @@ def read_las(path: str | PathLike[str]) -> np.ndarray:
         import laspy
     except ImportError as error:
         raise ImportError(INSTALL_HINT) from error
-    data = read_bytes(path)
+    data = read_input(path)
     _check_header(data, path)
     try:
         cloud = laspy.read(io.BytesIO(data))

@@ -10,12 +10,12 @@ import numpy as np
 from ehm.core.sensor.geometry import quaternion_to_matrix, transform_points
 from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
-from ehm.io.files import read_bytes
+from ehm.io.files import read_input
 
 
 def read_octomap_graph(path: str | PathLike[str]) -> list[Scan]:
     """OctoMap ScanGraph (.graph): per node a point cloud in sensor frame and a 6D pose."""
-    data = read_bytes(path)
+    data = read_input(path)
     offset = 0
 
     def take(fmt: str) -> tuple:

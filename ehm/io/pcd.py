@@ -10,7 +10,7 @@ import numpy as np
 
 from ehm.errors import EhmError, FileReadError
 from ehm.io.fields import ascii_rows, xyz_columns
-from ehm.io.files import read_bytes
+from ehm.io.files import read_input
 from ehm.io.lzf import lzf_decompress
 
 _SIZES = {"F": (4, 8), "I": (1, 2, 4, 8), "U": (1, 2, 4, 8)}
@@ -24,7 +24,7 @@ def read_pcd(path: str | PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     """Points of a PCD v0.7 file (ascii, binary or binary_compressed), (N, 3) float64 in the
     file's frame, and its VIEWPOINT translation (3,), the sensor origin in that frame.
     FileReadError naming the line or byte for a header or body that does not match."""
-    data = read_bytes(path)
+    data = read_input(path)
     header, offset, n_lines = {}, 0, 0
     while "DATA" not in header:
         newline = data.find(b"\n", offset)

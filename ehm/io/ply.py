@@ -9,7 +9,7 @@ import numpy as np
 
 from ehm.errors import FileReadError, InputError
 from ehm.io.fields import ascii_rows, xyz_columns
-from ehm.io.files import read_bytes
+from ehm.io.files import read_input
 
 _PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
@@ -22,7 +22,7 @@ def read_ply(path: str | PathLike[str]) -> np.ndarray:
     """(N, 3) float64 vertices of a PLY file (ascii, binary_little_endian or binary_big_endian),
     in the file's frame. FileReadError naming the line or byte for a header or body that does
     not match."""
-    data = read_bytes(path)
+    data = read_input(path)
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
         raise FileReadError(path, "not a PLY file (no 'ply' magic or no end_header)")

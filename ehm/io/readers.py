@@ -20,6 +20,7 @@ from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen
+from ehm.io.files import COMPRESSED_SUFFIXES, uncompressed_suffix
 from ehm.io.kitti import kitti_files, kitti_frames, read_kitti_scan
 from ehm.io.las import read_las
 from ehm.io.octomap_graph import read_octomap_graph
@@ -33,7 +34,7 @@ FORMATS = ("xyz", "ply", "pcd", "las", "kitti", "graph", "tum", "carmen", "bag")
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "tum", "carmen")
 _EXTENSIONS = {
-    ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".bz2": "xyz", ".ply": "ply", ".pcd": "pcd",
+    ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".ply": "ply", ".pcd": "pcd",
     ".las": "las", ".laz": "las", ".bin": "kitti", ".graph": "graph", ".log": "carmen",
     ".clf": "carmen", ".bag": "bag",
 }  # fmt: skip
@@ -41,7 +42,8 @@ _EXTENSIONS = {
 
 def guess_format(path: str | PathLike[str]) -> str:
     """The reader for a path: a folder holding poses.txt is TUM, one holding metadata.yaml a
-    ROS 2 bag, one holding velodyne/ a KITTI sequence, otherwise by extension."""
+    ROS 2 bag, one holding velodyne/ a KITTI sequence, otherwise by extension (the one
+    before .gz or .bz2 for compressed files: x.log.gz is a CARMEN log, scan.bz2 points)."""
     path = Path(path)
     if is_bag(path):
         return "bag"
@@ -51,10 +53,15 @@ def guess_format(path: str | PathLike[str]) -> str:
         if (path / "poses.txt").exists():
             return "tum"
         raise FileReadError(path, "a folder is read as TUM depth frames and needs poses.txt")
-    fmt = _EXTENSIONS.get(path.suffix.lower())
+    suffix = uncompressed_suffix(path)
+    if path.suffix.lower() in COMPRESSED_SUFFIXES and suffix in ("", ".bag"):
+        if suffix == ".bag":
+            raise FileReadError(path, "a compressed bag is not read; decompress it first")
+        return "xyz"  # a compressed point file named without its own extension
+    fmt = _EXTENSIONS.get(suffix)
     if fmt is None:
         raise FileReadError(
-            path, f"unknown extension {path.suffix!r}; give a format, one of {', '.join(FORMATS)}"
+            path, f"unknown extension {suffix!r}; give a format, one of {', '.join(FORMATS)}"
         )
     return fmt
 

@@ -2,6 +2,7 @@
 can, the line or byte, and what was expected."""
 
 import bz2
+import gzip
 import re
 
 import numpy as np
@@ -33,6 +34,8 @@ def fails(path, message, **options):
         ("latin.xyz", b"1 2 3\n\xff\xfe\n", r"byte 6: not a text file"),
         ("garbage.dat.bz2", b"not bzip2 at all", "not a bzip2 stream"),
         ("truncated.dat.bz2", bz2.compress(b"1 2 3\n" * 100)[:-20], "truncated bzip2 stream"),
+        ("garbage.log.gz", b"not gzip at all", "not a gzip stream"),
+        ("truncated.log.gz", gzip.compress(b"FLASER 1 1 0 0 0\n" * 50)[:-12], "truncated gzip"),
         ("none.log", b"ODOM 0 0 0\nROBOTLASER1 x\n", "no FLASER lines: not a CARMEN log"),
         ("bad.log", b"FLASER 3 1 2\n", r"line 1: malformed FLASER line"),
         ("nan.log", b"FLASER 1 1.0 nan 0 0 0 0 0 0 h 0\n", r"line 1: malformed FLASER"),

@@ -1,5 +1,7 @@
 """CARMEN 2D laser logs."""
 
+import gzip
+
 import numpy as np
 
 from ehm.io.readers import read_scans
@@ -13,3 +15,15 @@ def test_carmen_log(tmp_path):
     np.testing.assert_allclose(scan.origin, [1, 2])
     np.testing.assert_allclose(scan.points_world[0], [1.0, 1.0], atol=1e-12)  # -90 degrees
     np.testing.assert_allclose(scan.points_world[1], [3.0, 2.0], atol=1e-12)  # 0 degrees
+
+
+def test_gzipped_carmen_log_reads_as_the_log(tmp_path):
+    # Public CARMEN logs are distributed as x.log.gz.
+    text = "".join(f"FLASER 3 1.0 2.0 3.0 {i} 0.5 0.1 0 0 0 host {i}\n" for i in range(4))
+    (tmp_path / "a.log").write_text(text)
+    (tmp_path / "a.log.gz").write_bytes(gzip.compress(text.encode()))
+    plain, packed = read_scans(tmp_path / "a.log"), read_scans(tmp_path / "a.log.gz")
+    assert len(packed) == len(plain) == 4
+    for a, b in zip(plain, packed, strict=True):
+        np.testing.assert_array_equal(a.points_world, b.points_world)
+        np.testing.assert_array_equal(a.origin, b.origin)

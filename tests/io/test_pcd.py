@@ -1,5 +1,6 @@
 """PCD point clouds."""
 
+import gzip
 import struct
 
 import numpy as np
@@ -28,7 +29,8 @@ def test_pcd_ascii_binary_and_compressed(tmp_path, cloud, lzf_compress):
         + struct.pack("<II", len(packed), len(field_major))
         + packed
     )
-    for name in ("a.pcd", "b.pcd", "c.pcd"):
+    (tmp_path / "b.pcd.gz").write_bytes(gzip.compress((tmp_path / "b.pcd").read_bytes()))
+    for name in ("a.pcd", "b.pcd", "c.pcd", "b.pcd.gz"):
         points, viewpoint = read_pcd(tmp_path / name)
         np.testing.assert_allclose(points, cloud, rtol=1e-6)
         np.testing.assert_array_equal(viewpoint, [1, 2, 3])

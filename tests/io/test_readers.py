@@ -8,6 +8,13 @@ from ehm.io.readers import guess_format, read_scans
 def test_format_guess_and_errors(tmp_path):
     assert guess_format("a.PCD") == "pcd"
     assert guess_format("scan.dat.bz2") == "xyz"
+    assert guess_format("scan.bz2") == "xyz"
+    assert guess_format("intel.log.gz") == "carmen"
+    assert guess_format("cloud.PCD.GZ") == "pcd"
+    with pytest.raises(ValueError, match="a compressed bag is not read; decompress it first"):
+        guess_format("old.bag.gz")
+    with pytest.raises(ValueError, match=r"unknown extension '\.abc'"):
+        guess_format("a.abc.gz")
     with pytest.raises(ValueError, match=r"unknown extension '\.abc'"):
         guess_format("a.abc")
     with pytest.raises(ValueError, match="no such file"):
