@@ -29,7 +29,7 @@ from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines import make_mapper
 from ehm.eval.metrics import f1_score
 from ehm.eval.protocol import held_out_rays
-from ehm.eval.runner import _warm_up
+from ehm.eval.runner import warm_up as warm_up_method
 
 DATASETS = (
     "octomap_scan",
@@ -78,7 +78,7 @@ def mapper_of(method: str, resolution: float, seed: int):
 def warm_up(method: str, dim: int) -> None:
     """Map a small scan once, untimed, so compiled code is ready."""
     if method != "wavemap":
-        _warm_up(method, dim)
+        warm_up_method(method, dim)
         return
     mapper = mapper_of(method, RESOLUTION, 0)
     if not isinstance(mapper, str):

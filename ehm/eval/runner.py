@@ -60,7 +60,7 @@ RECORD_KEYS = tuple(f.name for f in fields(EvalRecord))
 _warmed_up: set[tuple[str, int]] = set()
 
 
-def _warm_up(method: str, dim: int) -> None:
+def warm_up(method: str, dim: int) -> None:
     """Build and query `method` once on a tiny scan, untimed (compiles Numba kernels)."""
     if (method, dim) in _warmed_up:
         return
@@ -99,7 +99,7 @@ def evaluate_scans(
     `on_mapper(record, mapper)`, when given, sees each built mapper (for per-scan times)."""
     methods = method_names(list(methods))
     for method in methods:
-        _warm_up(method, scans[0].dim)
+        warm_up(method, scans[0].dim)
     for fraction in fractions:
         for seed in seeds:
             split = held_out_rays(scans, fraction, resolution, seed)

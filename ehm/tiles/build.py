@@ -17,8 +17,10 @@ whatever the scene's size.
 from __future__ import annotations
 
 import logging
+import multiprocessing
 import os
 import resource
+import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -43,6 +45,10 @@ if TYPE_CHECKING:
 # Scans each binning task reads.
 BIN_CHUNK = 16
 INSTALL_HINT = "building a tiled map needs dask.distributed: pip install 'ehm[tiles]'"
+MAIN_GUARD_HINT = (
+    "Dask starts its worker processes by spawning them, and each imports the script that "
+    'started the build: put the script\'s code under `if __name__ == "__main__":`'
+)
 
 
 @dataclass(frozen=True)
@@ -312,14 +318,28 @@ def dask_client(client: Any, workers: int | None) -> Iterator[Any]:
     n_workers = workers if workers is not None else os.cpu_count() or 1
     if not (isinstance(n_workers, int) and n_workers >= 1):
         raise InputError(f"workers must be an integer >= 1, got {workers!r}")
-    with (
-        LocalCluster(
+    if _importing_main_in_child():
+        raise InputError(
+            f"a tiled build started while a worker process imported the script. {MAIN_GUARD_HINT}"
+        )
+    try:
+        cluster = LocalCluster(
             n_workers=n_workers,
             threads_per_worker=1,
             processes=True,
             dashboard_address=":0",  # any free port: clusters side by side never clash
             silence_logs=logging.ERROR,
-        ) as cluster,
-        Client(cluster) as local,
-    ):
+        )
+    except RuntimeError as error:
+        if getattr(sys.modules.get("__main__"), "__file__", None) is None:
+            raise
+        raise InputError(f"Dask's workers failed to start ({error}). {MAIN_GUARD_HINT}") from error
+    with cluster, Client(cluster) as local:
         yield local
+
+
+def _importing_main_in_child() -> bool:
+    """True in a spawned process that is still importing the parent's main script: starting
+    a cluster there would start processes while Python bootstraps this one, which it refuses
+    (multiprocessing.spawn checks the same flag)."""
+    return bool(getattr(multiprocessing.current_process(), "_inheriting", False))

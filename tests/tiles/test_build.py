@@ -2,6 +2,7 @@
 by the workers from the scans' files, updated where new scans cross."""
 
 import os
+import subprocess
 import sys
 
 import numpy as np
@@ -182,3 +183,26 @@ def test_the_index_keeps_up_with_the_tiles_during_a_build(client, scans, tmp_pat
     assert seen and min(seen) > 0 and max(seen) < tiled.n_tiles
     assert seen == sorted(seen)
     assert ehm.load(folder).n_tiles == tiled.n_tiles
+
+
+def test_a_script_without_a_main_guard_is_told_to_add_one(tmp_path):
+    # Dask spawns its workers, and each imports the script: a build at the script's top level
+    # would run again there. Both the worker and the script name the cure.
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import numpy as np\n"
+        "import ehm\n"
+        "directions = np.random.default_rng(0).normal(size=(500, 3))\n"
+        "directions /= np.linalg.norm(directions, axis=1, keepdims=True)\n"
+        "scans = [ehm.Scan(3.0 * directions, np.zeros(3))]\n"
+        "ehm.TiledMap(20.0).build(scans, workers=1, directory='city.ehm')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode != 0
+    assert "bootstrapping phase" not in done.stderr
+    assert "a tiled build started while a worker process imported the script" in done.stderr
+    assert done.stderr.rstrip().endswith(
+        'put the script\'s code under `if __name__ == "__main__":`'
+    )
