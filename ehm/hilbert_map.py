@@ -32,15 +32,12 @@ from ehm.core.model.features import (
     group_neighbours,
     training_features,
 )
-from ehm.core.model.kernels import kernel_reach
 from ehm.core.model.logistic import sigmoid
 from ehm.core.observations.evidence import gather_evidence
 from ehm.core.observations.memory import EvidenceMemory
 from ehm.core.observations.samples import TrainingSamples
 from ehm.core.queries.gradient import logit_gradients
 from ehm.core.queries.raycast import (
-    CandidateCells,
-    GridLogOdds,
     checked_rays,
     first_crossings,
     log_odds_level,
@@ -60,14 +57,12 @@ from ehm.core.weights.uncertainty import add_curvature, logit_variance, occupanc
 from ehm.errors import EmptyMapError, InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
+from ehm.grid.ray_support import RaySupport
 from ehm.io.map_file import read_map, write_map
 
 # Side of the cells that tell rays where the occupancy may rise above the level, in cluster
 # radii (ehm.core.queries.raycast.CandidateCells).
 RAY_CELLS_PER_RADIUS = 4.0
-# The grid of log-odds rays march first: voxels of one cluster radius, at most this large
-# (a larger map's rays march the exact log-odds all the way).
-RAY_GRID_MAX_BYTES = 2**28
 
 
 class HilbertMap:
@@ -107,11 +102,10 @@ class HilbertMap:
         self._rng = np.random.default_rng(self.config.seed)
         # Snapshots carry this token, so grids tell a map that was refitted from one that grew.
         self._lineage = object()
-        # What rays march (raycast): a grid of the log-odds, and the cells where they can pass
-        # each level; made when first needed, dropped when the map learns.
-        self._ray_grid: GridLogOdds | None = None
-        self._ray_grid_made = False
-        self._ray_cells: dict[float, CandidateCells | None] = {}
+        # What rays march (raycast), made when first needed and kept up to date as it learns.
+        self._rays = RaySupport(
+            self.config.cluster_radius, RAY_CELLS_PER_RADIUS * self.config.cluster_radius
+        )
 
     # ------------------------------------------------------------------ state
     @property
@@ -169,10 +163,8 @@ class HilbertMap:
         memory = 0 if self.memory_ is None else self.memory_.nbytes
         learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
         search = self._supports if self.config.features == "support" else self._index
-        rays = 0 if self._ray_grid is None else self._ray_grid.values.nbytes
-        rays += sum(cells.keys.nbytes for cells in self._ray_cells.values() if cells is not None)
         path = sum(origin.nbytes for origin in self._origins)
-        return learned + search.nbytes + rays + path
+        return learned + search.nbytes + self._rays.nbytes + path
 
     def state(self) -> MapState:
         """Everything the map has learned and the scans waiting for their batch, as plain data
@@ -492,7 +484,7 @@ class HilbertMap:
         the grid's is found in the exact log-odds and located to cluster_radius / 10
         (ehm.core.queries.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it stops
         no ray at the default level."""
-        clusters = self._learned("cast rays through it")
+        self._learned("cast rays through it")
         origins, directions, max_range = checked_rays(origins, directions, max_range, self.dim)
         threshold = log_odds_level(level)
         mode = self._checked_mode(mode or self.config.query_mode)
@@ -502,7 +494,7 @@ class HilbertMap:
             return self._scores(points, mode, False)[0]
 
         distance = np.full(len(origins), np.nan)
-        ray_grid = self._ray_grid_of()
+        ray_grid = self._rays.grid(self.snapshot)
         if ray_grid is not None:
             guess = ray_grid.crossings(origins, directions, max_range, threshold, radius / 2.0)
             guided = np.flatnonzero(np.isfinite(guess))
@@ -520,15 +512,6 @@ class HilbertMap:
                 radius / 10.0,
             )
         rest = np.flatnonzero(np.isnan(distance))
-        if threshold not in self._ray_cells:
-            self._ray_cells[threshold] = CandidateCells.of_kernels(
-                clusters.means,
-                kernel_reach(clusters.transforms, clusters.planar_kernel),
-                clusters.weights,
-                self._query_intercept(),
-                threshold,
-                RAY_CELLS_PER_RADIUS * radius,
-            )
         distance[rest] = first_crossings(
             log_odds,
             origins[rest],
@@ -537,24 +520,9 @@ class HilbertMap:
             threshold,
             radius / 2.0,
             radius / 10.0,
-            self._ray_cells[threshold],
+            self._rays.cells(self.snapshot, threshold),
         )
         return distance
-
-    def _ray_grid_of(self) -> GridLogOdds | None:
-        """The map's log-odds on a grid of cluster_radius voxels that rays march first (made
-        once, kept until the map learns), or None where that grid would pass
-        RAY_GRID_MAX_BYTES."""
-        if not self._ray_grid_made:
-            self._ray_grid_made = True
-            resolution = self.config.cluster_radius
-            try:
-                grid = OccupancyGrid.of(self.snapshot(), None, resolution, RAY_GRID_MAX_BYTES)
-            except InputError:
-                return None
-            values = np.ascontiguousarray(grid.scores + grid.intercept)
-            self._ray_grid = GridLogOdds(values, grid.origin, grid.resolution)
-        return self._ray_grid
 
     def segment_free(
         self, starts: np.ndarray, ends: np.ndarray, level: float = 0.5, mode: str | None = None
@@ -664,15 +632,15 @@ class HilbertMap:
         return grid
 
     def _update_followers(self) -> None:
-        """Bring every following grid up to date, timed as the stage 'grids'; drop the grid
-        rays march, now out of date."""
-        self._ray_grid, self._ray_grid_made = None, False
-        self._ray_cells = {}
-        if len(self._followers) == 0:
+        """Bring every following grid and what rays march up to date, timed as the stage
+        'grids'."""
+        if len(self._followers) == 0 and not self._rays.keeps_grid:
+            self._rays.update(None)
             return
         timer = StageTimer()
         with timer("grids"):
             snapshot = self.snapshot()
+            self._rays.update(snapshot)
             for grid in self._followers:
                 grid.update(snapshot)
         self.timings_.update(timer.seconds)

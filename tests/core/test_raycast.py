@@ -144,8 +144,8 @@ def test_guesses_are_refined_or_refused():
 
 
 def test_rays_see_what_the_map_learns_after_their_first_cast():
-    """The grid rays march first is dropped when the map learns: a wall learned later stops
-    the same ray sooner."""
+    """The grid rays march first follows the map as it learns: a wall learned later stops the
+    same ray sooner."""
     angles = np.linspace(-0.6, 0.6, 400)
     directions = np.column_stack([np.cos(angles), np.sin(angles)])
 
@@ -158,3 +158,29 @@ def test_rays_see_what_the_map_learns_after_their_first_cast():
     hilbert_map.integrate(wall_scan(2.0), np.zeros(2))
     second = hilbert_map.raycast(np.zeros(2), np.array([[1.0, 0.0]]), 10.0)[0]
     assert abs(second - 2.0) < 0.1
+
+
+def test_the_ray_grid_follows_updates_as_a_fresh_one_would(rng):
+    """After the map learns, rays march a grid brought up to date where clusters changed (the
+    stage 'grids'), and find what rays of the same map with a grid made anew find; a map that
+    grows beyond its grid has it made again."""
+    angles = np.linspace(-1.2, 1.2, 600)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+    hilbert_map = ehm.HilbertMap(batch_rays=0)
+    hilbert_map.integrate(directions * 4.0, np.zeros(2))
+    origins = rng.uniform(-0.5, 0.5, (300, 2))
+    rays = unit_rows(rng, 300, 2)
+    hilbert_map.raycast(origins, rays, 10.0)  # makes the grid
+    for radius, origin in ((3.0, [0.5, 0.0]), (9.0, [0.0, 0.0])):  # inside it, then beyond
+        hilbert_map.integrate(directions * radius + origin, np.array(origin))
+        assert "grids" in hilbert_map.timings_
+        kept = hilbert_map.raycast(origins, rays, 10.0)
+        fresh = ehm.HilbertMap.from_state(hilbert_map.state()).raycast(origins, rays, 10.0)
+        assert np.isfinite(kept).sum() > 100
+        # The grids differ by rounding only; a ray whose guess lands across a voxel from the
+        # other's is still located to raycast's tolerance, cluster_radius / 10.
+        np.testing.assert_array_equal(np.isfinite(kept), np.isfinite(fresh))
+        finite = np.isfinite(kept)
+        tolerance = hilbert_map.config.cluster_radius / 10
+        np.testing.assert_allclose(kept[finite], fresh[finite], rtol=0, atol=tolerance)
+        assert np.mean(np.abs(kept[finite] - fresh[finite]) < 1e-9) > 0.98
