@@ -480,10 +480,11 @@ class HilbertMap:
         above `level`; inf where none does within `max_range`. origins: (n, d) or one (d,)
         point, metres, world frame; directions: (n, d), any length but 0; max_range: metres,
         one for all rays or (n,). Rays march cluster_radius / 2 apart through a grid of the
-        log-odds (made on the first call, kept until the map learns), and the crossing near
-        the grid's is found in the exact log-odds and located to cluster_radius / 10
-        (ehm.core.queries.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it stops
-        no ray at the default level."""
+        log-odds (made on the first call, then kept up to date as the map learns, in each
+        update's stage 'grids': ehm.grid.ray_support), and the crossing near the grid's is
+        found in the exact log-odds and located to cluster_radius / 10
+        (ehm.core.queries.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it
+        stops no ray at the default level."""
         self._learned("cast rays through it")
         origins, directions, max_range = checked_rays(origins, directions, max_range, self.dim)
         threshold = log_odds_level(level)
@@ -634,7 +635,7 @@ class HilbertMap:
     def _update_followers(self) -> None:
         """Bring every following grid and what rays march up to date, timed as the stage
         'grids'."""
-        if len(self._followers) == 0 and not self._rays.keeps_grid:
+        if len(self._followers) == 0 and not self._rays.follows:
             self._rays.update(None)
             return
         timer = StageTimer()

@@ -203,22 +203,8 @@ class OccupancyGrid:
         old = self._snapshot
         if old is None or old.lineage is not snapshot.lineage:
             return self._rebuild(snapshot, lattice, everything)
-        n_old, n_new = len(old), len(snapshot)
-        n_both = min(n_old, n_new)
-        # Rows present before and now that differ, rows only before (clusters merged away)
-        # and rows only now (new clusters).
-        differs = (
-            (snapshot.weights[:n_both] != old.weights[:n_both])
-            | np.any(snapshot.means[:n_both] != old.means[:n_both], axis=1)
-            | np.any(snapshot.transforms[:n_both] != old.transforms[:n_both], axis=(1, 2))
-            | (snapshot.planar_kernel[:n_both] != old.planar_kernel[:n_both])
-        )
-        if with_std:
-            differs |= snapshot.precision[:n_both] != old.precision[:n_both]
-        changed = np.flatnonzero(differs)
-        removed_rows = np.concatenate([changed, np.arange(n_both, n_old)])
+        removed_rows, added_rows = snapshot.changes_from(old, with_std)
         removed = LocalGrids.of(old, removed_rows, lattice, -1.0, with_std)
-        added_rows = np.concatenate([changed, np.arange(n_both, n_new)])
         added = LocalGrids.of(snapshot, added_rows, lattice, 1.0, with_std)
         voxels = removed.voxels + added.voxels
         if voxels >= everything.voxels:

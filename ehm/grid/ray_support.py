@@ -1,13 +1,14 @@
 """What rays march through (ehm.core.queries.raycast), kept with a map as it learns.
 
 Two structures serve `raycast` and `segment_free`: the map's log-odds on a grid of voxels of
-about a cluster radius, which rays march first, and per level the cells where a kernel could
-lift the occupancy above it, which guide the rays the grid does not settle. The grid is made on
-the first cast and then follows the map: after each update only the voxels of clusters that
-changed are recomputed (OccupancyGrid.update), so a planner that casts rays right after the map
-learned pays what it pays with the grid kept. It is made again on the next cast when the map
-grew beyond it, or when it was too large to keep. The cells are made again on the next cast
-after an update: they are cheap, and only rays the grid does not settle read them.
+about a cluster radius, which rays march first, and the cells kernels of positive weight
+reach with their summed weight (ehm.core.queries.cover), from which the cells where the
+occupancy may pass a level guide the rays the grid does not settle. Both are made on the first
+cast and then follow the map: after each update only what clusters that changed cover is
+counted again (OccupancyGrid.update, KernelCover.changed), so a planner that casts rays right
+after the map learned pays what it pays with them kept. The grid reaches somewhat beyond the
+map; a map that grows beyond that has it made again as it learns, and a grid too large to keep
+is tried again at the next cast after an update.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ehm.core.model.kernels import kernel_reach
+from ehm.core.queries.cover import KernelCover
 from ehm.core.queries.raycast import CandidateCells, GridLogOdds
 from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError
@@ -25,6 +27,9 @@ from ehm.grid.occupancy_grid import OccupancyGrid
 
 # The grid rays march is left out for maps whose grid would take more than this many bytes.
 RAY_GRID_MAX_BYTES = 2**28
+# The grid reaches this share of the map's extent beyond it on each side, so that a map that
+# grows a little keeps its grid; one that grows more has it made again as it learns.
+GRID_SLACK = 0.1
 
 
 class RaySupport:
@@ -37,6 +42,8 @@ class RaySupport:
         self._grid: OccupancyGrid | None = None
         self._log_odds: GridLogOdds | None = None
         self._grid_tried = False  # a grid too large to keep is not tried again until an update
+        self._cover: KernelCover | None = None
+        self._covered: MapSnapshot | None = None  # the snapshot the cover counts
         self._cells: dict[float, CandidateCells | None] = {}
 
     def grid(self, snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
@@ -45,53 +52,86 @@ class RaySupport:
         RAY_GRID_MAX_BYTES."""
         if self._log_odds is None and not self._grid_tried:
             self._grid_tried = True
-            try:
-                self._grid = OccupancyGrid.of(snapshot(), None, self.resolution, RAY_GRID_MAX_BYTES)
-            except InputError:
-                return None
-            self._log_odds = GridLogOdds(
-                self._grid.scores + self._grid.intercept, self._grid.origin, self.resolution
-            )
+            self._make_grid(snapshot())
         return self._log_odds
+
+    def _make_grid(self, snapshot: MapSnapshot) -> None:
+        """The grid of `snapshot` over its kernels' supports and GRID_SLACK of their extent
+        more on each side, or none when it would take over RAY_GRID_MAX_BYTES."""
+        reach = support_bounds(snapshot)
+        slack = np.maximum(GRID_SLACK * (reach[1] - reach[0]), 2 * self.resolution)
+        bounds = reach + np.stack([-slack, slack])
+        try:
+            self._grid = OccupancyGrid.of(snapshot, bounds, self.resolution, RAY_GRID_MAX_BYTES)
+        except InputError:
+            self._grid = self._log_odds = None
+            return
+        self._log_odds = GridLogOdds(
+            self._grid.scores + self._grid.intercept, self._grid.origin, self.resolution
+        )
 
     def cells(self, snapshot: Callable[[], MapSnapshot], threshold: float) -> CandidateCells | None:
         """The cells where the map's kernels could lift the log-odds above `threshold` (None:
-        every cell can), made from its `snapshot()` on the first call for that threshold."""
+        every cell can), from the cover of its `snapshot()`, made on the first call."""
         if threshold not in self._cells:
-            kernels = snapshot()
-            self._cells[threshold] = CandidateCells.of_kernels(
-                kernels.means,
-                kernel_reach(kernels.transforms, kernels.planar_kernel),
-                kernels.weights,
-                kernels.intercept,
-                threshold,
-                self.cell_side,
-            )
+            if self._cover is None:
+                self._covered = kernels = snapshot()
+                reach = kernel_reach(kernels.transforms, kernels.planar_kernel)
+                self._cover = KernelCover.of_kernels(
+                    kernels.means, reach, kernels.weights, self.cell_side
+                )
+            intercept = self._covered.intercept
+            self._cells[threshold] = CandidateCells.of_cover(self._cover, intercept, threshold)
         return self._cells[threshold]
 
     @property
-    def keeps_grid(self) -> bool:
-        """A grid is kept, to follow the map's updates."""
-        return self._grid is not None
+    def follows(self) -> bool:
+        """A grid or a cover is kept, to follow the map's updates."""
+        return self._grid is not None or self._cover is not None
 
     def update(self, snapshot: MapSnapshot | None) -> None:
-        """Follow the map after it learned, to `snapshot` (None when no grid is kept): the
-        grid's voxels of clusters that changed are recomputed, or the grid is dropped when the
-        map now reaches beyond it; the cells are dropped."""
+        """Follow the map after it learned, to `snapshot` (None when nothing follows): the
+        grid's voxels and the cover's cells of clusters that changed are counted again, or
+        the grid is made again when the map now reaches beyond it."""
         self._cells = {}
         self._grid_tried = False
-        if self._grid is None or snapshot is None:
+        if snapshot is None:
+            return
+        if self._cover is not None:
+            self._cover = self._cover_update(snapshot)
+            self._covered = snapshot
+        if self._grid is None:
             return
         reach, kept = support_bounds(snapshot), self._grid.bounds
         if np.any(reach[0] < kept[0]) or np.any(reach[1] > kept[1]):
-            self._grid = self._log_odds = None
+            self._make_grid(snapshot)  # the map grew beyond the grid's slack
             return
         self._grid.update(snapshot)
         np.add(self._grid.scores, self._grid.intercept, out=self._log_odds.values)
 
+    def _cover_update(self, snapshot: MapSnapshot) -> KernelCover | None:
+        """The cover followed to `snapshot`: out with the kernels that changed or are gone,
+        in with those that changed or are new; None (made again when needed) after a refit."""
+        old = self._covered
+        if old is None or old.lineage is not snapshot.lineage:
+            return None
+        removed, added = snapshot.changes_from(old)
+        return self._cover.changed(_kernels(old, removed), _kernels(snapshot, added))
+
     @property
     def nbytes(self) -> int:
-        """Bytes kept: the grid (with the snapshot it follows) and its log-odds, and the
-        cells' keys."""
+        """Bytes kept: the grid (with the snapshot it follows) and its log-odds, the cover
+        and the cells' keys."""
         total = 0 if self._grid is None else self._grid.nbytes + self._log_odds.values.nbytes
+        if self._cover is not None:
+            kept = self._covered
+            total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
+            total += kept.means.nbytes + kept.transforms.nbytes + kept.weights.nbytes
         return total + sum(cells.keys.nbytes for cells in self._cells.values() if cells is not None)
+
+
+def _kernels(snapshot: MapSnapshot, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(means, reach, weights) of the kernels of `snapshot` at `rows`, as KernelCover takes
+    them."""
+    reach = kernel_reach(snapshot.transforms[rows], snapshot.planar_kernel[rows])
+    return snapshot.means[rows], reach, snapshot.weights[rows]

@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ehm.core.queries.cover import KernelCover, pack_cells, unpack_cells
 from ehm.errors import InputError
 
 # Points of every running ray evaluated in one call of the log-odds.
@@ -247,25 +248,26 @@ class CandidateCells:
     ) -> CandidateCells | None:
         """From kernel centres (M, d), metres, their reach (M,), metres, and weights (M,):
         None when every cell is a candidate (intercept above the threshold)."""
+        return cls.of_cover(
+            KernelCover.of_kernels(means, reach, weights, side), intercept, threshold
+        )
+
+    @classmethod
+    def of_cover(
+        cls, cover: KernelCover, intercept: float, threshold: float
+    ) -> CandidateCells | None:
+        """The cells of `cover` whose summed weight, with the intercept, is above the
+        threshold; None when every cell is a candidate (intercept above the threshold)."""
         if intercept > threshold:
             return None
-        d = means.shape[1]
-        bits = 63 // d
-        positive = weights > 0
-        low = np.floor((means[positive] - reach[positive, None]) / side).astype(np.int64)
-        high = np.floor((means[positive] + reach[positive, None]) / side).astype(np.int64)
-        cells, owners = _covered_cells(low, high)
-        half = 2 ** (bits - 1)
-        if len(cells) and (cells.min() < -half or cells.max() >= half):
-            cells, owners = cells[:0], owners[:0]  # beyond the keys' reach: no skipping there
-        keys = _pack(cells, bits)
-        unique, inverse = np.unique(keys, return_inverse=True)
-        bound = intercept + np.bincount(inverse, weights[positive][owners], len(unique))
-        kept = unique[bound > threshold]
+        kept = cover.keys[intercept + cover.sums > threshold]
+        d = 63 // cover.bits
         if len(kept) == 0:
-            return cls(side, bits, kept, np.zeros(d, np.int64), np.full(d, -1, np.int64))
-        coordinates = _unpack(kept, bits, d)
-        return cls(side, bits, kept, coordinates.min(axis=0), coordinates.max(axis=0))
+            return cls(
+                cover.side, cover.bits, kept, np.zeros(d, np.int64), np.full(d, -1, np.int64)
+            )
+        coordinates = unpack_cells(kept, cover.bits, d)
+        return cls(cover.side, cover.bits, kept, coordinates.min(axis=0), coordinates.max(axis=0))
 
     def next_run(
         self, origins: np.ndarray, directions: np.ndarray, start: np.ndarray, stop: np.ndarray
@@ -284,32 +286,6 @@ class CandidateCells:
             self.low,
             self.high,
         )
-
-
-def _covered_cells(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every cell of each box [low[m], high[m]] (inclusive, (M, d) int64) and its box."""
-    d = low.shape[1]
-    extent = high - low + 1
-    counts = np.prod(extent, axis=1)
-    owners = np.repeat(np.arange(len(low)), counts)
-    rank = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    cells = np.empty((len(owners), d), dtype=np.int64)
-    for axis in range(d):
-        cells[:, axis] = low[owners, axis] + rank % extent[owners, axis]
-        rank //= extent[owners, axis]
-    return cells, owners
-
-
-def _pack(cells: np.ndarray, bits: int) -> np.ndarray:
-    keys = np.zeros(len(cells), dtype=np.int64)
-    for axis in range(cells.shape[1]):
-        keys |= (cells[:, axis] + (1 << (bits - 1))) << (bits * axis)
-    return keys
-
-
-def _unpack(keys: np.ndarray, bits: int, d: int) -> np.ndarray:
-    mask = (1 << bits) - 1
-    return np.column_stack([((keys >> (bits * a)) & mask) - (1 << (bits - 1)) for a in range(d)])
 
 
 @numba.njit(cache=True, inline="always")
@@ -399,7 +375,7 @@ def next_run_reference(
         cell = np.floor((origins[i] + directions[i] * t[:, None]) / cells.side).astype(np.int64)
         inside = np.all((cell >= cells.low) & (cell <= cells.high), axis=1)
         candidate = inside & np.isin(
-            _pack(np.where(inside[:, None], cell, 0), cells.bits), cells.keys
+            pack_cells(np.where(inside[:, None], cell, 0), cells.bits), cells.keys
         )
         if candidate.any():
             first = int(np.argmax(candidate))
