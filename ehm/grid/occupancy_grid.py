@@ -134,13 +134,6 @@ class OccupancyGrid:
         return self.scores.ndim
 
     @property
-    def nbytes(self) -> int:
-        """Bytes the grid keeps: its fields, and the snapshot it follows updates from."""
-        kept = self._snapshot
-        arrays = () if kept is None else (kept.means, kept.transforms, kept.weights, kept.precision)
-        return self._fields.nbytes + sum(array.nbytes for array in arrays)
-
-    @property
     def bounds(self) -> np.ndarray:
         """(2, d) metres: low and high corner of the grid."""
         return np.stack([self.origin, self.origin + np.array(self.shape) * self.resolution])

@@ -43,7 +43,7 @@ class RaySupport:
         self._log_odds: GridLogOdds | None = None
         self._grid_tried = False  # a grid too large to keep is not tried again until an update
         self._cover: KernelCover | None = None
-        self._covered: MapSnapshot | None = None  # the snapshot the cover counts
+        self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
 
     def grid(self, snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
@@ -52,8 +52,15 @@ class RaySupport:
         RAY_GRID_MAX_BYTES."""
         if self._log_odds is None and not self._grid_tried:
             self._grid_tried = True
-            self._make_grid(snapshot())
+            self._make_grid(self._kernels_of(snapshot))
         return self._log_odds
+
+    def _kernels_of(self, snapshot: Callable[[], MapSnapshot]) -> MapSnapshot:
+        """The map's kernels since its last update: taken once, shared by the grid and the
+        cover."""
+        if self._kernels is None:
+            self._kernels = snapshot()
+        return self._kernels
 
     def _make_grid(self, snapshot: MapSnapshot) -> None:
         """The grid of `snapshot` over its kernels' supports and GRID_SLACK of their extent
@@ -74,14 +81,15 @@ class RaySupport:
         """The cells where the map's kernels could lift the log-odds above `threshold` (None:
         every cell can), from the cover of its `snapshot()`, made on the first call."""
         if threshold not in self._cells:
+            kernels = self._kernels_of(snapshot)
             if self._cover is None:
-                self._covered = kernels = snapshot()
                 reach = kernel_reach(kernels.transforms, kernels.planar_kernel)
                 self._cover = KernelCover.of_kernels(
                     kernels.means, reach, kernels.weights, self.cell_side
                 )
-            intercept = self._covered.intercept
-            self._cells[threshold] = CandidateCells.of_cover(self._cover, intercept, threshold)
+            self._cells[threshold] = CandidateCells.of_cover(
+                self._cover, kernels.intercept, threshold
+            )
         return self._cells[threshold]
 
     @property
@@ -95,11 +103,11 @@ class RaySupport:
         the grid is made again when the map now reaches beyond it."""
         self._cells = {}
         self._grid_tried = False
+        old, self._kernels = self._kernels, snapshot
         if snapshot is None:
             return
         if self._cover is not None:
-            self._cover = self._cover_update(snapshot)
-            self._covered = snapshot
+            self._cover = self._cover_update(old, snapshot)
         if self._grid is None:
             return
         reach, kept = support_bounds(snapshot), self._grid.bounds
@@ -109,10 +117,10 @@ class RaySupport:
         self._grid.update(snapshot)
         np.add(self._grid.scores, self._grid.intercept, out=self._log_odds.values)
 
-    def _cover_update(self, snapshot: MapSnapshot) -> KernelCover | None:
-        """The cover followed to `snapshot`: out with the kernels that changed or are gone,
-        in with those that changed or are new; None (made again when needed) after a refit."""
-        old = self._covered
+    def _cover_update(self, old: MapSnapshot | None, snapshot: MapSnapshot) -> KernelCover | None:
+        """The cover followed from `old` to `snapshot`: out with the kernels that changed or
+        are gone, in with those that changed or are new; None (made again when needed) after a
+        refit."""
         if old is None or old.lineage is not snapshot.lineage:
             return None
         removed, added = snapshot.changes_from(old)
@@ -120,13 +128,17 @@ class RaySupport:
 
     @property
     def nbytes(self) -> int:
-        """Bytes kept: the grid (with the snapshot it follows) and its log-odds, the cover
+        """Bytes kept: the map's kernels they count, the grid's fields and log-odds, the cover
         and the cells' keys."""
-        total = 0 if self._grid is None else self._grid.nbytes + self._log_odds.values.nbytes
+        total = 0
+        if self._kernels is not None and self.follows:
+            kept = self._kernels
+            arrays = (kept.means, kept.transforms, kept.weights, kept.precision)
+            total += sum(array.nbytes for array in arrays)
+        if self._grid is not None:
+            total += self._grid.scores.nbytes + self._log_odds.values.nbytes
         if self._cover is not None:
-            kept = self._covered
             total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
-            total += kept.means.nbytes + kept.transforms.nbytes + kept.weights.nbytes
         return total + sum(cells.keys.nbytes for cells in self._cells.values() if cells is not None)
 
 
