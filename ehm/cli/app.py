@@ -1,0 +1,200 @@
+"""The `ehm` command group and what its commands share: errors turned into one line, the
+consoles, option types, and parsing of settings, boxes and lists."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+from typer.core import TyperGroup
+
+from ehm.errors import EhmError, InputError
+
+
+class _Commands(TyperGroup):
+    """The command group: turns ehm's errors into one line on stderr (see the module)."""
+
+    def invoke(self, ctx: Any) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (EhmError, ImportError) as error:
+            # An ImportError is a mistake only where an optional part is missing (its message
+            # names the extra to install); any other is a bug.
+            optional = isinstance(error, ImportError) and "pip install 'ehm[" in str(error)
+            if ctx.params.get("debug") or not (isinstance(error, EhmError) or optional):
+                raise
+            errors.print(f"[red]error:[/red] {escape(str(error))}")
+            raise typer.Exit(2) from None
+        except Exception as error:
+            # Exceptions that carry an exit status are typer's own ways out; a closed pipe
+            # (`ehm query ... | head`) typer ends quietly.
+            if (
+                ctx.params.get("debug")
+                or hasattr(error, "exit_code")
+                or isinstance(error, typer.Abort | BrokenPipeError)
+            ):
+                raise
+            errors.print(
+                f"[red]error:[/red] {escape(type(error).__name__)}: {escape(str(error))}\n"
+                "This is a bug in ehm; `ehm --debug ...` shows where it happened."
+            )
+            raise typer.Exit(1) from None
+
+
+app = typer.Typer(
+    cls=_Commands,
+    help="Efficient Hilbert Maps: continuous occupancy maps from range scans.",
+    no_args_is_help=True,
+    rich_markup_mode="rich",
+)
+
+
+console = Console()
+
+
+errors = Console(stderr=True, soft_wrap=True)  # one line an error, however long
+
+
+@app.callback()
+def _options(
+    debug: Annotated[
+        bool, typer.Option("--debug", help="Show the Python traceback of any error.")
+    ] = False,
+) -> None:
+    """Efficient Hilbert Maps: continuous occupancy maps from range scans."""
+
+
+Resolution = Annotated[float, typer.Option(help="Voxel side of the grid, metres.")]
+
+
+Bounds = Annotated[
+    str | None,
+    typer.Option(
+        help="Grid box 'x0,y0,z0,x1,y1,z1' (2D: 'x0,y0,x1,y1'), metres; default: all of the map."
+    ),
+]
+
+
+MaxGiB = Annotated[float, typer.Option(help="Refuse grids larger than this, GiB.")]
+
+
+Level = Annotated[float, typer.Option(help="Occupancy probability of the surface.")]
+
+
+Force = Annotated[bool, typer.Option("--force", help="Overwrite output files that exist.")]
+
+
+def parse_settings(settings: list[str]) -> dict:
+    """`name=value` pairs into MapConfig overrides, values typed like the defaults."""
+    from ehm.config import MapConfig
+
+    defaults = MapConfig().to_dict()
+    overrides = {}
+    for item in settings:
+        name, sep, value = item.partition("=")
+        if not sep or name not in defaults:
+            raise InputError(f"--set {item!r}: expected name=value with a MapConfig name")
+        kind = type(defaults[name])
+        if kind is bool:
+            words = {"1": True, "true": True, "yes": True, "on": True}
+            words |= {"0": False, "false": False, "no": False, "off": False}
+            if value.lower() not in words:
+                raise InputError(f"--set {item!r}: {name} is true or false, got {value!r}")
+            overrides[name] = words[value.lower()]
+        else:
+            try:
+                overrides[name] = kind(value)
+            except ValueError as error:
+                raise InputError(
+                    f"--set {item!r}: {name} is a{'n' if kind is int else ''} {kind.__name__}, "
+                    f"got {value!r}"
+                ) from error
+    return overrides
+
+
+def load_map(path: Path):
+    """The map at `path`, a file or a tiled map's directory (ehm.load)."""
+    from ehm.maps import load
+
+    return load(path)
+
+
+def parse_box(hilbert_map, bounds: str | None):
+    """(2, d) float64 bounds from 'x0,y0,..' text, or None."""
+    import numpy as np
+
+    if bounds is None:
+        return None
+    box = np.array(parse_numbers(bounds, float, "--bounds"))
+    if len(box) != 2 * hilbert_map.dim:
+        raise InputError(
+            f"--bounds: {2 * hilbert_map.dim} numbers for a {hilbert_map.dim}D map, got {len(box)}"
+        )
+    return box.reshape(2, hilbert_map.dim)
+
+
+def map_grid(hilbert_map, box, resolution: float, max_gib: float, std: bool = False):
+    """The map's grid over `box` ((2, d) or None: all of the map), with the std when asked."""
+    if not 0 < max_gib < math.inf:
+        raise InputError(f"--max-gib must be a positive number, got {max_gib}")
+    return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30), std=std)
+
+
+def progress_bar():
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    return Progress(
+        "[progress.description]{task.description}",
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+    )
+
+
+def timings_table(title: str, seconds: dict[str, float]) -> Table:
+    table = Table(title=title)
+    table.add_column("stage")
+    table.add_column("time (ms)", justify="right")
+    for stage, value in seconds.items():
+        table.add_row(stage, f"{1000 * value:.1f}")
+    table.add_row("[bold]total", f"[bold]{1000 * sum(seconds.values()):.1f}")
+    return table
+
+
+def parse_names(text: str, known: list[str], what: str) -> list[str]:
+    """Comma-separated names; 'all' stands for every known one."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if names == ["all"]:
+        return list(known)
+    if not names:
+        raise InputError(f"no {what} given")
+    return names
+
+
+def parse_numbers(text: str, kind: type, what: str) -> list:
+    """Comma-separated finite numbers of `kind`; InputError naming `what` and the text."""
+    try:
+        values = [kind(v) for v in text.split(",") if v.strip()]
+    except ValueError as error:
+        raise InputError(f"{what}: {error}") from error
+    if not all(math.isfinite(v) for v in values):
+        raise InputError(f"{what}: expected finite numbers, got {text!r}")
+    return values
+
+
+def serve_until_stopped(server, what: str) -> None:
+    """Keep a viewer's server running until Ctrl-C."""
+
+    console.print(f"showing {what} (Ctrl-C stops)")
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        server.stop()

@@ -1,0 +1,107 @@
+"""`ehm view` and `ehm info`: a map in the browser, and what a map file holds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from ehm.cli.app import (
+    app,
+    console,
+    load_map,
+    serve_until_stopped,
+)
+from ehm.errors import EmptyMapError, InputError
+
+
+@app.command()
+def view(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    port: Annotated[int, typer.Option(help="Port of the web page.")] = 8080,
+    host: Annotated[
+        str, typer.Option(help="Address to serve on (0.0.0.0: every interface).")
+    ] = "127.0.0.1",
+    resolution: Annotated[float, typer.Option(help="Voxel side of the surface, metres.")] = 0.1,
+) -> None:
+    """Look at a map in the browser (pip install 'ehm[viewer]'): its surface at an occupancy
+    level coloured by height or uncertainty, a slice of the occupancy, the samples it keeps,
+    the sensor path. Ctrl-C stops the server."""
+    from ehm.viz.viewer import MapViewer, viser_module
+
+    if not 0 < port < 65536:
+        raise InputError(f"--port must be 1 to 65535, got {port}")
+    viser_module()
+    hilbert_map = load_map(map_path)
+    viewer = MapViewer(hilbert_map, resolution, port, host)
+    serve_until_stopped(viewer.server, f"{map_path} at {viewer.url}")
+
+
+@app.command()
+def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
+    """What a map file holds."""
+    import numpy as np
+
+    hilbert_map = load_map(map_path)
+    table = Table(title=str(map_path))
+    table.add_column("property")
+    table.add_column("value")
+    if map_path.is_dir():
+        _tiled_map_rows(table, hilbert_map)
+        console.print(table)
+        return
+    table.add_row("dimensions", str(hilbert_map.dim))
+    table.add_row("clusters", str(hilbert_map.n_clusters))
+    table.add_row("scans", str(hilbert_map.n_scans_))
+    path = hilbert_map.sensor_path
+    length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) else 0.0
+    table.add_row("sensor path", f"{len(path)} poses, {length:.2f} m long")
+    table.add_row("memory", f"{hilbert_map.memory_bytes() / 1e6:.3f} MB")
+    memory = hilbert_map.memory_
+    table.add_row("past evidence kept", f"{len(memory)} cells, {memory.weight.sum():.0f} samples")
+    table.add_row("file size", f"{map_path.stat().st_size / 1e6:.3f} MB")
+    means = hilbert_map.clusters_.means
+    if len(means):
+        low, high = means.min(axis=0).round(2).tolist(), means.max(axis=0).round(2).tolist()
+        table.add_row("cluster extent (m)", f"{low} .. {high}")
+    else:
+        table.add_row("cluster extent (m)", "none: the map is empty, every point reads 0.5")
+    for name, value in hilbert_map.config.to_dict().items():
+        table.add_row(f"config.{name}", repr(value))
+    console.print(table)
+
+
+def _tiled_map_rows(table: Table, tiled_map) -> None:
+    """`ehm info` of a tiled map: read from its index alone, no tile loaded."""
+    import numpy as np
+
+    records = [tiled_map.tile_record(key) for key in tiled_map.tile_keys]
+    sizes = np.array([record.n_bytes for record in records])
+    table.add_row("kind", "tiled map (a folder of tile maps and index.json)")
+    table.add_row("dimensions", str(tiled_map.dim))
+    table.add_row(
+        "tiles",
+        f"{len(records)} of {tiled_map.tile_size:g} m, learning {tiled_map.overlap:g} m past "
+        "their borders",
+    )
+    table.add_row("scans", str(tiled_map.n_scans_))
+    path = tiled_map.sensor_path
+    length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) else 0.0
+    table.add_row("sensor path", f"{len(path)} poses, {length:.2f} m long")
+    table.add_row("clusters", f"{sum(record.n_clusters for record in records)} in all tiles")
+    table.add_row(
+        "tile files",
+        f"{sizes.sum() / 1e6:.3f} MB: {sizes.min() / 1e6:.3f} to {sizes.max() / 1e6:.3f} MB "
+        f"each, median {np.median(sizes) / 1e6:.3f}",
+    )
+    versions = [record.version for record in records]
+    table.add_row("tile versions", f"{min(versions)} to {max(versions)}")
+    try:
+        low, high = tiled_map.extent().round(2).tolist()
+        table.add_row("cluster extent (m)", f"{low} .. {high}")
+    except EmptyMapError:
+        table.add_row("cluster extent (m)", "none: the map is empty, every point reads 0.5")
+    for name, value in tiled_map.config.to_dict().items():
+        table.add_row(f"config.{name}", repr(value))

@@ -1,0 +1,286 @@
+"""`ehm demo` and `ehm map`: maps from simulated scans and from files, one map or tiles."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from ehm.cli.app import (
+    Force,
+    app,
+    console,
+    errors,
+    load_map,
+    parse_numbers,
+    parse_settings,
+    serve_until_stopped,
+    timings_table,
+)
+from ehm.errors import InputError
+
+# Kernels ready after this many seconds or more were compiled, not loaded from the cache.
+COMPILED_SECONDS = 10.0
+
+
+def _prepare_kernels() -> None:
+    """Compile the map's kernels (the first run after install: about a minute) or load them
+    from Numba's cache (a second or two), on a tiny scan, saying which, so that the timings
+    shown next are the algorithm's."""
+    from ehm.eval.runner import warm_up
+
+    start = time.perf_counter()
+    with console.status("preparing the compiled kernels (a minute on the first run after install)"):
+        warm_up("ehm", 3)
+    seconds = time.perf_counter() - start
+    if seconds >= COMPILED_SECONDS:
+        console.print(
+            f"compiled the kernels in {seconds:.0f} s, once: later runs load them from the cache"
+        )
+    else:
+        console.print(f"loaded the compiled kernels in {seconds:.1f} s")
+
+
+@app.command()
+def demo(
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Folder for the map and pictures.")
+    ] = Path("ehm_demo"),
+    seed: Annotated[int, typer.Option(help="Seed of the simulation and the map.")] = 0,
+) -> None:
+    """Simulate the virtual room, map it, score the map against the exact occupancy, and write
+    the map, occupancy slices, a mesh (PLY) and a picture of the mesh (over the demo's own
+    files from an earlier run)."""
+    from ehm.eval.demo import run_demo
+    from ehm.io.outputs import check_output_folder
+    from ehm.pipeline import ProgressBar
+
+    out = check_output_folder(out)
+    _prepare_kernels()
+    result = run_demo(out, seed, [ProgressBar(console)])
+    table = Table(title="Accuracy against the exact occupancy of the virtual room")
+    for column in ("test points", "n", "occupied", "accuracy", "F1", "ROC-AUC"):
+        table.add_column(column, justify="right" if column != "test points" else "left")
+    for name, exact in result.exact.items():
+        s = exact.scores
+        table.add_row(
+            name, f"{exact.n}", f"{exact.occupied:.1%}", f"{s.accuracy:.3f}", f"{s.f1:.3f}",
+            f"{s.auc:.3f}",
+        )  # fmt: skip
+    hilbert_map = result.run.hilbert_map
+    console.print(table)
+    console.print(timings_table("Integrate, per stage (Table 2)", result.run.stage_seconds))
+    console.print(timings_table("Demo, per step", result.steps))
+    console.print(
+        f"{hilbert_map!r}: {hilbert_map.memory_bytes() / 1e6:.2f} MB from "
+        f"{result.run.n_rays} rays; {result.grid!r}; mesh of {result.n_faces} faces"
+    )
+    for path in result.written:
+        console.print(f"wrote {path}")
+
+
+@app.command("map")
+def map_command(
+    inputs: Annotated[
+        list[Path], typer.Argument(help="Scan files, a TUM folder, ROS bags (.bag or folders).")
+    ],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Map file to write.")],
+    format: Annotated[
+        str | None,
+        typer.Option("--format", "-f", help="Reader: xyz ply pcd las kitti graph tum carmen bag."),
+    ] = None,
+    origin: Annotated[
+        str | None,
+        typer.Option(
+            help="Sensor origin 'x,y,z', world frame, for point clouds (xyz ply pcd las)."
+        ),
+    ] = None,
+    poses: Annotated[
+        Path | None,
+        typer.Option(
+            help="Poses file: for KITTI .bin scans the sequence's (line i places frame i); for "
+            "point clouds one T_world_sensor per file in the order given, for bags one per "
+            "message (KITTI's 12 numbers or TUM's 'time tx ty tz qx qy qz qw' per line)."
+        ),
+    ] = None,
+    calib: Annotated[
+        str | None,
+        typer.Option(
+            help="KITTI calib.txt (its Tr places the Velodyne in the camera poses); default "
+            "the sequence's; 'identity' for poses of the Velodyne itself."
+        ),
+    ] = None,
+    topic: Annotated[
+        str | None,
+        typer.Option(help="Bags: the PointCloud2 or LaserScan topic (default: the only one)."),
+    ] = None,
+    frame: Annotated[
+        str | None, typer.Option(help="Bags: the fixed frame /tf places the scans in.")
+    ] = None,
+    odometry: Annotated[
+        str | None,
+        typer.Option(help="Bags: a nav_msgs/Odometry topic to place the scans by instead."),
+    ] = None,
+    min_range: Annotated[
+        float | None, typer.Option(help="Leave out rays shorter than this, metres.")
+    ] = None,
+    max_range: Annotated[
+        float | None,
+        typer.Option(help="Cut rays longer than this, metres: free up to it, no hit there."),
+    ] = None,
+    every: Annotated[int, typer.Option(help="Take every Nth scan.")] = 1,
+    limit: Annotated[
+        int | None, typer.Option(help="Stop after this many scans (after --every).")
+    ] = None,
+    batch: Annotated[bool, typer.Option(help="Learn all scans at once (single batch).")] = False,
+    resolution: Annotated[
+        float | None,
+        typer.Option(
+            help="Map detail, metres: scales every length setting (MapConfig.for_resolution); "
+            "about 0.2 for long-range outdoor LiDAR.  [default: 0.05]"
+        ),
+    ] = None,
+    setting: Annotated[
+        list[str] | None, typer.Option("--set", help="MapConfig override name=value.")
+    ] = None,
+    force: Force = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="No progress bar, no summary: only errors.")
+    ] = False,
+    view: Annotated[
+        bool,
+        typer.Option(
+            "--view",
+            help="Show the map growing in the browser (pip install 'ehm[viewer]'), and keep "
+            "showing it after, until Ctrl-C.",
+        ),
+    ] = False,
+    port: Annotated[int, typer.Option(help="Port of the --view page.")] = 8080,
+    tiles: Annotated[
+        float | None,
+        typer.Option(
+            help="Cut the map into tiles this many metres a side, learned in parallel on Dask "
+            "(pip install 'ehm[tiles]'); -o names the map's folder."
+        ),
+    ] = None,
+    overlap: Annotated[
+        float | None,
+        typer.Option(help="With --tiles: how far each tile learns past its border, metres."),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(help="With --tiles: processes of the local cluster (default: cores)."),
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="With --tiles: a Dask scheduler to run on, 'tcp://host:8786'; its workers "
+            "must be able to read the inputs."
+        ),
+    ] = None,
+    update: Annotated[
+        bool,
+        typer.Option(
+            "--update",
+            help="Add the scans to the map at -o, with its own settings (a tiled map learns "
+            "again only the tiles they cross).",
+        ),
+    ] = False,
+) -> None:
+    """Build a map from scans of any supported format and save it."""
+    from ehm.config import MapConfig
+    from ehm.hilbert_map import HilbertMap
+    from ehm.io.outputs import check_output, check_output_map_directory
+    from ehm.io.readers import ScanFiles
+    from ehm.pipeline import MappingPipeline, ProgressBar
+    from ehm.tiles.tiled_map import TiledMap
+
+    given = [*inputs, *(p for p in (poses, calib) if p is not None)]
+    sensor = parse_numbers(origin, float, "--origin") if origin else None
+    files = ScanFiles(inputs, format, sensor, poses, calib, every, limit, topic, frame, odometry)
+    ranges = {"min_range": min_range, "max_range": max_range}
+    overrides = {k: v for k, v in ranges.items() if v is not None}
+    settings = parse_settings(setting or [])
+    tiled = tiles is not None or (update and output.is_dir())
+    if not tiled and (overlap, workers, scheduler) != (None, None, None):
+        raise InputError("--overlap, --workers and --scheduler are for tiled maps (--tiles)")
+    if tiled and (batch or view):
+        raise InputError("--batch and --view are for single maps, not tiled ones")
+    if update:
+        if overrides or settings or resolution is not None or tiles is not None:
+            raise InputError(
+                "--update adds scans to a map with its own settings: leave out --resolution, "
+                "--set, --min-range, --max-range and --tiles"
+            )
+        if not output.exists():
+            raise InputError(f"--update: {output} does not exist; leave out --update to make it")
+        if batch:
+            raise InputError("--batch learns all scans afresh: it cannot --update a map")
+        if not tiled:
+            check_output(output, given, force=True)
+        existing = load_map(output)
+    else:
+        detail = 0.05 if resolution is None else resolution
+        config = MapConfig.for_resolution(detail, **settings, **overrides)
+        if tiled:
+            check_output_map_directory(output, given, force)
+        else:
+            check_output(output, given, force)
+    if tiled:
+        tiled_map = existing if update else TiledMap(tiles, overlap, config)
+        _build_tiles(tiled_map, files, output, workers, scheduler, quiet)
+        return
+    hilbert_map = existing if update else HilbertMap(config)
+    scans = iter(files)
+    observers = [] if quiet else [ProgressBar(console)]
+    live = None
+    if view:
+        from ehm.viz.viewer import LiveView
+
+        live = LiveView(port=port)
+        observers.append(live)
+        console.print(f"watch the map grow at {live.url}")
+    run = MappingPipeline(scans, hilbert_map, batch, observers).run()
+    hilbert_map.save(output)
+    if hilbert_map.n_clusters == 0:
+        errors.print(
+            "[yellow]warning:[/yellow] the map has no clusters: no scan gave enough samples "
+            "together, so every point reads 0.5"
+        )
+    if not quiet:
+        console.print(timings_table("Mapping, per stage", run.stage_seconds))
+        console.print(
+            f"{run.n_scans} scans, {run.n_rays} rays ({run.n_dropped} non-finite dropped) -> "
+            f"{hilbert_map!r}, {hilbert_map.memory_bytes() / 1e6:.2f} MB, mapped in "
+            f"{run.seconds:.1f} s; wrote {output}"
+        )
+    if live is not None:
+        serve_until_stopped(live.server, f"the map at {live.url}")
+
+
+def _build_tiles(
+    tiled_map,
+    files,
+    output: Path,
+    workers: int | None,
+    scheduler: str | None,
+    quiet: bool,
+) -> None:
+    """`ehm map --tiles`: learn the scans of `files` into `tiled_map` on Dask, its tiles
+    written to the folder `output` as they come, with a progress bar unless `quiet`."""
+    from contextlib import nullcontext
+
+    from ehm.tiles.progress import TileProgressBar
+
+    progress = nullcontext(None) if quiet else TileProgressBar(console)
+    with progress as observer:
+        report = tiled_map.build(files, scheduler, workers, output, observer)
+    if not quiet:
+        console.print(
+            f"{report.n_scans} scans, {report.n_rays} rays -> {len(report.tiles)} tiles learned "
+            f"by {report.workers} workers in {report.seconds:.1f} s (binning "
+            f"{report.binning_seconds:.1f} s); {tiled_map!r}; wrote {output}"
+        )

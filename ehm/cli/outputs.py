@@ -1,0 +1,222 @@
+"""`ehm query`, `grid`, `mesh`, `render` and `export`: what a map answers and what is made of it."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ehm.cli.app import (
+    Bounds,
+    Force,
+    Level,
+    MaxGiB,
+    Resolution,
+    app,
+    console,
+    load_map,
+    map_grid,
+    parse_box,
+)
+from ehm.errors import InputError
+
+
+@app.command()
+def query(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    points: Annotated[
+        Path, typer.Argument(help="Points: .npy (n, d) or comma-separated text, d numbers a line.")
+    ],
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Write .npy or .csv; default stdout.")
+    ] = None,
+    mode: Annotated[str | None, typer.Option(help="batch or exact.")] = None,
+    std: Annotated[
+        bool, typer.Option("--std", help="Also the standard deviation: columns p, std.")
+    ] = False,
+    force: Force = False,
+) -> None:
+    """Occupancy probability of each point (and with --std its standard deviation)."""
+    import numpy as np
+
+    from ehm.io.outputs import check_output
+    from ehm.io.points import read_points
+
+    if mode not in (None, "batch", "exact"):
+        raise InputError(f"--mode must be batch or exact, got {mode!r}")
+    if output is not None:
+        check_output(output, [map_path, points], force)
+    hilbert_map = load_map(map_path)
+    answers = hilbert_map.occupancy(read_points(points, hilbert_map.dim), mode=mode, return_std=std)
+    columns = np.column_stack(answers) if std else answers
+    if output is None:
+        typer.echo("\n".join(",".join(f"{v:.6f}" for v in np.atleast_1d(row)) for row in columns))
+    elif output.suffix == ".npy":
+        np.save(output, columns)
+    else:
+        np.savetxt(output, columns, fmt="%.6f", delimiter=",")
+
+
+@app.command()
+def grid(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Grid file to write (.npz).")],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    max_gib: MaxGiB = 1.0,
+    std: Annotated[
+        bool, typer.Option("--std", help="Also the standard deviation of each voxel.")
+    ] = False,
+    force: Force = False,
+) -> None:
+    """Occupancy grid of a map (incremental grid reconstruction), saved as .npz with arrays
+    probability, scores, origin, resolution and intercept (and with --std, std)."""
+    from ehm.io.grid_file import save_grid
+    from ehm.io.outputs import check_output
+
+    check_output(output, [map_path], force, suffix=".npz")
+    hilbert_map = load_map(map_path)
+    occupancy_grid = map_grid(hilbert_map, parse_box(hilbert_map, bounds), resolution, max_gib, std)
+    save_grid(occupancy_grid, output)
+    console.print(f"{occupancy_grid!r}\nwrote {output}")
+
+
+@app.command()
+def mesh(
+    map_path: Annotated[Path, typer.Argument(help="Map file (3D).")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Mesh file to write (.ply).")],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    level: Level = 0.5,
+    max_gib: MaxGiB = 1.0,
+    force: Force = False,
+) -> None:
+    """Surface mesh of a 3D map by marching cubes, as binary PLY coloured by height."""
+    from ehm.io.outputs import check_output
+    from ehm.io.ply import write_ply_mesh
+    from ehm.viz.colors import vertex_colors
+
+    check_output(output, [map_path], force, suffix=".ply")
+    hilbert_map = load_map(map_path)
+    if hilbert_map.dim != 3:
+        raise InputError(
+            f"{map_path}: a 2D map has no surface mesh: 'ehm render' draws it as a PNG and "
+            "'ehm grid' saves its grid"
+        )
+    vertices, faces = map_grid(
+        hilbert_map, parse_box(hilbert_map, bounds), resolution, max_gib
+    ).mesh(level)
+    if len(faces) == 0:
+        raise InputError(f"nothing to mesh: the map does not cross {level} in these bounds")
+    write_ply_mesh(output, vertices, faces, vertex_colors(vertices))
+    console.print(f"{len(vertices)} vertices, {len(faces)} faces\nwrote {output}")
+
+
+@app.command()
+def render(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Picture to write (.png).")],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    level: Level = 0.5,
+    cut_above: Annotated[
+        float | None, typer.Option(help="Leave out the mesh above this height, metres.")
+    ] = None,
+    azimuth: Annotated[float, typer.Option(help="View direction, degrees from +x.")] = -60.0,
+    elevation: Annotated[float, typer.Option(help="View angle above the horizon.")] = 45.0,
+    slices: Annotated[
+        Path | None, typer.Option(help="Also write horizontal occupancy slices to this PNG.")
+    ] = None,
+    std: Annotated[
+        Path | None,
+        typer.Option(
+            help="Also write the occupancy's standard deviation to this PNG: horizontal "
+            "slices (3D) or the plane (2D)."
+        ),
+    ] = None,
+    max_gib: MaxGiB = 1.0,
+    force: Force = False,
+) -> None:
+    """Picture of a map, off-screen: its mesh coloured by height (3D) or its grid (2D)."""
+    from ehm.io.outputs import check_output
+    from ehm.viz.pictures import grid_picture, mesh_picture, occupancy_slices
+    from ehm.viz.render import Camera
+
+    written = [p for p in (output, slices, std) if p is not None]
+    if len(set(written)) < len(written):
+        raise InputError("-o, --slices and --std must name different files")
+    for path in written:
+        check_output(path, [map_path], force, suffix=".png")
+    camera = Camera(azimuth=azimuth, elevation=elevation)
+    if cut_above is not None and not math.isfinite(cut_above):
+        raise InputError(f"--cut-above must be a finite height, got {cut_above}")
+    hilbert_map = load_map(map_path)
+    occupancy_grid = map_grid(hilbert_map, parse_box(hilbert_map, bounds), resolution, max_gib)
+    if occupancy_grid.dim == 2:
+        grid_picture(occupancy_grid, output, title=map_path.name)
+    else:
+        vertices, faces = occupancy_grid.mesh(level)
+        mesh_picture(vertices, faces, output, camera, cut_above, title=map_path.name)
+    low, high = occupancy_grid.bounds
+    if slices is not None:
+        occupancy_slices(hilbert_map, low, high, slices)
+    if std is not None:
+        occupancy_slices(hilbert_map, low, high, std, std=True)
+    console.print("wrote " + " and ".join(str(p) for p in written))
+
+
+@app.command()
+def export(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    output: Annotated[
+        Path,
+        typer.Option(
+            "--output",
+            "-o",
+            help="File to write, by its suffix: .ot (OctoMap, log-odds), .bt (OctoMap, "
+            "occupied or free), .pgm (+ .yaml, ROS map_server, 2D), .ply or .pcd (occupied "
+            "voxel centres).",
+        ),
+    ],
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    level: Annotated[
+        float, typer.Option(help="Occupancy above which a voxel is occupied (.ply, .pcd).")
+    ] = 0.5,
+    max_gib: MaxGiB = 1.0,
+    force: Force = False,
+) -> None:
+    """Export a map's grid for robotics tools: OctoMap trees that octovis and octomap_server
+    open, map_server maps for nav2, point clouds of the occupied voxels. The bounds widen to
+    multiples of the resolution, so the voxels are OctoMap's."""
+    import numpy as np
+
+    from ehm.io import exports
+    from ehm.io.outputs import check_output
+
+    suffixes = (*exports.OCTOMAP_SUFFIXES, ".pgm", ".ply", ".pcd")
+    if output.suffix.lower() not in suffixes:
+        raise InputError(f"{output}: expected a name ending in {', '.join(suffixes)}")
+    check_output(output, [map_path], force)
+    if output.suffix == ".pgm":
+        check_output(output.with_suffix(".yaml"), [map_path], force)
+    hilbert_map = load_map(map_path)
+    if not 0.0 < resolution < math.inf:
+        raise InputError(f"--resolution must be a positive number of metres, got {resolution}")
+    box = parse_box(hilbert_map, bounds)
+    aligned = exports.aligned_bounds(hilbert_map.extent() if box is None else box, resolution)
+    occupancy_grid = map_grid(hilbert_map, aligned, resolution, max_gib)
+    if output.suffix in exports.OCTOMAP_SUFFIXES:
+        known = exports.write_octomap(occupancy_grid, output)
+        console.print(f"{occupancy_grid!r}: {known} known voxels\nwrote {output}")
+    elif output.suffix == ".pgm":
+        yaml_path = exports.write_map_server(occupancy_grid, output)
+        console.print(f"{occupancy_grid!r}\nwrote {output} and {yaml_path}")
+    else:
+        points = exports.occupied_voxels(occupancy_grid, level)
+        if occupancy_grid.dim == 2:
+            points = np.column_stack([points, np.zeros(len(points))])
+        exports.write_point_cloud(points, output)
+        console.print(f"{len(points)} occupied voxels\nwrote {output}")
