@@ -192,11 +192,7 @@ def map_command(
 ) -> None:
     """Build a map from scans of any supported format and save it."""
     from ehm.config import MapConfig
-    from ehm.hilbert_map import HilbertMap
-    from ehm.io.outputs import check_output, check_output_map_directory
     from ehm.io.readers import ScanFiles
-    from ehm.pipeline import MappingPipeline, ProgressBar
-    from ehm.tiles.tiled_map import TiledMap
 
     given = [*inputs, *(p for p in (poses, calib) if p is not None)]
     sensor = parse_numbers(origin, float, "--origin") if origin else None
@@ -215,35 +211,68 @@ def map_command(
                 "--update adds scans to a map with its own settings: leave out --resolution, "
                 "--set, --min-range, --max-range and --tiles"
             )
-        if not output.exists():
-            raise InputError(f"--update: {output} does not exist; leave out --update to make it")
-        if batch:
-            raise InputError("--batch learns all scans afresh: it cannot --update a map")
-        if not tiled:
-            check_output(output, given, force=True)
-        existing = load_map(output)
+        target = _map_to_update(output, given, tiled, batch)
     else:
         detail = 0.05 if resolution is None else resolution
         config = MapConfig.for_resolution(detail, **settings, **overrides)
-        if tiled:
-            check_output_map_directory(output, given, force)
-        else:
-            check_output(output, given, force)
+        target = _new_map(output, given, force, config, tiles if tiled else None, overlap)
     if tiled:
-        tiled_map = existing if update else TiledMap(tiles, overlap, config)
-        _build_tiles(tiled_map, files, output, workers, scheduler, quiet)
-        return
-    hilbert_map = existing if update else HilbertMap(config)
-    scans = iter(files)
+        _build_tiles(target, files, output, workers, scheduler, quiet)
+    else:
+        _learn_scans(target, files, output, batch, quiet, port if view else None)
+
+
+def _map_to_update(output: Path, given: list[Path], tiled: bool, batch: bool):
+    """`ehm map --update`: the map at `output`, once it is known that it can take scans."""
+    from ehm.io.outputs import check_output
+
+    if not output.exists():
+        raise InputError(f"--update: {output} does not exist; leave out --update to make it")
+    if batch:
+        raise InputError("--batch learns all scans afresh: it cannot --update a map")
+    if not tiled:
+        check_output(output, given, force=True)
+    return load_map(output)
+
+
+def _new_map(
+    output: Path,
+    given: list[Path],
+    force: bool,
+    config,
+    tiles: float | None,
+    overlap: float | None,
+):
+    """A new map of `config` to write at `output`: a TiledMap of `tiles` metres a side
+    learning `overlap` past their borders, or with tiles None a HilbertMap."""
+    from ehm.io.outputs import check_output, check_output_map_directory
+
+    if tiles is not None:
+        from ehm.tiles.tiled_map import TiledMap
+
+        check_output_map_directory(output, given, force)
+        return TiledMap(tiles, overlap, config)
+    from ehm.hilbert_map import HilbertMap
+
+    check_output(output, given, force)
+    return HilbertMap(config)
+
+
+def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, port: int | None):
+    """Learn the scans of `files` into `hilbert_map` and save it at `output`, with a progress
+    bar and a summary unless `quiet`; with a `port`, showing it live in the browser there and
+    after, until Ctrl-C."""
+    from ehm.pipeline import MappingPipeline, ProgressBar
+
     observers = [] if quiet else [ProgressBar(console)]
     live = None
-    if view:
+    if port is not None:
         from ehm.viz.viewer import LiveView
 
         live = LiveView(port=port)
         observers.append(live)
         console.print(f"watch the map grow at {live.url}")
-    run = MappingPipeline(scans, hilbert_map, batch, observers).run()
+    run = MappingPipeline(iter(files), hilbert_map, batch, observers).run()
     hilbert_map.save(output)
     if hilbert_map.n_clusters == 0:
         errors.print(
