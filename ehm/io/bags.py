@@ -25,6 +25,7 @@ from ehm.core.sensor.frames import FrameTree
 from ehm.core.sensor.geometry import quaternion_to_matrix, transform_points
 from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
+from ehm.io.bag_chunks import ChunkReader
 from ehm.io.poses import read_poses
 
 INSTALL_HINT = "ROS bags need the rosbags library: pip install 'ehm[ros]'"
@@ -167,7 +168,9 @@ class BagScans:
 
 
 class _Opened:
-    """An AnyReader opened as a context, its errors naming the bag."""
+    """An AnyReader opened as a context, its errors naming the bag. A ROS 1 bag it refuses
+    is read from its chunks alone (ehm.io.bag_chunks): old bags whose index records are
+    broken have intact chunks."""
 
     def __init__(self, reader, path: Path) -> None:
         self._reader, self._path = reader, path
@@ -176,8 +179,21 @@ class _Opened:
         try:
             self._reader.open()
         except Exception as error:
-            # rosbags reports unreadable bags in its own exception types.
-            raise FileReadError(self._path, f"not a readable ROS bag ({error})") from None
+            # rosbags reports unreadable bags in its own exception types, some without a text.
+            reason = str(error) or type(error).__name__
+            if self._path.is_dir():
+                raise FileReadError(self._path, f"not a readable ROS bag ({reason})") from None
+            self._reader = ChunkReader(self._path)
+            try:
+                self._reader.open()
+            except Exception as chunk_error:
+                if isinstance(chunk_error, FileReadError):
+                    chunks = str(chunk_error).removeprefix(f"{self._path}")
+                else:
+                    chunks = f": {str(chunk_error) or type(chunk_error).__name__}"
+                raise FileReadError(
+                    self._path, f"not a readable ROS bag ({reason}; chunk by chunk{chunks})"
+                ) from None
         return self._reader
 
     def __exit__(self, *exc) -> None:

@@ -1,5 +1,7 @@
 """ROS bags written by the rosbags library's writers, read back as scans in the fixed frame."""
 
+import struct
+
 import numpy as np
 import pytest
 
@@ -93,10 +95,13 @@ class Messages:
         return self.typestore.serialize_cdr(message, message.__msgtype__)
 
 
-def write_bag(path, store, messages, storage=None):
-    """Write (topic, stamp, message) triples, in order, to a ROS 1 bag or a ROS 2 folder."""
+def write_bag(path, store, messages, storage=None, compression=None):
+    """Write (topic, stamp, message) triples, in order, to a ROS 1 bag (its chunks compressed
+    with `compression`, a Writer1.CompressionFormat, or not) or a ROS 2 folder."""
     build = Messages(store)
     writer = Writer1(path) if build.ros1 else Writer2(path, version=9, storage_plugin=storage)
+    if compression is not None:
+        writer.set_compression(compression)
     with writer:
         connections = {}
         for topic, stamp, make in messages:
@@ -109,22 +114,41 @@ def write_bag(path, store, messages, storage=None):
     return path
 
 
+def lidar_messages(cloud):
+    """base_link moves from the origin (0 s) to (2, 0, 0) turned a quarter about z (2 s); the
+    Velodyne sits 1 m above base_link; clouds at 1 s and 3 s."""
+    return [
+        ("/tf_static", 0, lambda m: m.transform(0, "base_link", "velodyne", (0, 0, 1))),
+        ("/tf", 0, lambda m: m.transform(0, "map", "base_link", (0, 0, 0))),
+        ("/points", SECOND, lambda m: m.cloud(SECOND, "velodyne", cloud)),
+        ("/tf", 2 * SECOND, lambda m: m.transform(
+            2 * SECOND, "map", "base_link", (2, 0, 0), QUARTER_TURN)),
+        ("/points", 3 * SECOND, lambda m: m.cloud(3 * SECOND, "velodyne", cloud)),
+    ]  # fmt: skip
+
+
 @pytest.fixture
 def lidar_bag(tmp_path, cloud):
-    """A ROS 1 bag: base_link moves from the origin (0 s) to (2, 0, 0) turned a quarter about
-    z (2 s); the Velodyne sits 1 m above base_link; clouds at 1 s and 3 s."""
-    return write_bag(
-        tmp_path / "lidar.bag",
-        Stores.ROS1_NOETIC,
-        [
-            ("/tf_static", 0, lambda m: m.transform(0, "base_link", "velodyne", (0, 0, 1))),
-            ("/tf", 0, lambda m: m.transform(0, "map", "base_link", (0, 0, 0))),
-            ("/points", SECOND, lambda m: m.cloud(SECOND, "velodyne", cloud)),
-            ("/tf", 2 * SECOND, lambda m: m.transform(
-                2 * SECOND, "map", "base_link", (2, 0, 0), QUARTER_TURN)),
-            ("/points", 3 * SECOND, lambda m: m.cloud(3 * SECOND, "velodyne", cloud)),
-        ],
-    )  # fmt: skip
+    """A ROS 1 bag of lidar_messages."""
+    return write_bag(tmp_path / "lidar.bag", Stores.ROS1_NOETIC, lidar_messages(cloud))
+
+
+def break_index_counts(path):
+    """Make every index record of the ROS 1 bag at `path` announce two entries more than it
+    holds, as in old bags whose index the bag library refuses (with an empty AssertionError)
+    while their chunks are intact."""
+    data = bytearray(path.read_bytes())
+    position = len(b"#ROSBAG V2.0\n")
+    while position < len(data):
+        (header_length,) = struct.unpack_from("<I", data, position)
+        header = bytes(data[position + 4 : position + 4 + header_length])
+        (data_length,) = struct.unpack_from("<I", data, position + 4 + header_length)
+        if b"op=\x04" in header:
+            at = header.index(b"count=") + len(b"count=")
+            (count,) = struct.unpack_from("<I", header, at)
+            struct.pack_into("<I", data, position + 4 + at, count + 2)
+        position += 8 + header_length + data_length
+    path.write_bytes(bytes(data))
 
 
 def test_clouds_are_placed_by_tf_at_their_stamp(lidar_bag, cloud):
@@ -186,6 +210,25 @@ def test_bag_mistakes_are_named(lidar_bag, tmp_path):
     (tmp_path / "junk.bag").write_bytes(b"#ROSBAG V2.0\n garbage")
     with pytest.raises(FileReadError, match=r"junk\.bag: not a readable ROS bag"):
         BagScans(tmp_path / "junk.bag", "/points", frame="map")
+
+
+@pytest.mark.parametrize("compression", [None, *Writer1.CompressionFormat])
+def test_a_bag_with_a_broken_index_is_read_from_its_chunks(tmp_path, cloud, compression):
+    intact = write_bag(tmp_path / "intact.bag", Stores.ROS1_NOETIC, lidar_messages(cloud))
+    broken = write_bag(
+        tmp_path / "broken.bag", Stores.ROS1_NOETIC, lidar_messages(cloud), None, compression
+    )
+    break_index_counts(broken)
+    want = list(BagScans(intact, "/points", frame="map"))
+    got = list(BagScans(broken, "/points", frame="map"))
+    assert len(got) == len(want) == 1
+    np.testing.assert_array_equal(got[0].points_world, want[0].points_world)
+    np.testing.assert_array_equal(got[0].origin, want[0].origin)
+    # A bag whose chunks are cut short too: both reasons are named.
+    broken.write_bytes(broken.read_bytes()[:5000])
+    message = r"not a readable ROS bag \(.+; chunk by chunk, byte \d+: a record cut short\)"
+    with pytest.raises(FileReadError, match=message):
+        BagScans(broken, "/points", frame="map")
 
 
 def test_frame_trees_chain_invert_and_interpolate():
