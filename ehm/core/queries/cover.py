@@ -18,10 +18,9 @@ import numpy as np
 class KernelCover:
     """Cells of side `side` metres, in `dim` dimensions, that kernels of positive weight reach.
     keys: (c,) int64, sorted, packed cell coordinates (`bits` per axis, offset by
-    2**(bits - 1)); sums: (c,)
-    float64, the weights of the kernels reaching each; counts: (c,) int64, how many do.
-    Kernels whose box reaches beyond what keys hold (2**(bits - 1) cells from the origin, 500
-    km for 0.5 m cells in 3D) are left out."""
+    2**(bits - 1)); sums: (c,) float64, the summed weights of the kernels reaching each;
+    counts: (c,) int64, how many do. Kernels whose box reaches beyond what keys hold
+    (2**(bits - 1) cells from the origin: 500 km for 0.5 m cells in 3D) are left out."""
 
     side: float
     dim: int

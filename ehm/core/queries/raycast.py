@@ -261,12 +261,10 @@ class CandidateCells:
         if intercept > threshold:
             return None
         kept = cover.keys[intercept + cover.sums > threshold]
-        d = 63 // cover.bits
         if len(kept) == 0:
-            return cls(
-                cover.side, cover.bits, kept, np.zeros(d, np.int64), np.full(d, -1, np.int64)
-            )
-        coordinates = unpack_cells(kept, cover.bits, d)
+            low, high = np.zeros(cover.dim, np.int64), np.full(cover.dim, -1, np.int64)
+            return cls(cover.side, cover.bits, kept, low, high)
+        coordinates = unpack_cells(kept, cover.bits, cover.dim)
         return cls(cover.side, cover.bits, kept, coordinates.min(axis=0), coordinates.max(axis=0))
 
     def next_run(
