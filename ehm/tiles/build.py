@@ -331,11 +331,21 @@ def dask_client(client: Any, workers: int | None) -> Iterator[Any]:
             silence_logs=logging.ERROR,
         )
     except RuntimeError as error:
-        if getattr(sys.modules.get("__main__"), "__file__", None) is None:
+        if not _main_script_unguarded():
             raise
         raise InputError(f"Dask's workers failed to start ({error}). {MAIN_GUARD_HINT}") from error
     with cluster, Client(cluster) as local:
         yield local
+
+
+def _main_script_unguarded() -> bool:
+    """The program runs a script whose text has no `if __name__ == "__main__":` guard."""
+    path = getattr(sys.modules.get("__main__"), "__file__", None)
+    try:
+        text = Path(path).read_text(errors="replace") if path else "__main__"
+    except OSError:
+        return False
+    return "__main__" not in text
 
 
 def _importing_main_in_child() -> bool:
