@@ -7,12 +7,15 @@ and the message records (op 2) it needs; index records (ops 4 and 6, and the con
 records at the end) only tell readers where chunks and messages are. Some bags of public data
 sets carry index records whose length fields are wrong, and the bag library refuses them
 though every chunk is intact: `ChunkReader` reads such bags from their chunks alone, in file
-order, with the interface of the library's AnyReader that ehm.io.bags uses.
+order, with the interface of the library's AnyReader that ehm.io.bags uses. The file is mapped,
+not read into memory, and only one chunk is decompressed at a time; opening walks every chunk
+once for the connections, as no index can be trusted to list them.
 """
 
 from __future__ import annotations
 
 import bz2
+import mmap
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -45,28 +48,42 @@ class ChunkReader:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.connections: list[ChunkConnection] = []
-        self._data = b""
+        self._data: mmap.mmap | bytes = b""
         self._typestore = None
 
     def open(self) -> None:
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-        self._data = self.path.read_bytes()
-        if not self._data.startswith(MAGIC):
-            raise FileReadError(self.path, "not a ROS 1 bag of format 2.0")
-        found: dict[int, ChunkConnection] = {}
-        for op, fields, data in self._chunk_records():
-            if op == OP_CONNECTION:
-                connection = _connection(fields, data)
-                found.setdefault(connection.id, connection)
-        self.connections = list(found.values())
+        try:
+            with open(self.path, "rb") as stream:
+                self._data = mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ)
+        except (OSError, ValueError) as error:  # ValueError: an empty file
+            raise FileReadError(self.path, f"cannot be mapped ({error})") from None
+        try:
+            self.connections = self._find_connections()
+        except BaseException:
+            self.close()
+            raise
         types: dict = {}
         for connection in self.connections:
             types.update(get_types_from_msg(connection.msgdef, connection.msgtype))
         self._typestore = get_typestore(Stores.EMPTY)
         self._typestore.register(types)
 
+    def _find_connections(self) -> list[ChunkConnection]:
+        """The connection records of every chunk, one per connection id, in file order."""
+        if self._data[: len(MAGIC)] != MAGIC:
+            raise FileReadError(self.path, "not a ROS 1 bag of format 2.0")
+        found: dict[int, ChunkConnection] = {}
+        for op, fields, data in self._chunk_records():
+            if op == OP_CONNECTION:
+                connection = _connection(fields, data)
+                found.setdefault(connection.id, connection)
+        return list(found.values())
+
     def close(self) -> None:
+        if isinstance(self._data, mmap.mmap):
+            self._data.close()
         self._data = b""
 
     def messages(
