@@ -46,20 +46,20 @@ class RaySupport:
         self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
 
-    def grid(self, snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
+    def grid(self, take_snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
         """The log-odds at the grid's voxel centres (intercept included), made from the map's
-        `snapshot()` when there is none; None when that grid would take over
+        kernels (`take_snapshot()`) when there is none; None when that grid would take over
         RAY_GRID_MAX_BYTES."""
         if self._log_odds is None and not self._grid_tried:
             self._grid_tried = True
-            self._make_grid(self._kernels_of(snapshot))
+            self._make_grid(self._kernels_of(take_snapshot))
         return self._log_odds
 
-    def _kernels_of(self, snapshot: Callable[[], MapSnapshot]) -> MapSnapshot:
+    def _kernels_of(self, take_snapshot: Callable[[], MapSnapshot]) -> MapSnapshot:
         """The map's kernels since its last update: taken once, shared by the grid and the
         cover."""
         if self._kernels is None:
-            self._kernels = snapshot()
+            self._kernels = take_snapshot()
         return self._kernels
 
     def _make_grid(self, snapshot: MapSnapshot) -> None:
@@ -77,11 +77,13 @@ class RaySupport:
             self._grid.scores + self._grid.intercept, self._grid.origin, self.resolution
         )
 
-    def cells(self, snapshot: Callable[[], MapSnapshot], threshold: float) -> CandidateCells | None:
-        """The cells where the map's kernels could lift the log-odds above `threshold` (None:
-        every cell can), from the cover of its `snapshot()`, made on the first call."""
+    def cells(
+        self, take_snapshot: Callable[[], MapSnapshot], threshold: float
+    ) -> CandidateCells | None:
+        """The cells where the map's kernels (`take_snapshot()`) could lift the log-odds above
+        `threshold` (None: every cell can), from their cover, made on the first call."""
         if threshold not in self._cells:
-            kernels = self._kernels_of(snapshot)
+            kernels = self._kernels_of(take_snapshot)
             if self._cover is None:
                 reach = kernel_reach(kernels.transforms, kernels.planar_kernel)
                 self._cover = KernelCover.of_kernels(

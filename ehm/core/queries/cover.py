@@ -58,8 +58,8 @@ class KernelCover:
         known = at < len(self.keys)
         known[known] = self.keys[at[known]] == distinct[known]
         sums, counts = self.sums.copy(), self.counts.copy()
-        np.add.at(sums, at[known], delta_sums[known])
-        np.add.at(counts, at[known], delta_counts[known])
+        sums[at[known]] += delta_sums[known]  # distinct keys: each cell once
+        counts[at[known]] += delta_counts[known]
         new = ~known
         keys = np.insert(self.keys, at[new], distinct[new])
         sums = np.insert(sums, at[new], delta_sums[new])
