@@ -182,6 +182,15 @@ class MapConfig:
     """Weight of the past evidence replayed with each batch, per unit of the batch's own: from
     the cells around hits as much as the batch has there (times the ratio), the rest from the
     cells along rays, each cell in proportion to the weight it has seen."""
+    pass_retraction: float = 0.0
+    """Share of the occupied evidence in a memory cell that each ray passing through it takes
+    back, once rays of two batches have passed it with no new hit in the cell between
+    (ehm.core.observations.passes): a thing that moved away is forgotten within a few scans,
+    and the occupied clusters that stood on that evidence forget it in the same measure
+    (ehm.core.weights.forgetting). 0, the default, keeps all evidence: the map never forgets.
+    0.5 follows a changing room (a cart that left: 9 % of its surface read occupied three
+    scans after, against OctoMap's 69 %) and costs held-out F1 where rays graze surfaces
+    seen from other poses (TUM 0.957 against 0.968; BENCHMARKS.md)."""
     balance_classes: bool = False
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2
@@ -277,6 +286,10 @@ class MapConfig:
             )
         if not isinstance(self.replay_ratio, int | float) or not self.replay_ratio >= 0:
             raise SettingsError(f"MapConfig.replay_ratio must be >= 0, got {self.replay_ratio!r}")
+        if not 0.0 <= self.pass_retraction <= 1.0:
+            raise SettingsError(
+                f"MapConfig.pass_retraction must be between 0 and 1, got {self.pass_retraction!r}"
+            )
         if not self.min_range >= 0:
             raise SettingsError(f"MapConfig.min_range must be >= 0, got {self.min_range!r}")
         if not (self.max_range == 0 or self.max_range > self.min_range):

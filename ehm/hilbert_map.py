@@ -34,8 +34,9 @@ from ehm.core.model.features import (
 )
 from ehm.core.model.logistic import sigmoid
 from ehm.core.observations.evidence import gather_evidence
-from ehm.core.observations.memory import EvidenceMemory
-from ehm.core.observations.samples import TrainingSamples
+from ehm.core.observations.memory import EvidenceMemory, Visit
+from ehm.core.observations.passes import PASS_REACH_CELLS, occupied_passes
+from ehm.core.observations.samples import ScanRays, TrainingSamples, scan_rays
 from ehm.core.queries.gradient import logit_gradients
 from ehm.core.queries.raycast import (
     checked_rays,
@@ -51,6 +52,7 @@ from ehm.core.sensor.scan import Scan
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
 from ehm.core.timing import StageTimer
+from ehm.core.weights.forgetting import forget, standing_shares
 from ehm.core.weights.posterior import update_posterior
 from ehm.core.weights.sgd import loss_weights, train_weights
 from ehm.core.weights.uncertainty import add_curvature, logit_variance, occupancy_std
@@ -302,8 +304,9 @@ class HilbertMap:
         scans, self._waiting, self._waiting_rays = self._waiting, [], 0
         timer = StageTimer()
         with timer("samples"):
-            samples = gather_evidence(scans, self.config, self._rng)
-        self._learn(samples, timer)
+            rays = scan_rays(scans, self.config)
+            samples = gather_evidence(rays, self.config, self._rng)
+        self._learn(rays, samples, timer)
         self._update_followers()
         return self
 
@@ -320,17 +323,19 @@ class HilbertMap:
         self._reset()
         timer = StageTimer()
         with timer("samples"):
-            samples = gather_evidence(scans, self.config, self._rng)
-        self._learn(samples, timer)
+            rays = scan_rays(scans, self.config)
+            samples = gather_evidence(rays, self.config, self._rng)
+        self._learn(rays, samples, timer)
         self.n_scans_ = len(scans)
         self._origins = [scan.origin for scan in scans]
         self._update_followers()
         return self
 
-    def _learn(self, samples: TrainingSamples, timer: StageTimer) -> None:
+    def _learn(self, rays: ScanRays, samples: TrainingSamples, timer: StageTimer) -> None:
         """Alg. 2 from the batch's evidence on (one weighted sample per cell and kind,
-        ehm.core.observations.evidence), one step per stage of the paper's Table 2, with the past
-        evidence of the places it reaches (ehm.core.observations.memory): what formed no cluster yet
+        ehm.core.observations.evidence, of `rays`), one step per stage of the paper's Table 2,
+        with the past evidence of the places it reaches (ehm.core.observations.memory): the
+        occupied evidence its rays pass through is taken back first, what formed no cluster yet
         joins the clustering, and all of it is replayed with the new."""
         cfg = self.config
         if self.clusters_ is None or self.memory_ is None:
@@ -342,6 +347,9 @@ class HilbertMap:
         n_new = len(samples)
         with timer("clustering"):
             visit = memory.visit(samples)
+        with timer("retraction"):
+            forgetting = self._retract(rays, visit)
+        with timer("clustering"):
             pending = memory.pending(visit)
             grouped = group_samples(samples + pending.samples, cfg, self._rng)
         with timer("length_scales"):
@@ -352,7 +360,11 @@ class HilbertMap:
             else:
                 candidates = MergeCandidates.nearest(self._index, new)
             absorbed = absorb_clusters(clusters, candidates, new, cfg)
-        self.last_update_ = {"new_clusters": absorbed.n_new, "merged_clusters": absorbed.n_merged}
+        self.last_update_ = {
+            "new_clusters": absorbed.n_new,
+            "merged_clusters": absorbed.n_merged,
+            "forgetting_clusters": forgetting,
+        }
         changed: np.ndarray | None = absorbed.changed
         if cfg.merge_coplanar:
             with timer("coplanar"):
@@ -403,6 +415,31 @@ class HilbertMap:
             memory.mark_clustered(pending, grouped.in_cluster[n_new:])
             memory.insert(visit, grouped.in_cluster[:n_new])
         self.timings_ = dict(timer.seconds)
+
+    def _retract(self, rays: ScanRays, visit: Visit) -> int:
+        """Take back the memory's occupied evidence that `rays` pass through, where the
+        visit's samples bring no new hit to its cell, and let the occupied clusters it stood
+        behind forget it in the same measure (ehm.core.weights.forgetting); returns how many
+        clusters forgot anything."""
+        memory, clusters, cfg = self._memory(), self._learned("search it"), self.config
+        if cfg.pass_retraction == 0 or len(memory) == 0:
+            return 0
+        entries, passes = occupied_passes(
+            memory, rays, PASS_REACH_CELLS * memory.sides[0], cfg.occupied_depth
+        )
+        hit = visit.entries[visit.samples.occupied]
+        retraction = memory.retract(
+            entries, passes, cfg.pass_retraction, np.isin(entries, hit[hit >= 0])
+        )
+        if len(retraction.entries) == 0:
+            return 0
+        near = memory.occupied_near(retraction.entries)
+        after = memory.weight[near].astype(np.float64)
+        before = after.copy()
+        before[np.searchsorted(near, retraction.entries)] = retraction.before
+        features = self._features(memory.points_at(near), None)
+        share = standing_shares(features, before, after, len(clusters))
+        return len(forget(clusters, share, cfg.prior_precision))
 
     # ---------------------------------------------------------------- queries
     def occupancy(

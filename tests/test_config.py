@@ -42,6 +42,8 @@ def test_overrides_and_validation():
         ("batch_rays", 1e4, "batch_rays must be an integer >= 0"),
         ("replay_ratio", -0.5, "replay_ratio must be >= 0"),
         ("replay_ratio", float("nan"), "replay_ratio must be a finite number, got nan"),
+        ("pass_retraction", 1.5, "pass_retraction must be between 0 and 1, got 1.5"),
+        ("pass_retraction", -0.1, "pass_retraction must be between 0 and 1, got -0.1"),
         ("min_range", -0.1, "min_range must be >= 0"),
         ("max_range", -1.0, r"max_range must be 0 \(no limit\) or above min_range"),
         ("max_range", float("inf"), "max_range must be a finite number"),

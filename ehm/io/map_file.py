@@ -62,7 +62,9 @@ SENSOR_PATH = "sensor_path"
 # those kept.
 # Version 14 keeps the past evidence region by region, each entry's place in a byte an axis;
 # version 13 files load their keys so, and their places to the nearest 1/255 of a cell.
-FORMAT_VERSION = 14
+# Version 15 flags each entry of the past evidence (ehm.core.observations.memory): formed part
+# of a cluster, passed through by rays; older files load with none passed.
+FORMAT_VERSION = 15
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -117,7 +119,7 @@ def map_bytes(state: MapState) -> bytes:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 14); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 15); MapFileError
     names what is wrong otherwise."""
     return map_state_of_bytes(read_bytes(path), path)
 

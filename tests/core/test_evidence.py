@@ -32,7 +32,7 @@ def test_compiled_evidence_matches_reference(rng, dim, box):
         config = config.replace(learn_box=(-2.0,) * dim + (3.0,) * dim)
     scans = [_scan(rng, 1500, dim), _scan(rng, 700, dim)]
     rays = scan_rays(scans, config)
-    got = _sorted(gather_evidence(scans, config, np.random.default_rng(5)))
+    got = _sorted(gather_evidence(scan_rays(scans, config), config, np.random.default_rng(5)))
     want = _sorted(
         evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(5)), config)
     )
@@ -52,7 +52,7 @@ def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng):
     rays = scan_rays([scan], config)
     randoms = ray_randoms(len(rays), np.random.default_rng(2))
     samples = samples_of_rays(rays, randoms, config)
-    evidence = gather_evidence([scan], config, np.random.default_rng(2))
+    evidence = gather_evidence(scan_rays([scan], config), config, np.random.default_rng(2))
     assert len(evidence) < 0.7 * len(samples)
     for occupied, at_surface in ((True, True), (False, True), (False, False)):
         drawn = samples.subset((samples.occupied == occupied) & (samples.at_surface == at_surface))
@@ -73,7 +73,7 @@ def test_a_batch_with_more_cells_than_rays_grows_its_table(rng):
     config = MapConfig(free_spacing=0.02)
     scan = _scan(rng, 40, 3, spread=30.0)
     rays = scan_rays([scan], config)
-    got = _sorted(gather_evidence([scan], config, np.random.default_rng(1)))
+    got = _sorted(gather_evidence(scan_rays([scan], config), config, np.random.default_rng(1)))
     want = _sorted(
         evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(1)), config)
     )
@@ -85,7 +85,7 @@ def test_a_batch_with_more_cells_than_rays_grows_its_table(rng):
 def test_samples_beyond_the_cells_reach_are_refused(rng):
     far = Scan(np.array([[1e9, 0.0, 0.0]]), np.zeros(3))
     with pytest.raises(InputError, match="set max_range"):
-        gather_evidence([far], MapConfig(), rng)
+        gather_evidence(scan_rays([far], MapConfig()), MapConfig(), rng)
 
 
 def test_evidence_gathered_in_parts_is_the_same_on_any_number_of_threads(rng, monkeypatch):
@@ -93,13 +93,13 @@ def test_evidence_gathered_in_parts_is_the_same_on_any_number_of_threads(rng, mo
     order whatever the threads, so a map does not depend on the machine."""
     config = MapConfig(free_spacing=0.3)
     scans = [_scan(rng, 3000, 3)]
-    whole = _sorted(gather_evidence(scans, config, np.random.default_rng(3)))
+    whole = _sorted(gather_evidence(scan_rays(scans, config), config, np.random.default_rng(3)))
     monkeypatch.setattr(evidence, "PARALLEL_MIN_SAMPLES", 1000)
     monkeypatch.setattr(evidence, "GATHER_PARTS", 3)
     runs = []
     for threads in (1, 2, 3):
         monkeypatch.setattr(evidence.numba, "get_num_threads", lambda n=threads: n)
-        runs.append(gather_evidence(scans, config, np.random.default_rng(3)))
+        runs.append(gather_evidence(scan_rays(scans, config), config, np.random.default_rng(3)))
     for run in runs[1:]:
         np.testing.assert_array_equal(run.points, runs[0].points)
     split = _sorted(runs[0])

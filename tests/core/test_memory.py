@@ -7,7 +7,10 @@ import pytest
 from ehm.config import MapConfig
 from ehm.core.observations.evidence import FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED, sample_flags
 from ehm.core.observations.memory import (
+    CLUSTERED,
+    MIN_WEIGHT,
     OFFSET_STEPS,
+    PASSED,
     SUB_BITS,
     EvidenceMemory,
     _find,
@@ -130,7 +133,7 @@ def test_merging_entries_agrees_with_its_numpy_twin(rng):
         keys,
         rng.uniform(1, 5, m).astype(np.float32),
         rng.integers(0, OFFSET_STEPS + 1, (m, 3)).astype(np.uint8),
-        rng.random(m) < 0.5,
+        rng.integers(0, 4, m).astype(np.uint8),
     )
     new_keys = np.sort(rng.choice(2000, n, replace=False)).astype(np.int64)
     new_weight = rng.uniform(1, 5, n)
@@ -153,8 +156,48 @@ def test_a_memory_of_format_13_keeps_its_entries(rng):
         "keys": memory.keys(),
         "weight": memory.weight,
         "place": (memory.place.astype(np.uint16) * 257),
-        "clustered": memory.clustered,
+        "clustered": memory.flags & CLUSTERED != 0,
     }
     loaded = EvidenceMemory.from_arrays(3, config, old)
     for name, array in memory.arrays().items():
         np.testing.assert_array_equal(getattr(loaded, name), array, err_msg=name)
+
+
+def test_merging_keeps_clustered_and_clears_passed_where_new_evidence_comes():
+    keys = np.array([10, 20], dtype=np.int64)
+    flags = np.array([CLUSTERED | PASSED, PASSED], dtype=np.uint8)
+    memory = (keys, np.ones(2, dtype=np.float32), np.zeros((2, 2), dtype=np.uint8), flags)
+    batch = (np.array([20, 30], dtype=np.int64), np.ones(2), np.zeros((2, 2)))
+    merged = merge_entries(*memory, *batch, np.array([False, True]))
+    np.testing.assert_array_equal(merged[3], [CLUSTERED | PASSED, 0, CLUSTERED])
+
+
+def test_evidence_is_taken_back_from_the_second_batch_of_passes_on():
+    memory = EvidenceMemory(2, True, SIDES)
+    insert(memory, samples_at([[0.1, 0.1], [0.6, 0.1], [1.1, 0.1]], OCCUPIED, np.full(3, 8.0)))
+    entries, passes = np.arange(3), np.array([1, 2, 3])
+    first = memory.retract(entries, passes, 0.5, np.array([False, False, True]))
+    assert len(first.entries) == 0
+    np.testing.assert_array_equal(memory.weight, [8.0, 8.0, 8.0])
+    np.testing.assert_array_equal(memory.flags & PASSED != 0, [True, True, False])
+    second = memory.retract(entries, passes, 0.5, np.zeros(3, dtype=bool))
+    np.testing.assert_array_equal(second.entries, [0, 1])
+    np.testing.assert_array_equal(second.before, [8.0, 8.0])
+    np.testing.assert_array_equal(second.after, [4.0, 2.0])
+    np.testing.assert_array_equal(memory.weight, [4.0, 2.0, 8.0])
+    # Weights below MIN_WEIGHT become 0, and the entry goes with the next insert.
+    memory.retract(np.array([1]), np.array([20]), 0.5, np.zeros(1, dtype=bool))
+    assert memory.weight[1] == 0.0 < MIN_WEIGHT
+    insert(memory, samples_at([[3.0, 3.0]]))
+    np.testing.assert_array_equal(memory.weight, [4.0, 8.0, 1.0])
+
+
+def test_the_occupied_entries_near_others_are_those_of_their_regions():
+    memory = EvidenceMemory(2, True, SIDES)
+    points = [[0.1, 0.1], [0.9, 0.9], [1.1, 0.1], [5.0, 5.0]]
+    insert(memory, samples_at(points, OCCUPIED))
+    insert(memory, samples_at([[0.5, 0.5]], FREE_AT_SURFACE))
+    occupied = memory.samples().occupied
+    first = np.flatnonzero(occupied & np.all(memory.samples().points < 1.0, axis=1))[0]
+    near = memory.occupied_near(np.array([first]))
+    np.testing.assert_allclose(memory.points_at(near), [[0.1, 0.1], [0.9, 0.9]], atol=1e-3)

@@ -36,11 +36,9 @@ from ehm.core.observations.samples import (
     learn_box,
     ray_randoms,
     samples_of_rays,
-    scan_rays,
 )
 from ehm.core.search.cells import packed_cell_keys
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot, key_part, table_size
-from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
 # Kinds of samples, in the order the compiled pass numbers them: free samples along rays (in
@@ -255,13 +253,10 @@ def cell_sides(config: MapConfig) -> tuple[float, float]:
     )
 
 
-def gather_evidence(
-    scans: list[Scan], config: MapConfig, rng: np.random.Generator
-) -> TrainingSamples:
-    """The evidence of `scans`: their training samples (ehm.core.observations.samples), one weighted
-    sample per cell and kind, with its scatter, in the order the cells were met (part by
-    part, for a batch gathered in parts)."""
-    rays = scan_rays(scans, config)
+def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
+    """The evidence of the `rays` of a batch of scans (ehm.core.observations.samples.scan_rays):
+    their training samples, one weighted sample per cell and kind, with its scatter, in the
+    order the cells were met (part by part, for a batch gathered in parts)."""
     randoms = ray_randoms(len(rays), rng)
     fine, coarse = cell_sides(config)
     dim = rays.directions.shape[1]

@@ -39,6 +39,7 @@ from ehm.core.observations.evidence import (
     FINE_CELLS_PER_RADIUS,
     FREE_ALONG_RAY,
     KIND_BITS,
+    OCCUPIED,
     cell_sides,
     kinds_of,
     sample_flags,
@@ -54,6 +55,10 @@ REGION_BITS = KIND_BITS + SUB_BITS
 assert REGION_BITS <= 8, "an entry's kind and cell in its region are kept in one byte"
 # Steps of an entry's place along each side of its cell.
 OFFSET_STEPS = 255
+# Least weight an entry keeps: evidence retracted below it is dropped.
+MIN_WEIGHT = 0.01
+# Bits of an entry's flags.
+CLUSTERED, PASSED = 1, 2
 
 
 def memory_keys(points: np.ndarray, kinds: np.ndarray, sides: tuple[float, float]) -> np.ndarray:
@@ -118,12 +123,14 @@ def _in_ranges(keys: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarra
 
 @numba.njit(cache=True)
 def merge_entries(
-    keys, weight, place, clustered, new_keys, new_weight, place_sums, formed
+    keys, weight, place, flags, new_keys, new_weight, place_sums, formed
 ):  # pragma: no cover - compiled
-    """The entries (keys (m,) sorted, weight (m,) float32, place (m, d) uint8, clustered (m,)
-    bool) with new evidence added in one pass: new_keys (n,) sorted distinct, new_weight (n,)
+    """The entries (keys (m,) sorted, weight (m,) float32, place (m, d) uint8, flags (m,)
+    uint8) with new evidence added in one pass: new_keys (n,) sorted distinct, new_weight (n,)
     its weight, place_sums (n, d) the sum of weight times place of its samples (in
-    OFFSET_STEPS), formed (n,) bool. Returns the four arrays, with an entry for every key."""
+    OFFSET_STEPS), formed (n,) bool. An entry given new evidence is CLUSTERED where it formed
+    part of a cluster before or now, and no longer PASSED. Returns the four arrays, with an
+    entry for every key."""
     m, n, d = len(keys), len(new_keys), place.shape[1]
     missing = 0
     i = 0
@@ -136,7 +143,7 @@ def merge_entries(
     out_keys = np.empty(size, dtype=np.int64)
     out_weight = np.empty(size, dtype=np.float32)
     out_place = np.empty((size, d), dtype=np.uint8)
-    out_clustered = np.empty(size, dtype=np.bool_)
+    out_flags = np.empty(size, dtype=np.uint8)
     i = j = 0
     for o in range(size):
         take_new = i == m or (j < n and new_keys[j] <= keys[i])
@@ -145,28 +152,28 @@ def merge_entries(
             out_keys[o] = keys[i]
             out_weight[o] = weight[i]
             out_place[o] = place[i]
-            out_clustered[o] = clustered[i]
+            out_flags[o] = flags[i]
             old_w = np.float64(weight[i])
             i += 1
         else:
             out_keys[o] = new_keys[j]
-            out_clustered[o] = False
+            out_flags[o] = 0
         if take_new:
             total = old_w + new_weight[j]
             for a in range(d):
                 value = np.rint((old_w * out_place[o, a] + place_sums[j, a]) / total)
                 out_place[o, a] = min(max(value, 0.0), OFFSET_STEPS)
             out_weight[o] = total
-            out_clustered[o] = out_clustered[o] or formed[j]
+            out_flags[o] = (out_flags[o] & CLUSTERED) | (CLUSTERED if formed[j] else 0)
             j += 1
-    return out_keys, out_weight, out_place, out_clustered
+    return out_keys, out_weight, out_place, out_flags
 
 
 def merge_entries_reference(
     keys: np.ndarray,
     weight: np.ndarray,
     place: np.ndarray,
-    clustered: np.ndarray,
+    flags: np.ndarray,
     new_keys: np.ndarray,
     new_weight: np.ndarray,
     place_sums: np.ndarray,
@@ -178,15 +185,15 @@ def merge_entries_reference(
     keys = np.insert(keys, position, new_keys[missing])
     weight = np.insert(weight, position, 0.0)
     place = np.insert(place, position, 0, axis=0)
-    clustered = np.insert(clustered, position, False)
+    flags = np.insert(flags, position, 0)
     rows = np.searchsorted(keys, new_keys)
     old_w = weight[rows].astype(np.float64)
     total = old_w + new_weight
     value = np.rint((old_w[:, None] * place[rows] + place_sums) / total[:, None])
     place[rows] = np.clip(value, 0.0, OFFSET_STEPS)
     weight[rows] = total
-    clustered[rows] |= formed
-    return keys, weight, place, clustered
+    flags[rows] = (flags[rows] & CLUSTERED) | np.where(formed, CLUSTERED, 0).astype(np.uint8)
+    return keys, weight, place, flags
 
 
 @dataclass(frozen=True)
@@ -201,6 +208,16 @@ class Visit:
     entries: np.ndarray
     near: np.ndarray
     memory_keys: np.ndarray
+
+
+@dataclass(frozen=True)
+class Retraction:
+    """Evidence taken back from a memory: entries (k,) int64, and the weight of each before
+    and after (k,) float64."""
+
+    entries: np.ndarray
+    before: np.ndarray
+    after: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -221,7 +238,9 @@ class EvidenceMemory:
     entries (at most 128: two kinds in 64 cells around hits, one in 27 along rays), cells (n,)
     uint8 each entry's kind and cell in its region (the low REGION_BITS of its key). weight (n,)
     float32; place (n, d) uint8, the mean's offset from its cell's corner in OFFSET_STEPS of the
-    cell's side; clustered (n,) bool.
+    cell's side; flags (n,) uint8: CLUSTERED, the entry formed part of a cluster; PASSED,
+    rays passed through it in an earlier batch (ehm.core.observations.passes) and it has had
+    no new evidence since.
     """
 
     def __init__(self, dim: int, enabled: bool, sides: tuple[float, float]) -> None:
@@ -233,7 +252,7 @@ class EvidenceMemory:
         self.cells = np.zeros(0, dtype=np.uint8)
         self.weight = np.zeros(0, dtype=np.float32)
         self.place = np.zeros((0, dim), dtype=np.uint8)
-        self.clustered = np.zeros(0, dtype=bool)
+        self.flags = np.zeros(0, dtype=np.uint8)
 
     @classmethod
     def of_config(cls, dim: int, config: MapConfig) -> EvidenceMemory:
@@ -247,6 +266,10 @@ class EvidenceMemory:
     @property
     def nbytes(self) -> int:
         return sum(a.nbytes for a in self.arrays().values())
+
+    def region_first(self) -> np.ndarray:
+        """(R,) int64: the row of each region's first entry."""
+        return np.cumsum(self.region_sizes, dtype=np.int64) - self.region_sizes
 
     def keys(self) -> np.ndarray:
         """(n,) int64 sorted: the key of every entry."""
@@ -279,14 +302,15 @@ class EvidenceMemory:
         return Visit(samples, keys, _find(kept, keys), _in_ranges(kept, low, high), kept)
 
     def pending(self, visit: Visit) -> PendingSamples:
-        """The entries that formed no cluster yet, in the cells of the visit's samples."""
+        """The entries that formed no cluster yet, in the cells of the visit's samples (none
+        whose evidence was all retracted)."""
         entries = np.unique(visit.entries[visit.entries >= 0])
-        entries = entries[~self.clustered[entries]]
+        entries = entries[(self.flags[entries] & CLUSTERED == 0) & (self.weight[entries] > 0)]
         return PendingSamples(self._samples_at(entries, visit.memory_keys), entries)
 
     def mark_clustered(self, pending: PendingSamples, clustered: np.ndarray) -> None:
         """Record which `pending` entries ((p,) bool `clustered`) now formed clusters."""
-        self.clustered[pending.entries[clustered]] = True
+        self.flags[pending.entries[clustered]] |= CLUSTERED
 
     def replay(self, ratio: float, visit: Visit) -> TrainingSamples:
         """The entries near the visit's samples as weighted samples: those around hits weigh
@@ -302,11 +326,12 @@ class EvidenceMemory:
         at_surface_total = ratio * samples.weight[samples.at_surface].sum()
         groups, seen = replayed.at_surface, replayed.weight
         weight = np.zeros(len(near))
-        if groups.all() or not groups.any():
-            weight = total * seen / seen.sum()
+        in_group = [groups & (seen > 0), ~groups & (seen > 0)]
+        if not (in_group[0].any() and in_group[1].any()):
+            weight = total * seen / max(seen.sum(), np.finfo(float).tiny)
         else:
-            for group, share in ((True, at_surface_total), (False, total - at_surface_total)):
-                rows = groups == group
+            shares = (at_surface_total, total - at_surface_total)
+            for rows, share in zip(in_group, shares, strict=True):
                 weight[rows] = share * seen[rows] / seen[rows].sum()
         keep = weight > 0
         return TrainingSamples(
@@ -329,17 +354,60 @@ class EvidenceMemory:
         steps = (OFFSET_STEPS / self._sides(new_keys))[:, None]
         place_sums = (sums - w[:, None] * self._corners(new_keys)) * steps
         formed = np.logical_or.reduceat(clustered[order], starts)
-        keys, self.weight, self.place, self.clustered = merge_entries(
+        keys, self.weight, self.place, self.flags = merge_entries(
             visit.memory_keys,
             self.weight,
             self.place,
-            self.clustered,
+            self.flags,
             new_keys,
             w,
             place_sums,
             formed,
         )
+        emptied = self.weight == 0
+        if emptied.any():  # entries whose evidence was all retracted
+            kept = ~emptied
+            keys, self.weight = keys[kept], self.weight[kept]
+            self.place, self.flags = self.place[kept], self.flags[kept]
         self._keep_keys(keys)
+
+    # ------------------------------------------------------------ retraction
+    def retract(
+        self, entries: np.ndarray, passes: np.ndarray, share: float, protected: np.ndarray
+    ) -> Retraction:
+        """Take back evidence from `entries` (k,) int64 that rays passed through, `passes` (k,)
+        rays each, except where `protected` (k,) bool (the batch brings new evidence of the
+        entry's own kind to its cell). A first batch of passes only marks an entry PASSED; from
+        a second on, each pass takes `share` of its weight, weight * (1 - share) ** passes, and
+        a weight that falls below MIN_WEIGHT becomes 0 (the entry goes at the next insert)."""
+        self.flags[entries[protected]] &= ~np.uint8(PASSED)
+        entries, passes = entries[~protected], passes[~protected]
+        confirmed = self.flags[entries] & PASSED != 0
+        self.flags[entries] |= PASSED
+        entries, passes = entries[confirmed], passes[confirmed]
+        before = self.weight[entries].astype(np.float64)
+        after = before * (1.0 - share) ** passes
+        after[after < MIN_WEIGHT] = 0.0
+        self.weight[entries] = after
+        return Retraction(entries, before, after)
+
+    def occupied_near(self, entries: np.ndarray) -> np.ndarray:
+        """(m,) int64 sorted: the occupied entries in the regions of `entries` (k,) int64."""
+        first = self.region_first()
+        regions = np.unique(np.searchsorted(first, entries, side="right") - 1)
+        sizes = self.region_sizes[regions].astype(np.int64)
+        rows = np.repeat(first[regions] - np.cumsum(sizes) + sizes, sizes) + np.arange(sizes.sum())
+        return rows[self.cells[rows] >> SUB_BITS == OCCUPIED]
+
+    def points_at(self, entries: np.ndarray) -> np.ndarray:
+        """(k, d) float64 metres, world frame: the mean of each of `entries` (k,) int64."""
+        regions = np.searchsorted(self.region_first(), entries, side="right") - 1
+        return self._means(entries, (self.regions[regions] << REGION_BITS) | self.cells[entries])
+
+    def _means(self, entries: np.ndarray, keys: np.ndarray) -> np.ndarray:
+        """(e, d) float64 metres, world frame: the means of `entries` (e,) with `keys` (e,)."""
+        offset = self.place[entries] * (self._sides(keys) / OFFSET_STEPS)[:, None]
+        return self._corners(keys) + offset
 
     def _sides(self, keys: np.ndarray) -> np.ndarray:
         """(n,) metres, the side of each key's evidence cell."""
@@ -373,9 +441,8 @@ class EvidenceMemory:
         entry."""
         keys = memory_keys[entries]
         occupied, at_surface = sample_flags((keys >> SUB_BITS) & (2**KIND_BITS - 1))
-        offset = self.place[entries] * (self._sides(keys) / OFFSET_STEPS)[:, None]
         weight = self.weight[entries].astype(np.float64)
-        return TrainingSamples(self._corners(keys) + offset, occupied, at_surface, weight)
+        return TrainingSamples(self._means(entries, keys), occupied, at_surface, weight)
 
     # ------------------------------------------------------------ persistence
     @classmethod
@@ -395,7 +462,7 @@ class EvidenceMemory:
             "cells": self.cells,
             "weight": self.weight,
             "place": self.place,
-            "clustered": self.clustered,
+            "flags": self.flags,
         }
 
     @classmethod
@@ -403,9 +470,12 @@ class EvidenceMemory:
         cls, dim: int, config: MapConfig, arrays: dict[str, np.ndarray]
     ) -> EvidenceMemory:
         """The memory of `arrays` (see `arrays`); a memory of format 13 (keys (n,) int64, place
-        (n, d) uint16 in 65535 steps) is kept region by region, its places to OFFSET_STEPS."""
+        (n, d) uint16 in 65535 steps) is kept region by region, its places to OFFSET_STEPS; one
+        of formats 13 and 14 (clustered (n,) bool) has no entry PASSED."""
         memory = cls.of_config(dim, config)
         arrays = dict(arrays)
+        if "clustered" in arrays:
+            arrays["flags"] = np.where(arrays.pop("clustered"), CLUSTERED, 0).astype(np.uint8)
         if "keys" in arrays:
             memory._keep_keys(arrays.pop("keys"))
             place = arrays.pop("place").astype(np.float64) * (OFFSET_STEPS / 65535)

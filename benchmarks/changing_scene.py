@@ -1,0 +1,114 @@
+"""A changing scene: EHM and OctoMap scan by scan on the same scans of a room where a cart
+leaves, a crate arrives and a person walks across (ehm.eval.datasets.changing), measured in
+0.05 m voxels after every scan (ehm.eval.changes).
+
+    python benchmarks/changing_scene.py [--seeds 0,1,2]
+
+Methods: EHM with the defaults (it never forgets), EHM taking back the evidence rays pass
+through (`pass_retraction` 0.5) and OctoMap. Prints, per method: the share of the cart's
+seen surface still read occupied by the number of scans that have passed through it since it
+left (ghosts), the share of the crate's seen surface read occupied by the number of scans that
+saw it, the share of the person's trail read occupied at the end, and near-surface precision,
+recall and F1 on the static parts at the end; then build seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from common import RESOLUTION, heading, markdown_table
+
+import ehm
+from ehm.eval.baselines.octree import OctoMapMapper
+from ehm.eval.changes import ChangeProbe
+from ehm.eval.datasets.changing import changing_room
+from ehm.eval.runner import warm_up
+
+EHM_SETTINGS = {"ehm": {}, "ehm, pass_retraction 0.5": {"pass_retraction": 0.5}}
+METHODS = (*EHM_SETTINGS, "octomap")
+SCANS_THROUGH = (1, 2, 3, 4, 6, 8)
+SCANS_SEEN = (1, 2, 3)
+
+
+def _labels_of(octomap: OctoMapMapper):
+    """OctoMap's occupancy read through getLabels: 1 occupied, 0 free, 0.5 unknown."""
+
+    def occupancy(points: np.ndarray) -> np.ndarray:
+        labels = octomap.tree.getLabels(np.ascontiguousarray(points, dtype=np.float64))
+        return np.where(labels == 1, 1.0, np.where(labels == 0, 0.0, 0.5))
+
+    return occupancy
+
+
+def run(seed: int) -> dict[str, dict]:
+    """Each method's measures on the changing room drawn with `seed`."""
+    dataset = changing_room(seed=seed)
+    results = {}
+    for method in METHODS:
+        probe = ChangeProbe(dataset, RESOLUTION, np.random.default_rng(seed))
+        if method in EHM_SETTINGS:
+            config = ehm.MapConfig.for_resolution(RESOLUTION, **EHM_SETTINGS[method])
+            hilbert_map = ehm.HilbertMap(config)
+            learn, occupancy = hilbert_map.integrate_scan, hilbert_map.occupancy
+        else:
+            octomap = OctoMapMapper(RESOLUTION)
+            octomap.build([])
+            learn, occupancy = octomap.insert, _labels_of(octomap)
+        seconds = 0.0
+        for i, scan in enumerate(dataset.scans):
+            start = time.perf_counter()
+            learn(scan)
+            occupancy(scan.origin[None])  # learns any scan waiting for its batch
+            seconds += time.perf_counter() - start
+            last = probe.measure(i, occupancy)
+        results[method] = {"probe": probe, "last": last, "seconds": seconds}
+    return results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--seeds", default="0")
+    seeds = [int(s) for s in parser.parse_args().seeds.split(",")]
+    warm_up("ehm", 3)
+    runs = [run(seed) for seed in seeds]
+    dataset = changing_room()
+    print(
+        heading(
+            "Changing room",
+            f"{len(dataset.scans)} scans of {len(dataset.scans[0]):,} rays, seeds {seeds}",
+        )
+    )
+    header = (
+        ["method"]
+        + [f"ghosts after {k}" for k in SCANS_THROUGH]
+        + [f"crate after {k}" for k in SCANS_SEEN]
+        + ["trail", "near precision", "near recall", "near F1", "build s"]
+    )
+    rows = []
+    for method in METHODS:
+        ghosts = [
+            np.nanmean([r[method]["probe"].ghost_tally.share(k) for r in runs])
+            for k in SCANS_THROUGH
+        ]
+        crate = [
+            np.nanmean([r[method]["probe"].arrival_tally.share(k) for r in runs])
+            for k in SCANS_SEEN
+        ]
+        last = {
+            key: np.mean([r[method]["last"][key] for r in runs]) for key in runs[0][method]["last"]
+        }
+        seconds = np.mean([r[method]["seconds"] for r in runs])
+        rows.append(
+            [method]
+            + [f"{g:.3f}" for g in ghosts]
+            + [f"{c:.3f}" for c in crate]
+            + [f"{last[k]:.3f}" for k in ("trail", "near precision", "near recall", "near F1")]
+            + [f"{seconds:.2f}"]
+        )
+    print(markdown_table(header, rows))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,224 @@
+"""Rays that pass through old occupied evidence: where a batch's rays show free space that the
+memory (ehm.core.observations.memory) holds occupied.
+
+A ray passes an occupied entry when, along the free part of the ray (ScanRays.free_start to
+free_end: up to `surface_margin` before its hit) and short of its hit by more than the band a
+surface is taken to be solid, it goes through the entry's region and comes within `reach`
+metres of the entry's mean: noise and rays that end on the surface they graze do not pass it.
+Each ray walks the regions it crosses (a 3D DDA on
+the grid of regions, Amanatides and Woo 1987) and looks each up in a table of the memory's
+regions around hits; only the regions that hold entries cost more than the lookup.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from itertools import repeat
+
+import numba
+import numpy as np
+
+from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
+from ehm.core.observations.memory import OFFSET_STEPS, REGION_BITS, SUB_BITS, EvidenceMemory
+from ehm.core.observations.samples import ScanRays
+from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
+
+# How close a ray must come to an entry's mean to pass it, in fine evidence cells (3 cm at 5 cm
+# of detail).
+PASS_REACH_CELLS = 1.0
+# Rays a batch must have before its passes are found in two parts of its rays, each on a
+# thread of its own as far as there are threads.
+PARALLEL_MIN_RAYS = 20_000
+
+
+@numba.njit(cache=True, nogil=True)
+def region_table(regions):  # pragma: no cover - compiled
+    """Open-addressing table (ehm.core.search.hashing) of the memory's regions around hits
+    (`regions` (R,) int64, EvidenceMemory.regions, whose lowest bit marks regions along rays):
+    keys (size,) int64 and the row of each in `regions` (size,) int64."""
+    keys = np.full(table_size(len(regions)), EMPTY_KEY, dtype=np.int64)
+    rows = np.zeros(len(keys), dtype=np.int64)
+    for r in range(len(regions)):
+        if regions[r] & 1 == 0:
+            s = hash_slot(keys, regions[r])
+            keys[s] = regions[r]
+            rows[s] = r
+    return keys, rows
+
+
+@numba.njit(cache=True, inline="always")
+def _entry_position(region, cell, place, fine_side, position):  # pragma: no cover - compiled
+    """The mean of an entry (its `cell` byte and `place` (d,) uint8) in integer `region` (d,),
+    metres, into `position` (d,)."""
+    d = len(region)
+    sub = cell & ((1 << SUB_BITS) - 1)
+    for a in range(d - 1, -1, -1):
+        along = sub % FINE_CELLS_PER_RADIUS
+        sub //= FINE_CELLS_PER_RADIUS
+        position[a] = (
+            region[a] * FINE_CELLS_PER_RADIUS + along + place[a] / OFFSET_STEPS
+        ) * fine_side
+
+
+@numba.njit(cache=True, nogil=True)
+def pass_kernel(
+    first_ray,
+    last_ray,
+    origins,
+    directions,
+    free_start,
+    free_end,
+    table_keys,
+    table_rows,
+    region_first,
+    region_sizes,
+    cells,
+    place,
+    fine_side,
+    reach,
+    bits,
+    found,
+    used,
+):  # pragma: no cover - compiled
+    """Append to `found` (capacity,) int64, from `used` on, the occupied entry of every pass of
+    rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
+    metres, ScanRays) through the memory's entries: table_keys, table_rows from
+    `region_table`; region_first (R,) int64 the first entry of each region; region_sizes (R,);
+    cells (m,) uint8 and place (m, d) uint8 of the entries (EvidenceMemory); `bits` an axis
+    of a region key. Stops before a ray that might overfill `found`; returns (the next ray,
+    entries found)."""
+    d = origins.shape[1]
+    side = fine_side * FINE_CELLS_PER_RADIUS
+    half = np.int64(1) << (bits - 1)
+    region = np.empty(d, dtype=np.int64)
+    step = np.empty(d, dtype=np.int64)
+    t_next = np.empty(d)
+    t_delta = np.empty(d)
+    position = np.empty(d)
+    for r in range(first_ray, last_ray):
+        t, t_end = free_start[r], free_end[r]
+        if t_end <= t:
+            continue
+        if used + 64 * (4 + int((t_end - t) / side) * d) > len(found):
+            return r, used
+        for a in range(d):
+            start = origins[r, a] + directions[r, a] * t
+            region[a] = np.int64(np.floor(start / side))
+            if directions[r, a] > 0:
+                step[a] = 1
+                t_delta[a] = side / directions[r, a]
+                t_next[a] = t + ((region[a] + 1) * side - start) / directions[r, a]
+            elif directions[r, a] < 0:
+                step[a] = -1
+                t_delta[a] = -side / directions[r, a]
+                t_next[a] = t + (region[a] * side - start) / directions[r, a]
+            else:
+                step[a] = 0
+                t_delta[a] = np.inf
+                t_next[a] = np.inf
+        while t < t_end:
+            key = np.int64(0)
+            for a in range(d):
+                key = (key << bits) | (region[a] + half)
+            s = hash_slot(table_keys, key << 1)
+            if table_keys[s] != EMPTY_KEY:
+                row = table_rows[s]
+                for e in range(region_first[row], region_first[row] + region_sizes[row]):
+                    if cells[e] >> SUB_BITS != OCCUPIED:
+                        continue
+                    _entry_position(region, cells[e], place[e], fine_side, position)
+                    along = 0.0
+                    for a in range(d):
+                        along += (position[a] - origins[r, a]) * directions[r, a]
+                    if along <= free_start[r] or along >= t_end:
+                        continue
+                    off = 0.0
+                    for a in range(d):
+                        gap = position[a] - origins[r, a] - along * directions[r, a]
+                        off += gap * gap
+                    if off < reach * reach:
+                        found[used] = e
+                        used += 1
+            axis = 0
+            for a in range(1, d):
+                if t_next[a] < t_next[axis]:
+                    axis = a
+            t = t_next[axis]
+            t_next[axis] += t_delta[axis]
+            region[axis] += step[axis]
+    return last_ray, used
+
+
+def _passes_of_part(arguments: tuple, first: int, last: int) -> np.ndarray:
+    """Occupied entries passed by rays first .. last - 1 (`arguments`: pass_kernel's from
+    `origins` to `bits`), one row per pass."""
+    found = np.empty(max(1024, 64 * (last - first)), dtype=np.int64)
+    used, ray = 0, first
+    while ray < last:
+        ray, used = pass_kernel(ray, last, *arguments, found, used)
+        if ray < last:
+            found = np.concatenate([found[:used], np.empty(2 * len(found), dtype=np.int64)])
+    return found[:used]
+
+
+def occupied_passes(
+    memory: EvidenceMemory, rays: ScanRays, reach: float, depth: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The memory's occupied entries that `rays` pass (see the module's docstring), within
+    `reach` metres, a ray with a hit only where it goes on for `depth` metres more (the band a
+    surface is taken to be solid, `occupied_depth`): (entries (k,) int64 sorted, passes (k,)
+    int64 rays through each)."""
+    none = np.zeros(0, dtype=np.int64)
+    if len(memory) == 0 or len(rays) == 0:
+        return none, none
+    dim = memory.dim
+    keys, rows = region_table(memory.regions)
+    region_first = memory.region_first()
+    arguments = (
+        np.ascontiguousarray(rays.origins),
+        rays.directions,
+        rays.free_start,
+        np.where(rays.hits, rays.free_end - depth, rays.free_end),
+        keys,
+        rows,
+        region_first,
+        memory.region_sizes,
+        memory.cells,
+        memory.place,
+        memory.sides[0],
+        reach,
+        (63 - 1 - REGION_BITS) // dim,
+    )
+    n = len(rays)
+    bounds = [0, n] if n < PARALLEL_MIN_RAYS else [0, n // 2, n]
+    with ThreadPoolExecutor(min(len(bounds) - 1, numba.get_num_threads())) as pool:
+        parts = pool.map(_passes_of_part, repeat(arguments), bounds[:-1], bounds[1:])
+        found = np.concatenate(list(parts))
+    entries, passes = np.unique(found, return_counts=True)
+    return entries, passes.astype(np.int64)
+
+
+def occupied_passes_reference(
+    memory: EvidenceMemory, rays: ScanRays, reach: float, depth: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `occupied_passes`: every ray against every occupied entry, the
+    ray's free part clipped to the entry's region by the slab test."""
+    samples = memory.samples()
+    entries = np.flatnonzero(samples.occupied)
+    points = samples.points[entries]
+    side = memory.sides[0] * FINE_CELLS_PER_RADIUS
+    low = np.floor(points / side) * side
+    passes = np.zeros(len(entries), dtype=np.int64)
+    for r in range(len(rays)):
+        o, u = rays.origins[r], rays.directions[r]
+        start = rays.free_start[r]
+        end = rays.free_end[r] - depth if rays.hits[r] else rays.free_end[r]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (low - o) / u, (low + side - o) / u
+        enter = np.maximum(np.nanmax(np.minimum(t0, t1), axis=1), start)
+        leave = np.minimum(np.nanmin(np.maximum(t0, t1), axis=1), end)
+        along = (points - o) @ u
+        off = np.linalg.norm(points - o - along[:, None] * u, axis=1)
+        passes += (enter < leave) & (along > start) & (along < end) & (off < reach)
+    passed = passes > 0
+    return entries[passed], passes[passed]

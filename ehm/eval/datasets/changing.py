@@ -1,0 +1,147 @@
+"""A scene that changes while it is scanned, with its exact occupancy at every scan: a cart
+that leaves, a crate that arrives and a person who walks across a room, seen by a LiDAR that
+moves through it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ehm.core.sensor.scan import Scan
+from ehm.eval.datasets.scene import Scene, room_shell
+from ehm.eval.datasets.simulated import lidar_directions, simulate_scan
+
+
+@dataclass(frozen=True)
+class Mover:
+    """A solid box that is somewhere in some scans: boxes (n_scans, 2, d) float64, metres,
+    world frame, its low and high corner at each scan, NaN where it is not in the scene.
+    role: 'departs' (there at first, gone later), 'arrives' (absent at first, there later) or
+    'walks' (there in some scans, somewhere else in each)."""
+
+    name: str
+    role: str
+    boxes: np.ndarray
+
+    def present(self, scan: int) -> bool:
+        """Whether the mover is in the scene at scan `scan`."""
+        return bool(np.all(np.isfinite(self.boxes[scan])))
+
+
+@dataclass(frozen=True)
+class ChangingDataset:
+    """Scans of a scene whose solids change between scans: static, the solids that never
+    move; movers, the boxes that do (Mover); times (n_scans,) float64, seconds, when each scan
+    was taken."""
+
+    name: str
+    scans: list[Scan]
+    static: Scene
+    movers: tuple[Mover, ...]
+    times: np.ndarray
+
+    def scene_at(self, scan: int) -> Scene:
+        """The exact scene at scan `scan`: the static solids and the movers there."""
+        return scene_at(self.static, self.movers, scan)
+
+    def mover(self, role: str) -> Mover:
+        """The first mover of `role`."""
+        return next(m for m in self.movers if m.role == role)
+
+
+def scene_at(static: Scene, movers: tuple[Mover, ...], scan: int) -> Scene:
+    """The `static` solids and the boxes of the `movers` present at scan `scan`."""
+    boxes = [m.boxes[scan] for m in movers if m.present(scan)]
+    if not boxes:
+        return static
+    return Scene(
+        np.vstack([static.box_min, [b[0] for b in boxes]]),
+        np.vstack([static.box_max, [b[1] for b in boxes]]),
+        static.ball_centres,
+        static.ball_radii,
+    )
+
+
+def changing_room_scene() -> Scene:
+    """The static part of the changing room: an 8 x 6 x 3 m room with a table, a cabinet and
+    a shelf."""
+    walls_min, walls_max = room_shell([-4.0, -3.0, 0.0], [4.0, 3.0, 3.0], thickness=0.2)
+    furniture = [
+        ([-1.0, -2.9, 0.72], [0.6, -2.1, 0.77]),  # table top along the south wall
+        ([-1.0, -2.9, 0.0], [-0.94, -2.84, 0.72]),  # its legs
+        ([0.54, -2.9, 0.0], [0.6, -2.84, 0.72]),
+        ([-1.0, -2.16, 0.0], [-0.94, -2.1, 0.72]),
+        ([0.54, -2.16, 0.0], [0.6, -2.1, 0.72]),
+        ([-4.0, 1.0, 0.0], [-3.5, 2.6, 2.0]),  # cabinet on the west wall
+        ([3.6, -2.0, 0.0], [4.0, 0.5, 1.8]),  # shelf on the east wall
+    ]
+    return Scene(
+        np.vstack([walls_min, [f[0] for f in furniture]]),
+        np.vstack([walls_max, [f[1] for f in furniture]]),
+        np.zeros((0, 3)),
+        np.zeros(0),
+    )
+
+
+def _boxes_where(
+    n_scans: int, present: np.ndarray, low: np.ndarray, size: np.ndarray
+) -> np.ndarray:
+    """(n_scans, 2, 3) boxes of `size` (3,) with their low corners `low` (n_scans, 3) or (3,),
+    NaN where not `present` (n_scans,) bool."""
+    low = np.broadcast_to(np.asarray(low, dtype=np.float64), (n_scans, 3))
+    boxes = np.stack([low, low + size], axis=1)
+    boxes[~present] = np.nan
+    return boxes
+
+
+def changing_room(
+    seed: int = 0,
+    n_scans: int = 14,
+    rings: int = 64,
+    azimuths: int = 1024,
+    noise_std: float = 0.01,
+    departs_at: int = 5,
+    arrives_at: int = 8,
+    walk: tuple[int, int] = (2, 10),
+    scan_period: float = 1.0,
+) -> ChangingDataset:
+    """`n_scans` scans of a 3D LiDAR (rings x azimuths rays, elevations -45 to +45 degrees,
+    20 m range) 1.2 m up, moving along the room's x axis from -2.5 to 2.5 m, one every
+    `scan_period` seconds, while:
+
+    - a cart (0.8 x 0.6 x 0.9 m, south of the path) stands there until scan `departs_at`, from
+      which on it is gone;
+    - a crate (0.6 x 0.6 x 0.6 m, north of the path) is there from scan `arrives_at` on;
+    - a person (0.4 x 0.3 x 1.75 m) walks west to east along the north wall, 0.6 m a scan,
+      in scans walk[0] to walk[1] - 1, and is gone before and after.
+    """
+    scans_index = np.arange(n_scans)
+    cart = _boxes_where(
+        n_scans, scans_index < departs_at, [0.6, -1.4, 0.0], np.array([0.8, 0.6, 0.9])
+    )
+    crate = _boxes_where(
+        n_scans, scans_index >= arrives_at, [-1.9, 0.8, 0.0], np.array([0.6, 0.6, 0.6])
+    )
+    walking = (scans_index >= walk[0]) & (scans_index < walk[1])
+    walker_low = np.column_stack(
+        [-3.0 + 0.6 * (scans_index - walk[0]), np.full(n_scans, 1.9), np.zeros(n_scans)]
+    )
+    walker = _boxes_where(n_scans, walking, walker_low, np.array([0.4, 0.3, 1.75]))
+    movers = (
+        Mover("cart", "departs", cart),
+        Mover("crate", "arrives", crate),
+        Mover("person", "walks", walker),
+    )
+    static = changing_room_scene()
+    directions = lidar_directions(rings, azimuths, 45.0)
+    rng = np.random.default_rng(seed)
+    scans = [
+        simulate_scan(
+            scene_at(static, movers, i), np.array([x, 0.0, 1.2]), directions, 20.0, noise_std, rng
+        )
+        for i, x in enumerate(np.linspace(-2.5, 2.5, n_scans))
+    ]
+    times = scan_period * scans_index.astype(np.float64)
+    return ChangingDataset("changing_room", scans, static, movers, times)

@@ -1,0 +1,93 @@
+"""A changing scene and what measures a map against it: the scene at each scan, the voxels
+of surfaces, of rays' free parts and of hits, and maps that forget what left."""
+
+import numpy as np
+import pytest
+
+from ehm import HilbertMap, MapConfig, Scan
+from ehm.eval.changes import (
+    ChangeProbe,
+    contains,
+    hit_voxels,
+    passed_voxels,
+    shell_voxels,
+    voxel_centres,
+)
+from ehm.eval.datasets.changing import changing_room
+
+
+def test_the_scene_at_each_scan_holds_the_movers_there():
+    room = changing_room(n_scans=6, rings=8, azimuths=32, departs_at=2, arrives_at=4, walk=(1, 3))
+    cart = room.mover("departs").boxes[0].mean(axis=0)
+    crate = room.mover("arrives").boxes[5].mean(axis=0)
+    person = [room.mover("walks").boxes[i].mean(axis=0) for i in (1, 2)]
+    inside = [room.scene_at(i).occupied(np.array([cart, crate, *person])) for i in range(6)]
+    np.testing.assert_array_equal(
+        inside,
+        [
+            [True, False, False, False],
+            [True, False, True, False],
+            [False, False, False, True],
+            [False, False, False, False],
+            [False, True, False, False],
+            [False, True, False, False],
+        ],
+    )
+    np.testing.assert_array_equal(room.times, np.arange(6.0))
+    assert len(room.scans) == 6 and all(len(s) == 256 for s in room.scans)
+
+
+def test_shell_voxels_lie_inside_within_one_voxel_of_the_surface():
+    box = np.array([[0.0, 0.0, 0.0], [0.2, 0.2, 0.2]])
+    keys = shell_voxels(box, 0.05)
+    # A 4 x 4 x 4 block of voxels, every one within 0.05 m of a face but the 2 x 2 x 2 core.
+    assert len(keys) == 64 - 8
+    assert not contains(np.array([[1, 1, 1]]), keys)[0]
+
+
+def test_passed_and_hit_voxels_follow_the_rays():
+    scan = Scan(np.array([[1.0, 0.025, 0.025], [0.3, 0.125, 0.025]]), np.array([0.0, 0.025, 0.025]),
+                np.array([True, False]))  # fmt: skip
+    box = np.array([[0.0, 0.0, 0.0], [2.0, 0.2, 0.2]])
+    passed = passed_voxels(scan, box, 0.05)
+    # The hit ray frees voxels 0 to 18 along x (up to one voxel before its hit), the ray
+    # without return all it crosses.
+    assert contains(np.array([[k, 0, 0] for k in range(19)]), passed).all()
+    assert not contains(np.array([[20, 0, 0]]), passed)[0]
+    assert contains(np.array([[5, 2, 0]]), passed)[0]
+    np.testing.assert_array_equal(hit_voxels(scan, box, 0.05), [[20, 0, 0]])
+    np.testing.assert_allclose(voxel_centres(np.array([[20, 0, 0]]), 0.05), [[1.025, 0.025, 0.025]])
+
+
+@pytest.fixture(scope="module")
+def followed():
+    """A small changing room learned by a map that keeps all evidence and one that takes back
+    what rays pass through: (measures at the end, ghost tally, arrival tally) of each."""
+    room = changing_room(n_scans=8, rings=24, azimuths=320, departs_at=3, arrives_at=4,
+                         walk=(1, 5))  # fmt: skip
+    results = {}
+    for share in (0.0, 0.5):
+        probe = ChangeProbe(room, 0.05, np.random.default_rng(0))
+        hilbert_map = HilbertMap(MapConfig(pass_retraction=share))
+        for i, scan in enumerate(room.scans):
+            hilbert_map.integrate_scan(scan)
+            last = probe.measure(i, hilbert_map.occupancy)
+        results[share] = (last, probe.ghost_tally, probe.arrival_tally)
+    return results
+
+
+def test_a_map_that_takes_back_passed_evidence_forgets_what_left(followed):
+    keeps, forgets = followed[0.0], followed[0.5]
+    # The cart's surface, three and four scans after rays began to pass through it: 34 and
+    # 30 of 86 and 79 voxels read occupied where all evidence is kept, 11 and 6 where it is
+    # taken back.
+    assert keeps[1].share(3) > 0.35 and keeps[1].share(4) > 0.35
+    assert forgets[1].share(3) < 0.15 and forgets[1].share(4) < 0.1
+    # The person's trail: 3.3 % against 1.8 %.
+    assert forgets[0]["trail"] < 0.025 < keeps[0]["trail"]
+
+
+def test_what_stayed_and_what_arrived_are_kept(followed):
+    keeps, forgets = followed[0.0], followed[0.5]
+    assert forgets[0]["near F1"] == pytest.approx(keeps[0]["near F1"], abs=0.01)
+    assert forgets[2].share(2) >= keeps[2].share(2) - 0.02
