@@ -44,6 +44,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/tiles.py
 	$(BIN)/python benchmarks/peers.py --seeds 0 --fractions 0.8
 	$(BIN)/python benchmarks/nav2_maps.py
+	$(BIN)/python benchmarks/changing_scene.py --seeds 0,1,2
 
 clean:
 	rm -rf $(VENV) build *.egg-info
