@@ -6,7 +6,7 @@ free_end: up to `surface_margin` before its hit) and short of its hit by more th
 surface is taken to be solid, it goes through the entry's region and comes within `reach`
 metres of the entry's mean: noise and rays that end on the surface they graze do not pass it.
 Each ray walks the regions it crosses (a 3D DDA on
-the grid of regions, Amanatides and Woo 1987) and looks each up in a table of the memory's
+the grid of regions, ehm.core.search.grid_walk) and looks each up in a table of the memory's
 regions around hits; only the regions that hold entries cost more than the lookup.
 """
 
@@ -21,6 +21,7 @@ import numpy as np
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, REGION_BITS, SUB_BITS, EvidenceMemory
 from ehm.core.observations.samples import ScanRays
+from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 
 # How close a ray must come to an entry's mean to pass it, in fine evidence cells (3 cm at 5 cm
@@ -102,20 +103,8 @@ def pass_kernel(
         if used + 64 * (4 + int((t_end - t) / side) * d) > len(found):
             return r, used
         for a in range(d):
-            start = origins[r, a] + directions[r, a] * t
-            region[a] = np.int64(np.floor(start / side))
-            if directions[r, a] > 0:
-                step[a] = 1
-                t_delta[a] = side / directions[r, a]
-                t_next[a] = t + ((region[a] + 1) * side - start) / directions[r, a]
-            elif directions[r, a] < 0:
-                step[a] = -1
-                t_delta[a] = -side / directions[r, a]
-                t_next[a] = t + (region[a] * side - start) / directions[r, a]
-            else:
-                step[a] = 0
-                t_delta[a] = np.inf
-                t_next[a] = np.inf
+            region[a] = np.int64(np.floor((origins[r, a] + directions[r, a] * t) / side))
+        walk_setup(origins[r], directions[r], side, region, step, t_next, t_delta)
         while t < t_end:
             key = np.int64(0)
             for a in range(d):
@@ -139,13 +128,7 @@ def pass_kernel(
                     if off < reach * reach:
                         found[used] = e
                         used += 1
-            axis = 0
-            for a in range(1, d):
-                if t_next[a] < t_next[axis]:
-                    axis = a
-            t = t_next[axis]
-            t_next[axis] += t_delta[axis]
-            region[axis] += step[axis]
+            t = walk_step(region, step, t_next, t_delta)
     return last_ray, used
 
 

@@ -25,6 +25,7 @@ import numba
 import numpy as np
 
 from ehm.core.queries.cover import KernelCover, pack_cells, unpack_cells
+from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.errors import InputError
 
 # Points of every running ray evaluated in one call of the log-odds.
@@ -325,18 +326,7 @@ def _next_runs(
             # Nudged along the ray: a ray starting on a cell's far face starts in the next.
             p = origins[i, a] + directions[i, a] * (t0 + 1e-7 * side)
             cell[a] = min(max(np.int64(np.floor(p / side)), low[a]), high[a])
-            if directions[i, a] > 0.0:
-                step[a] = 1
-                next_t[a] = ((cell[a] + 1) * side - origins[i, a]) / directions[i, a]
-                delta[a] = side / directions[i, a]
-            elif directions[i, a] < 0.0:
-                step[a] = -1
-                next_t[a] = (cell[a] * side - origins[i, a]) / directions[i, a]
-                delta[a] = -side / directions[i, a]
-            else:
-                step[a] = 0
-                next_t[a] = np.inf
-                delta[a] = np.inf
+        walk_setup(origins[i], directions[i], side, cell, step, next_t, delta)
         t = t0
         while t < t1:
             if _is_candidate(cell, keys, bits):
@@ -345,13 +335,7 @@ def _next_runs(
             elif entry[i] != np.inf:
                 leave[i] = t
                 break
-            axis = 0
-            for a in range(1, d):
-                if next_t[a] < next_t[axis]:
-                    axis = a
-            t = next_t[axis]
-            next_t[axis] += delta[axis]
-            cell[axis] += step[axis]
+            t = walk_step(cell, step, next_t, delta)
         if entry[i] != np.inf and leave[i] == np.inf:
             leave[i] = t1
     return entry, leave
