@@ -1,16 +1,17 @@
 """Efficient Hilbert Maps: continuous occupancy maps from range scans.
 
 The public API: HilbertMap, TiledMap (city-scale maps in tiles, learned on Dask), MapConfig,
-Scan, load (either kind of map), evaluate (the paper's comparison, ehm.eval), and the errors
-raised for bad input: EhmError and its kinds (ehm.errors). Each is imported on first use, so
-`import ehm` and the command line's help are instant, and the evaluation is never loaded by a
-program that does not ask for it.
+Scan, load (either kind of map), diff (what changed between two maps), evaluate (the paper's
+comparison, ehm.eval), and the errors raised for bad input: EhmError and its kinds
+(ehm.errors). Each is imported on first use, so `import ehm` and the command line's help are
+instant, and the evaluation is never loaded by a program that does not ask for it.
 """
 
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from ehm.changes import diff
     from ehm.config import MapConfig
     from ehm.core.sensor.scan import Scan
     from ehm.errors import (
@@ -42,6 +43,7 @@ _HOMES = {
     "TiledMap": "ehm.tiles.tiled_map",
     "evaluate": "ehm.eval.runner",
     "load": "ehm.maps",
+    "diff": "ehm.changes",
 }
 
 __all__ = [
@@ -56,6 +58,7 @@ __all__ = [
     "Scan",
     "SettingsError",
     "TiledMap",
+    "diff",
     "evaluate",
     "load",
 ]

@@ -191,6 +191,13 @@ class MapConfig:
     0.5 follows a changing room (a cart that left: 9 % of its surface read occupied three
     scans after, against OctoMap's 69 %) and costs held-out F1 where rays graze surfaces
     seen from other poses (TUM 0.957 against 0.968; BENCHMARKS.md)."""
+    forget_after: float | None = None
+    """Seconds a place may go unseen before what the map learned there starts to fade back to
+    unknown (0.5, with the prior's std): from then on its weights, and the past evidence kept
+    there, halve every quarter of forget_after (ehm.core.weights.forgetting.fade), so a place
+    unseen for twice as long reads close to unknown. For robots that run for hours in places
+    that change while they look elsewhere. Every scan then needs its time stamp
+    (`integrate(..., time=...)`). None, the default: the map never fades."""
     balance_classes: bool = False
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2
@@ -289,6 +296,13 @@ class MapConfig:
         if not 0.0 <= self.pass_retraction <= 1.0:
             raise SettingsError(
                 f"MapConfig.pass_retraction must be between 0 and 1, got {self.pass_retraction!r}"
+            )
+        if self.forget_after is not None and not (
+            isinstance(self.forget_after, int | float) and 0 < self.forget_after < float("inf")
+        ):
+            raise SettingsError(
+                f"MapConfig.forget_after must be None or a positive number of seconds, "
+                f"got {self.forget_after!r}"
             )
         if not self.min_range >= 0:
             raise SettingsError(f"MapConfig.min_range must be >= 0, got {self.min_range!r}")

@@ -52,7 +52,7 @@ from ehm.core.sensor.scan import Scan
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
 from ehm.core.timing import StageTimer
-from ehm.core.weights.forgetting import forget, standing_shares
+from ehm.core.weights.forgetting import fade, fade_shares, forget, mark_seen, standing_shares
 from ehm.core.weights.posterior import update_posterior
 from ehm.core.weights.sgd import loss_weights, train_weights
 from ehm.core.weights.uncertainty import add_curvature, logit_variance, occupancy_std
@@ -74,7 +74,8 @@ class HilbertMap:
     HilbertMap(cluster_radius=0.2). Learned state ends in an underscore: clusters_ (a
     ClusterSet), anchors_ (AnchorLayers, empty unless config.anchor_layers > 1), bias_,
     n_scans_, timings_ (seconds per stage of the last update) and last_update_ (clusters
-    added and merged by it).
+    added and merged by it) and time_ (seconds, the latest time stamp of the scans learned; None
+    without).
     """
 
     def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
@@ -92,6 +93,7 @@ class HilbertMap:
         self._waiting_rays = 0
         self.bias_state_ = np.zeros(2)
         self.n_scans_ = 0
+        self.time_: float | None = None
         # The origin of every scan given, in order (see sensor_path).
         self._origins: list[np.ndarray] = []
         self.timings_: dict[str, float] = {}
@@ -185,6 +187,7 @@ class HilbertMap:
             EvidenceMemory.of_config(dim, self.config) if empty else self._memory(),
             tuple(self._waiting),
             self.sensor_path,
+            self.time_,
         )
 
     @classmethod
@@ -195,6 +198,7 @@ class HilbertMap:
         hilbert_map.clusters_ = state.clusters
         hilbert_map.bias_state_ = np.array(state.bias_state, dtype=np.float64)
         hilbert_map.n_scans_ = state.n_scans
+        hilbert_map.time_ = state.time
         hilbert_map.anchors_ = state.anchors
         hilbert_map.memory_ = state.memory
         if state.rng_state is not None:
@@ -272,13 +276,15 @@ class HilbertMap:
         points_world: np.ndarray,
         origin: np.ndarray,
         hit_mask: np.ndarray | None = None,
+        time: float | None = None,
     ) -> HilbertMap:
         """Learn one scan (Alg. 2); returns self.
 
         points_world: (N, d) float, metres, world frame; origin: (d,) sensor centre, world
-        frame; hit_mask: (N,) bool, False for rays without return (None: all returned).
+        frame; hit_mask: (N,) bool, False for rays without return (None: all returned); time:
+        seconds, when the scan was taken (needed with config.forget_after).
         """
-        return self.integrate_scan(Scan(points_world, origin, hit_mask))
+        return self.integrate_scan(Scan(points_world, origin, hit_mask, time))
 
     def integrate_scan(self, scan: Scan) -> HilbertMap:
         """Learn one Scan (Alg. 2); returns self. With config.batch_rays, the scan waits
@@ -287,6 +293,7 @@ class HilbertMap:
             raise InputError(f"expected ehm.Scan, got {type(scan).__name__}")
         if self.dim is not None and scan.dim != self.dim:
             raise InputError(f"scan points are {scan.dim}D, the map is {self.dim}D")
+        self._check_time(scan, "the scan")
         self._waiting.append(scan)
         self._waiting_rays += len(scan)
         self._origins.append(scan.origin)
@@ -306,7 +313,7 @@ class HilbertMap:
         with timer("samples"):
             rays = scan_rays(scans, self.config)
             samples = gather_evidence(rays, self.config, self._rng)
-        self._learn(rays, samples, timer)
+        self._learn(rays, samples, timer, _latest_time(scans))
         self._update_followers()
         return self
 
@@ -320,23 +327,36 @@ class HilbertMap:
                 raise InputError(f"scan {i}: expected ehm.Scan, got {type(scan).__name__}")
             if scan.dim != scans[0].dim:
                 raise InputError(f"scan {i}: points are {scan.dim}D, scan 0 is {scans[0].dim}D")
+            self._check_time(scan, f"scan {i}")
         self._reset()
         timer = StageTimer()
         with timer("samples"):
             rays = scan_rays(scans, self.config)
             samples = gather_evidence(rays, self.config, self._rng)
-        self._learn(rays, samples, timer)
+        self._learn(rays, samples, timer, _latest_time(scans))
         self.n_scans_ = len(scans)
         self._origins = [scan.origin for scan in scans]
         self._update_followers()
         return self
 
-    def _learn(self, rays: ScanRays, samples: TrainingSamples, timer: StageTimer) -> None:
+    def _check_time(self, scan: Scan, what: str) -> None:
+        """InputError for a scan without time stamp given to a map that fades."""
+        if self.config.forget_after is not None and scan.time is None:
+            raise InputError(
+                f"{what} has no time stamp, and the map forgets what it has not seen for "
+                f"{self.config.forget_after} s (MapConfig.forget_after): give each scan its time "
+                "(integrate(..., time=seconds))"
+            )
+
+    def _learn(
+        self, rays: ScanRays, samples: TrainingSamples, timer: StageTimer, time: float | None
+    ) -> None:
         """Alg. 2 from the batch's evidence on (one weighted sample per cell and kind,
-        ehm.core.observations.evidence, of `rays`), one step per stage of the paper's Table 2,
-        with the past evidence of the places it reaches (ehm.core.observations.memory): the
-        occupied evidence its rays pass through is taken back first, what formed no cluster yet
-        joins the clustering, and all of it is replayed with the new."""
+        ehm.core.observations.evidence, of `rays`, taken at `time`, seconds), one step per stage
+        of the paper's Table 2, with the past evidence of the places it reaches
+        (ehm.core.observations.memory): what has gone unseen too long fades first
+        (config.forget_after), the occupied evidence its rays pass through is taken back, what
+        formed no cluster yet joins the clustering, and all of it is replayed with the new."""
         cfg = self.config
         if self.clusters_ is None or self.memory_ is None:
             dim = samples.points.shape[1]
@@ -347,7 +367,8 @@ class HilbertMap:
         n_new = len(samples)
         with timer("clustering"):
             visit = memory.visit(samples)
-        with timer("retraction"):
+        with timer("forgetting"):
+            faded = self._fade(clusters, memory, time)
             forgetting = self._retract(rays, visit)
         with timer("clustering"):
             pending = memory.pending(visit)
@@ -364,7 +385,11 @@ class HilbertMap:
             "new_clusters": absorbed.n_new,
             "merged_clusters": absorbed.n_merged,
             "forgetting_clusters": forgetting,
+            "faded_clusters": faded,
         }
+        fading = cfg.forget_after is not None and time is not None
+        if fading:
+            clusters.seen[absorbed.changed] = time
         changed: np.ndarray | None = absorbed.changed
         if cfg.merge_coplanar:
             with timer("coplanar"):
@@ -412,9 +437,23 @@ class HilbertMap:
             new_weights = np.where(shuffle < n_new, weights, 0.0)
             add_curvature(features, new_weights, clusters.weights, self.bias_, clusters.precision)
         with timer("memory"):
+            if fading:
+                mark_seen(clusters, features, shuffle < n_new, time)
             memory.mark_clustered(pending, grouped.in_cluster[n_new:])
-            memory.insert(visit, grouped.in_cluster[:n_new])
+            memory.insert(visit, grouped.in_cluster[:n_new], np.nan if time is None else time)
+        if time is not None:
+            self.time_ = time if self.time_ is None else max(self.time_, time)
         self.timings_ = dict(timer.seconds)
+
+    def _fade(self, clusters: ClusterSet, memory: EvidenceMemory, time: float | None) -> int:
+        """Let what has gone unseen longer than config.forget_after fade, from the latest time
+        learned to `time` (ehm.core.weights.forgetting); returns how many clusters faded."""
+        forget_after, before = self.config.forget_after, self.time_
+        if forget_after is None or time is None or before is None or time <= before:
+            return 0
+        memory.fade(fade_shares(memory.seen, before, time, forget_after))
+        shares = fade_shares(clusters.seen, before, time, forget_after)
+        return len(fade(clusters, shares, self.config.prior_precision))
 
     def _retract(self, rays: ScanRays, visit: Visit) -> int:
         """Take back the memory's occupied evidence that `rays` pass through, where the
@@ -700,3 +739,9 @@ class HilbertMap:
     def extent(self) -> np.ndarray:
         """(2, d) metres, world frame: the box holding every kernel's support."""
         return support_bounds(self.snapshot())
+
+
+def _latest_time(scans: list[Scan]) -> float | None:
+    """The latest time stamp of `scans`, seconds; None when none has one."""
+    times = [scan.time for scan in scans if scan.time is not None]
+    return max(times) if times else None

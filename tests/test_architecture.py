@@ -24,6 +24,7 @@ LAYERS = (
     "ehm.pipeline",
     "ehm.tiles",
     "ehm.maps",
+    "ehm.changes",
     "ehm.viz",
     "ehm.eval",
     "ehm.cli",

@@ -101,8 +101,20 @@ def test_bad_inputs_give_clear_errors(map_file, plan_log, tmp_path):
     fails(["map", log, "-o", output, "--origin", "a,b,c"], 2, "--origin: could not convert")
     fails(["map", log, "-o", output, "--origin", "0,nan,1"], 2, "finite numbers, got '0,nan,1'")
     fails(["map", log, "-o", output, "--set", "cluster_radius=inf"], 2, "must be a finite")
+    fails(["map", log, "-o", output, "--set", "forget_after=soon"], 2, "is a float, got 'soon'")
+    fails(["map", log, "-o", output, "--set", "forget_after=-1"], 2, "a positive number of sec")
     fails(["map", log, "-o", output, "--resolution", "0"], 2, "resolution must be a positive")
     assert not (tmp_path / "x.ehm").exists()
+
+
+def test_a_log_with_time_stamps_makes_a_map_that_fades(plan_log, tmp_path):
+    output = tmp_path / "fading.ehm"
+    result = runner.invoke(
+        app, ["map", str(plan_log), "-o", str(output), "--set", "forget_after=600"]
+    )
+    assert result.exit_code == 0, result.output
+    loaded = ehm.load(output)
+    assert loaded.config.forget_after == 600.0 and loaded.time_ == 0.0  # the log's stamps
 
 
 def test_map_at_another_resolution_scales_its_settings(plan_log, tmp_path):

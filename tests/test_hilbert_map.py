@@ -86,7 +86,7 @@ def test_incremental_merges_reobserved_clusters(room):
     assert set(hilbert_map.timings_) == {
         "samples",
         "clustering",
-        "retraction",
+        "forgetting",
         "length_scales",
         "index",
         "replay",

@@ -100,8 +100,11 @@ def parse_settings(settings: list[str]) -> dict:
         name, sep, value = item.partition("=")
         if not sep or name not in defaults:
             raise InputError(f"--set {item!r}: expected name=value with a MapConfig name")
-        kind = type(defaults[name])
-        if kind is bool:
+        # A setting off by default (None) takes a number, or none.
+        kind = float if defaults[name] is None else type(defaults[name])
+        if defaults[name] is None and value.lower() == "none":
+            overrides[name] = None
+        elif kind is bool:
             words = {"1": True, "true": True, "yes": True, "on": True}
             words |= {"0": False, "false": False, "no": False, "off": False}
             if value.lower() not in words:
@@ -141,9 +144,14 @@ def parse_box(hilbert_map, bounds: str | None):
 
 def map_grid(hilbert_map, box, resolution: float, max_gib: float, std: bool = False):
     """The map's grid over `box` ((2, d) or None: all of the map), with the std when asked."""
+    return hilbert_map.grid(box, resolution, max_bytes=grid_bytes(max_gib), std=std)
+
+
+def grid_bytes(max_gib: float) -> int:
+    """--max-gib in bytes; InputError unless it is a positive number."""
     if not 0 < max_gib < math.inf:
         raise InputError(f"--max-gib must be a positive number, got {max_gib}")
-    return hilbert_map.grid(box, resolution, max_bytes=int(max_gib * 2**30), std=std)
+    return int(max_gib * 2**30)
 
 
 def progress_bar():

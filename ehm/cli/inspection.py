@@ -1,4 +1,5 @@
-"""`ehm view` and `ehm info`: a map in the browser, and what a map file holds."""
+"""`ehm view`, `ehm info` and `ehm diff`: a map in the browser, what a map file holds, and what
+changed between two maps of one place."""
 
 from __future__ import annotations
 
@@ -9,9 +10,15 @@ import typer
 from rich.table import Table
 
 from ehm.cli.app import (
+    Bounds,
+    Force,
+    MaxGiB,
+    Resolution,
     app,
     console,
+    grid_bytes,
     load_map,
+    parse_box,
     serve_until_stopped,
 )
 from ehm.errors import EmptyMapError, InputError
@@ -55,6 +62,8 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     table.add_row("dimensions", str(hilbert_map.dim))
     table.add_row("clusters", str(hilbert_map.n_clusters))
     table.add_row("scans", str(hilbert_map.n_scans_))
+    if hilbert_map.time_ is not None:
+        table.add_row("latest time stamp", f"{hilbert_map.time_:.3f} s")
     path = hilbert_map.sensor_path
     length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) else 0.0
     table.add_row("sensor path", f"{len(path)} poses, {length:.2f} m long")
@@ -71,6 +80,61 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     for name, value in hilbert_map.config.to_dict().items():
         table.add_row(f"config.{name}", repr(value))
     console.print(table)
+
+
+@app.command()
+def diff(
+    old_path: Annotated[Path, typer.Argument(help="The older map (file or tiled map folder).")],
+    new_path: Annotated[Path, typer.Argument(help="The newer map of the same place.")],
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="Picture to write (.png), seen from above.")
+    ],
+    points: Annotated[
+        Path | None,
+        typer.Option(help="Also write the voxel centres (.npz: appeared, vanished, stayed)."),
+    ] = None,
+    resolution: Resolution = 0.05,
+    bounds: Bounds = None,
+    occupied: Annotated[
+        float | None,
+        typer.Option(help="Occupied at or above this p(occupied) [default: map_server's, 0.65]."),
+    ] = None,
+    free: Annotated[
+        float | None,
+        typer.Option(help="Free at or below this p(occupied) [default: map_server's, 0.196]."),
+    ] = None,
+    max_gib: MaxGiB = 1.0,
+    force: Force = False,
+) -> None:
+    """What changed between two maps of one place: the voxels that became occupied (free in
+    the old map) and those that became free; voxels either map has not seen are no change."""
+    import numpy as np
+
+    from ehm.changes import diff as map_diff
+    from ehm.io.outputs import check_output
+    from ehm.viz.pictures import changes_picture
+
+    check_output(output, [old_path, new_path], force, suffix=".png")
+    if points is not None:
+        check_output(points, [old_path, new_path, output], force, suffix=".npz")
+    max_bytes = grid_bytes(max_gib)
+    old, new = load_map(old_path), load_map(new_path)
+    levels = {"occupied": occupied, "free": free}
+    changes = map_diff(
+        old,
+        new,
+        resolution,
+        parse_box(new, bounds),
+        max_bytes=max_bytes,
+        **{name: level for name, level in levels.items() if level is not None},
+    )
+    changes_picture(changes, output, f"{old_path.name} to {new_path.name}")
+    console.print(f"{changes!r}\nwrote {output}")
+    if points is not None:
+        np.savez(
+            points, appeared=changes.appeared, vanished=changes.vanished, stayed=changes.stayed
+        )
+        console.print(f"wrote {points}")
 
 
 def _tiled_map_rows(table: Table, tiled_map) -> None:

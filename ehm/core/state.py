@@ -22,7 +22,8 @@ class MapState:
     continues exactly as the saved one would; None starts it afresh from config.seed. memory:
     the past evidence it replays. waiting: scans given but not learned yet, waiting for their
     batch (config.batch_rays), in the order given. sensor_path: (n, d) float64, metres, world
-    frame, the origin of every scan given, in order (empty for maps saved before it was kept)."""
+    frame, the origin of every scan given, in order (empty for maps saved before it was kept).
+    time: seconds, the latest time stamp of the scans learned (None without)."""
 
     config: MapConfig
     clusters: ClusterSet
@@ -33,3 +34,4 @@ class MapState:
     memory: EvidenceMemory
     waiting: tuple[Scan, ...] = ()
     sensor_path: np.ndarray | None = None
+    time: float | None = None

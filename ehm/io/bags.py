@@ -97,13 +97,14 @@ class BagScans:
                     yield scan
 
     def _scan(self, message, index: int) -> Scan | None:
-        """The message as a Scan in world frame, or None without a transform at its stamp."""
+        """The message as a Scan in world frame, at its header's stamp, or None without a
+        transform at that stamp."""
+        stamp = _nanoseconds(message.header.stamp)
         if self._poses is not None:
             if index >= len(self._poses):
                 raise InputError(f"{len(self._poses)} poses for more messages on {self.topic}")
             T_world_sensor = self._poses[index]
         else:
-            stamp = _nanoseconds(message.header.stamp)
             T_world_sensor = self._frames.lookup(self._frame, message.header.frame_id, stamp)
             if T_world_sensor is None:
                 return None
@@ -114,9 +115,10 @@ class BagScans:
                 points, hits = laser_scan_points(message)
             world = transform_points(T_world_sensor, points)
             origin = T_world_sensor[:3, 3]
+            time = stamp * 1e-9
             if self.dim == 2:
-                return Scan(world[:, :2], origin[:2].copy(), hits)
-            return Scan(world, origin.copy())
+                return Scan(world[:, :2], origin[:2].copy(), hits, time)
+            return Scan(world, origin.copy(), time=time)
         except InputError as error:
             raise FileReadError(self.path, f"message {index} on {self.topic}: {error}") from None
 

@@ -15,9 +15,10 @@ def read_carmen(
     path: str | PathLike[str], max_range: float = 81.0, fov: float = np.pi
 ) -> list[Scan]:
     """2D scans of a CARMEN log: each `FLASER n r_1..r_n x y theta ...` line, beam i at angle
-    theta - fov/2 + i fov/n; readings >= max_range (sensor dropouts) are dropped. FileReadError
-    naming the line for a malformed FLASER line (a pose that is not finite, a reading that is
-    NaN or negative), or for a log without one."""
+    theta - fov/2 + i fov/n; readings >= max_range (sensor dropouts) are dropped. Each scan's
+    time is the line's ipc_timestamp (after x y theta and the odometry pose), where it has one.
+    FileReadError naming the line for a malformed FLASER line (a pose that is not finite, a
+    reading that is NaN or negative), or for a log without one."""
     scans, n_lines = [], 0
     for number, line in enumerate(read_text(path).splitlines(), start=1):
         words = line.split()
@@ -38,10 +39,20 @@ def read_carmen(
             ranges, angles = ranges[keep], (theta - fov / 2 + np.arange(n) * fov / n)[keep]
             points = np.column_stack([x + ranges * np.cos(angles), y + ranges * np.sin(angles)])
             if keep.any():
-                scans.append(Scan(points, np.array([x, y])))
+                scans.append(Scan(points, np.array([x, y]), time=_ipc_time(words, n)))
         except (ValueError, IndexError) as error:  # InputError too: a bad origin
             message = f"malformed FLASER line: expected 'FLASER n r_1..r_n x y theta' ({error})"
             raise FileReadError(path, message, f"line {number}") from None
     if n_lines == 0:
         raise FileReadError(path, "no FLASER lines: not a CARMEN log of 2D laser scans")
     return scans
+
+
+def _ipc_time(words: list[str], n: int) -> float | None:
+    """The ipc_timestamp of a FLASER line of n readings (`... x y theta odom_x odom_y odom_theta
+    ipc_timestamp ...`), seconds; None for a line that ends before it or holds no number."""
+    try:
+        time = float(words[8 + n])
+    except (IndexError, ValueError):
+        return None
+    return time if np.isfinite(time) else None

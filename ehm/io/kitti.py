@@ -1,6 +1,7 @@
 """KITTI odometry Velodyne scans: `velodyne/NNNNNN.bin` (float32 x y z intensity in the
 Velodyne frame), placed by the sequence's poses (line i: frame i's row-major 3x4
-T_world_camera0) and calib.txt's `Tr` (T_camera0_velodyne)."""
+T_world_camera0) and calib.txt's `Tr` (T_camera0_velodyne), each at its time in times.txt
+(line i: frame i's, seconds) where the sequence has one."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 from ehm.core.sensor.geometry import transform_points
 from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
-from ehm.io.files import read_input
+from ehm.io.files import read_input, read_text
 from ehm.io.poses import read_kitti_calibration, read_poses
 
 # `calib` value for poses that already place the Velodyne (say, from a LiDAR odometry).
@@ -66,16 +67,17 @@ def kitti_scans(
     """The scans of `read_kitti`, each read when it is asked for; the frame numbers, poses
     and calibration are checked first, here."""
     frames = kitti_frames(bin_paths, poses_path, calib)
-    return (read_kitti_scan(path, T_world_velodyne) for path, T_world_velodyne in frames)
+    return (read_kitti_scan(*frame) for frame in frames)
 
 
 def kitti_frames(
     bin_paths: list[str | PathLike[str]],
     poses_path: str | PathLike[str],
     calib: str | PathLike[str] | None = None,
-) -> list[tuple[Path, np.ndarray]]:
-    """Each scan's file and (4, 4) T_world_velodyne, in frame order, checked (frame numbers,
-    poses and calibration; see read_kitti); no scan is read."""
+) -> list[tuple[Path, np.ndarray, float | None]]:
+    """Each scan's file, (4, 4) T_world_velodyne and time (seconds; None without the
+    sequence's times.txt beside `velodyne/`), in frame order, checked (frame numbers, poses
+    and calibration; see read_kitti); no scan is read."""
     frames = sorted((_frame_number(path), Path(path)) for path in bin_paths)
     poses = read_poses(poses_path)
     T_camera_velodyne = _calibration(frames[0][1], calib)
@@ -84,11 +86,16 @@ def kitti_frames(
             raise FileReadError(
                 poses_path, f"{len(poses)} poses: none for frame {frame} ({path.name})"
             )
-    return [(path, poses[frame] @ T_camera_velodyne) for frame, path in frames]
+    times = _times(frames[0][1])
+    return [
+        (path, poses[frame] @ T_camera_velodyne, times[frame] if frame < len(times) else None)
+        for frame, path in frames
+    ]
 
 
-def read_kitti_scan(path: Path, T_world_velodyne: np.ndarray) -> Scan:
-    """One Velodyne scan in world frame, placed by its (4, 4) T_world_velodyne."""
+def read_kitti_scan(path: Path, T_world_velodyne: np.ndarray, time: float | None = None) -> Scan:
+    """One Velodyne scan in world frame, placed by its (4, 4) T_world_velodyne, taken at
+    `time` seconds (None: unknown)."""
     raw = read_input(path)
     if len(raw) % 16:
         raise FileReadError(
@@ -98,7 +105,7 @@ def read_kitti_scan(path: Path, T_world_velodyne: np.ndarray) -> Scan:
         points_velodyne = np.frombuffer(raw, "<f4").reshape(-1, 4)[:, :3].astype(np.float64)
     points_world = transform_points(T_world_velodyne, points_velodyne)
     try:
-        return Scan(points_world, T_world_velodyne[:3, 3].copy())
+        return Scan(points_world, T_world_velodyne[:3, 3].copy(), time=time)
     except InputError as error:
         raise FileReadError(path, str(error)) from None
 
@@ -125,3 +132,20 @@ def _calibration(first_scan: Path, calib: str | PathLike[str] | None) -> np.ndar
             f"(--calib PATH) or, for poses that already place the Velodyne, --calib {IDENTITY}"
         )
     return read_kitti_calibration(beside)
+
+
+def _times(first_scan: Path) -> list[float]:
+    """The frame times of the scans' sequence, seconds: its times.txt beside `velodyne/`, one
+    number per line (none without the file); FileReadError naming a line that is not one."""
+    path = first_scan.resolve().parent.parent / "times.txt"
+    if not path.exists():
+        return []
+    times = []
+    for number, line in enumerate(read_text(path).splitlines(), start=1):
+        try:
+            times.append(float(line))
+        except ValueError:
+            raise FileReadError(
+                path, f"not a time in seconds: {line!r}", f"line {number}"
+            ) from None
+    return times

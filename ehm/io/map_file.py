@@ -64,7 +64,10 @@ SENSOR_PATH = "sensor_path"
 # version 13 files load their keys so, and their places to the nearest 1/255 of a cell.
 # Version 15 flags each entry of the past evidence (ehm.core.observations.memory): formed part
 # of a cluster, passed through by rays; older files load with none passed.
-FORMAT_VERSION = 15
+# Version 16 keeps time: the latest time stamp learned, when each cluster and each region of the
+# past evidence last had evidence, and the time of each scan waiting for its batch (for
+# MapConfig.forget_after); older files load with none.
+FORMAT_VERSION = 16
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -108,6 +111,7 @@ def map_bytes(state: MapState) -> bytes:
             "n_scans": state.n_scans,
             "bias_state": state.bias_state.tolist(),
             "rng_state": state.rng_state,
+            "time": state.time,
             "arrays": entries,
         }
     ).encode()
@@ -119,7 +123,7 @@ def map_bytes(state: MapState) -> bytes:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 15); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 16); MapFileError
     names what is wrong otherwise."""
     return map_state_of_bytes(read_bytes(path), path)
 
@@ -208,6 +212,8 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         # Format 3 maps learned by SGD and kept no posterior precisions.
         settings = {**settings, "update_rule": "sgd"}
         arrays["precision"] = np.full(len(arrays["weights"]), MapConfig().prior_precision)
+    if version < 16:
+        arrays["seen"] = np.full(len(arrays["weights"]), np.nan)
     config = MapConfig.from_dict(settings)
     if kept is not None:
         memory = EvidenceMemory.of_samples(dim, config, *kept)
@@ -225,6 +231,7 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         memory,
         _waiting_scans(waiting_arrays),
         sensor_path,
+        header.get("time"),
     )
 
 
@@ -246,13 +253,14 @@ def _kept_samples(arrays: dict[str, np.ndarray]) -> tuple[TrainingSamples, np.nd
 
 
 def _waiting_arrays(scans: tuple[Scan, ...]) -> dict[str, np.ndarray]:
-    """The scans waiting for their batch as four arrays: every ray's end point and hit flag,
-    each scan's origin and ray count."""
+    """The scans waiting for their batch as five arrays: every ray's end point and hit flag,
+    each scan's origin, ray count and time stamp (NaN: none)."""
     return {
         "points": np.concatenate([scan.points_world for scan in scans]),
         "hits": np.concatenate([scan.hit_mask for scan in scans]),
         "origins": np.stack([scan.origin for scan in scans]),
         "counts": np.array([len(scan) for scan in scans], dtype=np.int64),
+        "times": np.array([np.nan if scan.time is None else scan.time for scan in scans]),
     }
 
 
@@ -263,7 +271,8 @@ def _waiting_scans(arrays: dict[str, np.ndarray]) -> tuple[Scan, ...]:
     if ends[-1] != len(arrays["points"]) or len(arrays["hits"]) != len(arrays["points"]):
         raise ValueError("waiting scans' arrays differ in length")
     starts = ends - arrays["counts"]
+    times = arrays.get("times", np.full(len(starts), np.nan))
     return tuple(
-        Scan(arrays["points"][a:b], origin, arrays["hits"][a:b])
-        for a, b, origin in zip(starts, ends, arrays["origins"], strict=True)
+        Scan(arrays["points"][a:b], origin, arrays["hits"][a:b], None if np.isnan(t) else t)
+        for a, b, origin, t in zip(starts, ends, arrays["origins"], times, strict=True)
     )

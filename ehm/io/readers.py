@@ -155,12 +155,14 @@ class ScanFiles:
                 raise FileReadError(item, "no such file or folder")
         self.format = fmt
         self._every, self._limit = every, limit
-        # One (path, T_world_file, origin) per scan for files of one scan each, else None.
-        self._files: list[tuple[Path, np.ndarray | None, np.ndarray | None]] | None = None
+        # One (path, T_world_file, origin, time) per scan for files of one scan each, else None.
+        self._files: (
+            list[tuple[Path, np.ndarray | None, np.ndarray | None, float | None]] | None
+        ) = None
         self._streams: list = []
         if fmt == "kitti":
             bins, poses_path = kitti_files(items, poses)
-            files = [(path, T, None) for path, T in kitti_frames(bins, poses_path, calib)]
+            files = [(path, T, None, t) for path, T, t in kitti_frames(bins, poses_path, calib)]
         elif fmt == "bag":
             self._streams = [BagScans(item, topic, frame, odometry, poses) for item in items]
             return
@@ -170,7 +172,7 @@ class ScanFiles:
         else:
             sensor = None if origin is None else np.asarray(origin, dtype=np.float64)
             T_world_files = _file_poses(poses, len(items))
-            files = [(Path(p), T, sensor) for p, T in zip(items, T_world_files, strict=True)]
+            files = [(Path(p), T, sensor, None) for p, T in zip(items, T_world_files, strict=True)]
         self._files = files[::every][:limit]
 
     def count(self) -> int | None:
@@ -201,9 +203,9 @@ class ScanFiles:
         return ((i, scan) for i, scan in enumerate(self) if i in chosen)
 
     def _read_file(self, index: int) -> Scan:
-        path, T_world_file, sensor = self._files[index]
+        path, T_world_file, sensor, time = self._files[index]
         if self.format == "kitti":
-            return read_kitti_scan(path, T_world_file)
+            return read_kitti_scan(path, T_world_file, time)
         return _point_cloud_scan(path, self.format, sensor, T_world_file)
 
 

@@ -33,7 +33,8 @@ def tum_scans(
     """TUM RGB-D depth frames listed in `folder`/poses.txt (`depth/<file> tx ty tz qx qy qz
     qw`, camera-to-world), each read when it is asked for. Intrinsics default to Freiburg 2;
     depth in metres = value / depth_scale; 0 means no reading and is skipped. Every
-    `pixel_stride`-th pixel is used."""
+    `pixel_stride`-th pixel is used. A frame's time is its file's name, as TUM names depth
+    images (depth/1311877813.991479.png: seconds), where the name is a number."""
     folder = Path(folder)
     poses_path = folder / "poses.txt"
     for number, line in enumerate(read_text(poses_path).splitlines(), start=1):
@@ -57,7 +58,7 @@ def tum_scans(
         points_camera = np.column_stack([(u - cx) * z / fx, (v - cy) * z / fy, z])
         points_world = transform_points(T_world_camera, points_camera)
         try:
-            scan = Scan(points_world, T_world_camera[:3, 3].copy())
+            scan = Scan(points_world, T_world_camera[:3, 3].copy(), time=_stamp(name))
         except InputError as error:
             raise FileReadError(folder / name, str(error)) from None
         yield scan
@@ -80,3 +81,13 @@ def _depth_image(path: Path) -> np.ndarray:
             path, f"expected a one-channel 16-bit depth image, got {depth.dtype} {depth.shape}"
         )
     return depth.astype(np.float64)
+
+
+def _stamp(name: str) -> float | None:
+    """The time a TUM depth image's name gives (depth/1311877813.991479.png), seconds; None for
+    a name that is not a number."""
+    try:
+        time = float(Path(name).stem)
+    except ValueError:
+        return None
+    return time if np.isfinite(time) else None

@@ -207,13 +207,17 @@ class TiledMap:
 
     # --------------------------------------------------------------- learning
     def integrate(
-        self, points_world: np.ndarray, origin: np.ndarray, hit_mask: np.ndarray | None = None
+        self,
+        points_world: np.ndarray,
+        origin: np.ndarray,
+        hit_mask: np.ndarray | None = None,
+        time: float | None = None,
     ) -> TiledMap:
         """Learn one scan in this process, into the tiles its rays cross; returns self.
         points_world: (N, d) float, metres, world frame; origin: (d,) metres; hit_mask: (N,)
-        bool, False for rays without return (None: all returned). `build` learns many scans
-        on a cluster."""
-        return self.integrate_scan(Scan(points_world, origin, hit_mask))
+        bool, False for rays without return (None: all returned); time: seconds, when it was
+        taken. `build` learns many scans on a cluster."""
+        return self.integrate_scan(Scan(points_world, origin, hit_mask, time))
 
     def integrate_scan(self, scan: Scan) -> TiledMap:
         """Learn one Scan in this process, into the tiles its rays cross; returns self."""

@@ -1,5 +1,5 @@
 """Pictures of a map, off-screen PNGs: occupancy slices through its volume, a rendered mesh
-coloured by height, a 2D grid as an image."""
+coloured by height, a 2D grid as an image, what changed between two maps."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from os import PathLike
 
 import numpy as np
 
+from ehm.changes import MapChanges
 from ehm.core.weights.uncertainty import occupancy_std
 from ehm.errors import InputError
 from ehm.grid.occupancy_grid import OccupancyGrid
@@ -145,3 +146,47 @@ def grid_picture(grid: OccupancyGrid, path: str | PathLike[str], title: str | No
     figure.colorbar(image, ax=axis, shrink=0.8, label="p(occupied)")
     figure.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(figure)
+
+
+def changes_picture(
+    changes: MapChanges, path: str | PathLike[str], title: str | None = None
+) -> None:
+    """Write a PNG of what changed between two maps (ehm.changes), seen from above, x to the
+    right and y up: what appeared in blue and what vanished in red, over what is occupied in
+    both in grey, darker where a column holds more of it (a 3D map's walls over its floor)."""
+    import matplotlib
+
+    plt = pyplot()
+    (x0, y0), (x1, y1) = changes.bounds[0, :2], changes.bounds[1, :2]
+    shape = np.round((changes.bounds[1, :2] - changes.bounds[0, :2]) / changes.resolution)
+    stayed = np.zeros(tuple(shape.astype(int)))
+    np.add.at(stayed, _columns(changes, changes.stayed), 1.0)
+    full = np.percentile(stayed[stayed > 0], 95) if stayed.any() else 1.0
+    picture = np.repeat((1.0 - 0.75 * np.minimum(stayed / full, 1.0))[..., None], 3, axis=-1)
+    legend = []
+    for centres, colour, label in (
+        (changes.appeared, "tab:blue", "appeared"),
+        (changes.vanished, "tab:red", "vanished"),
+    ):
+        picture[_columns(changes, centres)] = matplotlib.colors.to_rgb(colour)
+        legend.append(
+            matplotlib.patches.Patch(color=colour, label=f"{label} ({len(centres)} voxels)")
+        )
+    legend.append(matplotlib.patches.Patch(color="0.25", label="occupied in both"))
+    figure, axis = plt.subplots(figsize=(8, 8 * (y1 - y0) / (x1 - x0) + 0.6))
+    axis.imshow(
+        picture.transpose(1, 0, 2), origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest"
+    )
+    axis.legend(handles=legend, loc="upper right", fontsize=8)
+    axis.set_title(title or f"changes, {changes.resolution} m voxels")
+    axis.set_xlabel("x (m)")
+    axis.set_ylabel("y (m)")
+    figure.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(figure)
+
+
+def _columns(changes: MapChanges, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (x, y) cell of each of (n, d) voxel `centres` in a picture of `changes` from
+    above: index arrays (n,) each."""
+    cells = np.floor((centres[:, :2] - changes.bounds[0, :2]) / changes.resolution)
+    return cells[:, 0].astype(np.int64), cells[:, 1].astype(np.int64)

@@ -4,7 +4,7 @@ import numpy as np
 
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.features import SparseFeatures
-from ehm.core.weights.forgetting import forget, standing_shares
+from ehm.core.weights.forgetting import fade, fade_shares, forget, mark_seen, standing_shares
 
 
 def test_the_standing_share_weighs_each_entry_by_its_kernel_value():
@@ -35,3 +35,48 @@ def test_occupied_fine_clusters_forget_in_that_share():
     np.testing.assert_allclose(clusters.grad_sq, [2.0, 4.0, 8.0, 8.0])
     np.testing.assert_allclose(clusters.precision, [2.0, 3.0, 5.0, 5.0])
     np.testing.assert_allclose(clusters.counts, [2.5, 5.0, 10.0, 10.0])
+
+
+def test_unseen_evidence_stands_whole_for_forget_after_then_halves_every_quarter_of_it():
+    seen = np.array([0.0, 0.0, 0.0, 9.0, np.nan])
+    # From time 0 to 14 with forget_after 4: the first three unseen past 4 s for 10 s.
+    shares = fade_shares(seen, before=0.0, now=14.0, forget_after=4.0)
+    np.testing.assert_allclose(shares, [0.5**10, 0.5**10, 0.5**10, 0.5**1, 1.0])
+    # Fading in steps composes to fading at once.
+    steps = np.ones(len(seen))
+    for before, now in [(0.0, 3.0), (3.0, 5.5), (5.5, 14.0)]:
+        steps *= fade_shares(seen, before, now, 4.0)
+    np.testing.assert_allclose(steps, shares)
+    assert fade_shares(np.array([0.0]), 0.0, 4.0, 4.0)[0] == 1.0
+
+
+def test_faded_clusters_drift_to_the_prior_free_and_occupied_alike():
+    clusters = ClusterSet.empty(2)
+    clusters.append(
+        np.zeros((3, 2)),
+        np.tile(np.eye(2), (3, 1, 1)),
+        np.full(3, 10.0),
+        coarse=np.array([False, True, False]),
+        occupied=np.array([True, False, False]),
+        precision=5.0,
+    )
+    clusters.weights[:] = [2.0, -4.0, 1.0]
+    clusters.grad_sq[:] = 8.0
+    rows = fade(clusters, np.array([0.5, 0.25, 1.0]), prior_precision=1.0)
+    np.testing.assert_array_equal(rows, [0, 1])
+    np.testing.assert_allclose(clusters.weights, [1.0, -1.0, 1.0])
+    np.testing.assert_allclose(clusters.grad_sq, [4.0, 2.0, 8.0])
+    np.testing.assert_allclose(clusters.precision, [3.0, 2.0, 5.0])
+    np.testing.assert_allclose(clusters.counts, [5.0, 2.5, 10.0])
+
+
+def test_clusters_the_new_samples_reach_are_seen_now():
+    clusters = ClusterSet.empty(2)
+    clusters.append(
+        np.zeros((3, 2)), np.tile(np.eye(2), (3, 1, 1)), np.ones(3), [False] * 3, [True] * 3
+    )
+    assert np.isnan(clusters.seen).all()
+    # Sample 0 (new) reaches clusters 0 and 2, sample 1 (replayed) cluster 1.
+    features = SparseFeatures(np.array([0, 2, 3]), np.array([0, 2, 1]), np.ones(3))
+    mark_seen(clusters, features, np.array([True, False]), 7.5)
+    np.testing.assert_array_equal(clusters.seen, [7.5, np.nan, 7.5])

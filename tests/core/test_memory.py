@@ -201,3 +201,29 @@ def test_the_occupied_entries_near_others_are_those_of_their_regions():
     first = np.flatnonzero(occupied & np.all(memory.samples().points < 1.0, axis=1))[0]
     near = memory.occupied_near(np.array([first]))
     np.testing.assert_allclose(memory.points_at(near), [[0.1, 0.1], [0.9, 0.9]], atol=1e-3)
+
+
+def test_a_timed_memory_keeps_when_each_region_last_had_evidence():
+    memory = EvidenceMemory(2, True, SIDES, timed=True)
+    # Regions of 1 m around hits: (0, 0) and (3, 3).
+    memory.insert(memory.visit(samples_at([[0.1, 0.1], [3.5, 3.5]])), np.ones(2, bool), 10.0)
+    np.testing.assert_array_equal(memory.seen, [10.0, 10.0])
+    # A later batch in a new region (1, 1) and in (3, 3): (0, 0) keeps its time.
+    memory.insert(memory.visit(samples_at([[1.5, 1.5], [3.2, 3.2]])), np.ones(2, bool), 12.0)
+    np.testing.assert_array_equal(memory.seen, [10.0, 12.0, 12.0])
+    # Each region's entries keep a share of their weight (region (3, 3) holds two); a weight
+    # under MIN_WEIGHT becomes 0, and its entry goes with the next insert.
+    memory.fade(np.array([0.5, 1.0, MIN_WEIGHT / 4]))
+    np.testing.assert_allclose(memory.weight, [0.5, 1.0, 0.0, 0.0])
+    memory.insert(memory.visit(samples_at([[0.2, 0.2]])), np.ones(1, bool), 13.0)
+    np.testing.assert_allclose(memory.weight, [1.5, 1.0])
+    np.testing.assert_array_equal(memory.seen, [13.0, 12.0])
+    restored = EvidenceMemory.from_arrays(2, MapConfig(forget_after=5.0), memory.arrays())
+    np.testing.assert_array_equal(restored.seen, memory.seen)
+
+
+def test_an_untimed_memory_keeps_no_times():
+    memory = EvidenceMemory.of_config(2, MapConfig())
+    memory.insert(memory.visit(samples_at([[0.1, 0.1]])), np.ones(1, bool), 3.0)
+    assert not memory.timed and len(memory.seen) == 0
+    assert EvidenceMemory.of_config(2, MapConfig(forget_after=1.0)).timed

@@ -162,12 +162,14 @@ def test_clouds_are_placed_by_tf_at_their_stamp(lidar_bag, cloud):
     expected = (cloud + np.array([0, 0, 1])) @ R.T + [1, 0, 0]
     np.testing.assert_allclose(scans[0].points_world, expected, atol=1e-5)
     np.testing.assert_allclose(scans[0].origin, [1, 0, 1], atol=1e-12)
+    assert scans[0].time == 1.0  # its header's stamp, seconds
 
 
 def test_a_poses_file_places_each_message(lidar_bag, cloud, tmp_path):
     (tmp_path / "poses.txt").write_text("1 0 0 5 0 1 0 0 0 0 1 0\n1 0 0 6 0 1 0 0 0 0 1 0\n")
     scans = list(BagScans(lidar_bag, "/points", poses=tmp_path / "poses.txt"))
     np.testing.assert_allclose(scans[1].points_world, cloud + np.array([6, 0, 0]), atol=1e-5)
+    assert [scan.time for scan in scans] == [1.0, 3.0]
 
 
 @pytest.mark.parametrize("storage", [StoragePlugin.SQLITE3, StoragePlugin.MCAP])

@@ -107,3 +107,14 @@ def test_a_sequence_folder_finds_its_scans_and_poses(tmp_path, cloud):
     (tmp_path / "dataset" / "poses" / "07.txt").unlink()
     with pytest.raises(InputError, match=r"need the sequence's poses file \(--poses\)"):
         read_scans(sequence)
+
+
+def test_each_frame_takes_its_time_from_the_sequences_times_file(sequence):
+    bins = sorted((sequence / "velodyne").glob("*.bin"))
+    assert {scan.time for scan in read_scans(bins, poses=sequence / "poses.txt")} == {None}
+    (sequence / "times.txt").write_text("0.000000e+00\n1.036022e-01\n2.072043e-01\n")
+    scans = read_scans(bins[1:], poses=sequence / "poses.txt")
+    assert [scan.time for scan in scans] == [1.036022e-01, 2.072043e-01]
+    (sequence / "times.txt").write_text("0.0\nsoon\n")
+    with pytest.raises(FileReadError, match=r"times\.txt, line 2: not a time in seconds: 'soon'"):
+        read_scans(bins, poses=sequence / "poses.txt")

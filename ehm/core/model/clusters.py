@@ -23,7 +23,8 @@ class ClusterSet:
     occupied samples. planar: (M,) bool, the covariance is flat (see
     ehm.core.model.kernels.planar_clusters). planar_kernel: (M,) bool, the cluster uses the
     planar-surface kernel. Transforms and both planar flags follow from the covariances and the
-    map's settings (`refresh`).
+    map's settings (`refresh`). seen: (M,) float64, seconds, the time stamp of the latest scan
+    that brought the cluster evidence, NaN when none did (kept with MapConfig.forget_after).
     """
 
     means: np.ndarray
@@ -37,6 +38,7 @@ class ClusterSet:
     occupied: np.ndarray
     planar: np.ndarray
     planar_kernel: np.ndarray
+    seen: np.ndarray
 
     @classmethod
     def empty(cls, dim: int) -> ClusterSet:
@@ -50,6 +52,7 @@ class ClusterSet:
             np.zeros(0),
             np.zeros((0, dim, dim)),
             *flags,
+            np.zeros(0),
         )
 
     def __len__(self) -> int:
@@ -75,8 +78,8 @@ class ClusterSet:
         occupied: np.ndarray,
         precision: float = 0.0,
     ) -> None:
-        """Add clusters with weight 0 (no prior knowledge of their occupancy) and posterior
-        `precision`; `refresh` them before use."""
+        """Add clusters with weight 0 (no prior knowledge of their occupancy), posterior
+        `precision` and no time seen; `refresh` them before use."""
         n = len(means)
         self.means = np.concatenate([self.means, means])
         self.covariances = np.concatenate([self.covariances, covariances])
@@ -89,6 +92,7 @@ class ClusterSet:
         self.occupied = np.concatenate([self.occupied, np.asarray(occupied, dtype=bool)])
         self.planar = np.concatenate([self.planar, np.zeros(n, dtype=bool)])
         self.planar_kernel = np.concatenate([self.planar_kernel, np.zeros(n, dtype=bool)])
+        self.seen = np.concatenate([self.seen, np.full(n, np.nan)])
 
     def remove(self, rows: np.ndarray) -> np.ndarray:
         """Drop clusters `rows` ((R,) int64, distinct). The last clusters move into the holes,

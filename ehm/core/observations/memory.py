@@ -240,12 +240,17 @@ class EvidenceMemory:
     float32; place (n, d) uint8, the mean's offset from its cell's corner in OFFSET_STEPS of the
     cell's side; flags (n,) uint8: CLUSTERED, the entry formed part of a cluster; PASSED,
     rays passed through it in an earlier batch (ehm.core.observations.passes) and it has had
-    no new evidence since.
+    no new evidence since. seen (R,) float64, seconds, when `timed` (for MapConfig.forget_after;
+    else empty): the time stamp of the latest batch that brought each region evidence, NaN when
+    none had one.
     """
 
-    def __init__(self, dim: int, enabled: bool, sides: tuple[float, float]) -> None:
+    def __init__(
+        self, dim: int, enabled: bool, sides: tuple[float, float], timed: bool = False
+    ) -> None:
         self.dim = dim
         self.enabled = enabled
+        self.timed = timed
         self.sides = (float(sides[0]), float(sides[1]))
         self.regions = np.zeros(0, dtype=np.int64)
         self.region_sizes = np.zeros(0, dtype=np.uint8)
@@ -253,11 +258,12 @@ class EvidenceMemory:
         self.weight = np.zeros(0, dtype=np.float32)
         self.place = np.zeros((0, dim), dtype=np.uint8)
         self.flags = np.zeros(0, dtype=np.uint8)
+        self.seen = np.zeros(0)
 
     @classmethod
     def of_config(cls, dim: int, config: MapConfig) -> EvidenceMemory:
         """An empty memory for a dim-dimensional map with `config`'s settings."""
-        return cls(dim, config.keep_evidence, cell_sides(config))
+        return cls(dim, config.keep_evidence, cell_sides(config), config.forget_after is not None)
 
     def __len__(self) -> int:
         """Entries kept."""
@@ -338,9 +344,10 @@ class EvidenceMemory:
             replayed.points[keep], replayed.occupied[keep], replayed.at_surface[keep], weight[keep]
         )
 
-    def insert(self, visit: Visit, clustered: np.ndarray) -> None:
+    def insert(self, visit: Visit, clustered: np.ndarray, time: float = np.nan) -> None:
         """Add the visit's samples to the memory; clustered: (n,) bool, each formed part of a
-        cluster."""
+        cluster; time: seconds, the batch's time stamp, which the regions it reaches keep as
+        seen (NaN: none)."""
         samples = visit.samples
         if not self.enabled or len(samples) == 0:
             return
@@ -369,7 +376,21 @@ class EvidenceMemory:
             kept = ~emptied
             keys, self.weight = keys[kept], self.weight[kept]
             self.place, self.flags = self.place[kept], self.flags[kept]
+        regions = self.regions
         self._keep_keys(keys)
+        if self.timed:
+            self._keep_seen(regions, new_keys >> REGION_BITS, time)
+
+    def _keep_seen(self, regions: np.ndarray, visited: np.ndarray, time: float) -> None:
+        """Carry the time seen of `regions` (the regions before an insert) over to the
+        regions now kept, and mark the `visited` regions seen at `time`."""
+        seen = np.full(len(self.regions), np.nan)
+        rows = np.searchsorted(self.regions, regions)
+        still = rows < len(self.regions)
+        still[still] = self.regions[rows[still]] == regions[still]
+        seen[rows[still]] = self.seen[still]
+        seen[np.searchsorted(self.regions, visited)] = time
+        self.seen = seen
 
     # ------------------------------------------------------------ retraction
     def retract(
@@ -390,6 +411,15 @@ class EvidenceMemory:
         after[after < MIN_WEIGHT] = 0.0
         self.weight[entries] = after
         return Retraction(entries, before, after)
+
+    def fade(self, shares: np.ndarray) -> None:
+        """Keep `shares` (R,) float64 of the weight of every entry of each region (1: all); a
+        weight that falls below MIN_WEIGHT becomes 0 (the entry goes at the next insert). For a
+        `timed` memory."""
+        faded = np.repeat(shares < 1.0, self.region_sizes)
+        weight = self.weight[faded] * np.repeat(shares, self.region_sizes)[faded]
+        weight[weight < MIN_WEIGHT] = 0.0
+        self.weight[faded] = weight
 
     def occupied_near(self, entries: np.ndarray) -> np.ndarray:
         """(m,) int64 sorted: the occupied entries in the regions of `entries` (k,) int64."""
@@ -463,6 +493,7 @@ class EvidenceMemory:
             "weight": self.weight,
             "place": self.place,
             "flags": self.flags,
+            "seen": self.seen,
         }
 
     @classmethod
@@ -482,4 +513,6 @@ class EvidenceMemory:
             arrays["place"] = np.rint(place).astype(np.uint8)
         for name, array in arrays.items():
             setattr(memory, name, array)
+        if memory.timed and "seen" not in arrays:
+            memory.seen = np.full(len(memory.regions), np.nan)
         return memory

@@ -14,6 +14,9 @@ class Scan:
         point is where the ray ends (for example at maximum range).
     origin: (d,) float, metres, world frame: the sensor centre all rays start from.
     hit_mask: (N,) bool, True where the ray hit a surface; None means every ray did.
+    time: seconds, when the scan was taken (any fixed epoch: Unix time, the log's start); None
+        when unknown. Maps that forget what they have not seen for a while need it
+        (MapConfig.forget_after).
 
     Points with NaN or infinite coordinates are dropped; `n_dropped` counts them.
     """
@@ -23,6 +26,7 @@ class Scan:
         points_world: np.ndarray,
         origin: np.ndarray | None,
         hit_mask: np.ndarray | None = None,
+        time: float | None = None,
     ) -> None:
         points = np.asarray(points_world, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] not in (2, 3):
@@ -48,6 +52,7 @@ class Scan:
                 )
             if hits.dtype != bool:
                 raise InputError(f"hit_mask must be boolean, got dtype {hits.dtype}")
+        self.time = None if time is None else _seconds(time)
         finite = np.all(np.isfinite(points), axis=1)
         self.n_dropped = int(len(points) - finite.sum())
         self.points_world = points[finite]
@@ -68,9 +73,22 @@ class Scan:
     def __repr__(self) -> str:
         return (
             f"Scan({len(self)} rays, {int(self.hit_mask.sum())} hits, {self.dim}D, "
-            f"origin={np.round(self.origin, 3).tolist()}, dropped={self.n_dropped})"
+            f"origin={np.round(self.origin, 3).tolist()}, dropped={self.n_dropped}"
+            + ("" if self.time is None else f", time={self.time:.3f}")
+            + ")"
         )
 
     def subset(self, rays: np.ndarray) -> Scan:
         """The scan restricted to some rays (boolean mask or indices)."""
-        return Scan(self.points_world[rays], self.origin, self.hit_mask[rays])
+        return Scan(self.points_world[rays], self.origin, self.hit_mask[rays], self.time)
+
+
+def _seconds(time: object) -> float:
+    """A scan's time stamp as float seconds; InputError for anything but a finite number."""
+    try:
+        seconds = float(time)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        seconds = float("nan")
+    if not np.isfinite(seconds):
+        raise InputError(f"scan time must be a finite number of seconds, got {time!r}")
+    return seconds

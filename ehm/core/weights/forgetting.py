@@ -11,6 +11,11 @@ that stands,
 
 over the occupied entries e near the retraction, each at its mean x_e and weighted by its
 kernel value. A cluster whose evidence is all gone learns the next samples as a new one does.
+
+A map with MapConfig.forget_after F also forgets what it has not seen for a while: evidence last
+seen at time s (a cluster's, or a memory region's) stands whole until s + F and halves every
+FADE_HALF_LIFE * F after, all weights alike, free and occupied, so the place drifts back to
+unknown (0.5, with the prior's std).
 """
 
 from __future__ import annotations
@@ -19,6 +24,9 @@ import numpy as np
 
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.features import SparseFeatures
+
+# Half-life of evidence unseen for longer than MapConfig.forget_after, in units of it.
+FADE_HALF_LIFE = 0.25
 
 
 def standing_shares(
@@ -41,10 +49,45 @@ def forget(clusters: ClusterSet, share: np.ndarray, prior_precision: float) -> n
     `prior_precision` and the sample count of each occupied fine cluster by its standing
     `share` (M,); returns the (k,) int64 rows of the clusters that forgot anything."""
     rows = np.flatnonzero((share < 1.0) & clusters.occupied & ~clusters.coarse)
-    f = share[rows]
-    clusters.grad_sq[rows] *= f
-    clusters.precision[rows] = prior_precision + f * (clusters.precision[rows] - prior_precision)
-    clusters.counts[rows] *= f
-    positive = clusters.weights[rows] > 0
-    clusters.weights[rows[positive]] *= f[positive]
+    positive = rows[clusters.weights[rows] > 0]
+    clusters.weights[positive] *= share[positive]
+    _scale_confidence(clusters, rows, share[rows], prior_precision)
     return rows
+
+
+def fade_shares(seen: np.ndarray, before: float, now: float, forget_after: float) -> np.ndarray:
+    """(n,) float64 the share of evidence last seen at `seen` (n,) seconds (NaN: never, kept
+    whole) that stands at time `now` of what stood at `before`, both seconds (see the module's
+    docstring)."""
+    start = np.maximum(seen + forget_after, before)
+    unseen = np.nan_to_num(np.maximum(now - start, 0.0))
+    return 0.5 ** (unseen / (FADE_HALF_LIFE * forget_after))
+
+
+def fade(clusters: ClusterSet, shares: np.ndarray, prior_precision: float) -> np.ndarray:
+    """Scale the weight, the AdaGrad accumulator, the precision above `prior_precision` and
+    the sample count of every cluster by its `shares` (M,); returns the (k,) int64 rows of the
+    clusters that faded."""
+    rows = np.flatnonzero(shares < 1.0)
+    clusters.weights[rows] *= shares[rows]
+    _scale_confidence(clusters, rows, shares[rows], prior_precision)
+    return rows
+
+
+def mark_seen(clusters: ClusterSet, features: SparseFeatures, new: np.ndarray, time: float) -> None:
+    """Record `time` (seconds) as seen for every cluster the features of the `new` (n,) bool
+    samples reach."""
+    reached = np.repeat(new, np.diff(features.indptr))
+    clusters.seen[features.rows[reached]] = time
+
+
+def _scale_confidence(
+    clusters: ClusterSet, rows: np.ndarray, share: np.ndarray, prior_precision: float
+) -> None:
+    """Scale how sure the clusters `rows` are of their weights by `share` (k,): the AdaGrad
+    accumulator, the precision above the prior and the sample count."""
+    clusters.grad_sq[rows] *= share
+    clusters.precision[rows] = prior_precision + share * (
+        clusters.precision[rows] - prior_precision
+    )
+    clusters.counts[rows] *= share
