@@ -197,7 +197,8 @@ class MapConfig:
     there, halve every quarter of forget_after (ehm.core.weights.forgetting.fade), so a place
     unseen for twice as long reads close to unknown. For robots that run for hours in places
     that change while they look elsewhere. Every scan then needs its time stamp
-    (`integrate(..., time=...)`). None, the default: the map never fades."""
+    (`integrate(..., time=...)`); a map fades as it learns, up to its latest scan's time. None,
+    the default: the map never fades."""
     balance_classes: bool = False
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = 2

@@ -19,7 +19,7 @@ LEFT, ARRIVED = ([1.5, 0.8], [2.1, 1.4]), ([-2.0, -1.2], [-1.4, -0.6])
 POSES = [[-1.0, 0.0], [0.0, 0.5], [1.0, 0.0], [0.0, -0.5]]
 
 
-def day_map(boxes, seed: int) -> ehm.HilbertMap:
+def day_map(boxes, seed: int, hilbert_map=None) -> ehm.HilbertMap | ehm.TiledMap:
     scene = Scene(
         np.array([low for low, _ in boxes]),
         np.array([high for _, high in boxes]),
@@ -29,7 +29,7 @@ def day_map(boxes, seed: int) -> ehm.HilbertMap:
     angles = np.linspace(0.0, 2.0 * np.pi, 720, endpoint=False)
     directions = np.column_stack([np.cos(angles), np.sin(angles)])
     rng = np.random.default_rng(seed)
-    hilbert_map = ehm.HilbertMap()
+    hilbert_map = ehm.HilbertMap() if hilbert_map is None else hilbert_map
     for pose in POSES:
         hilbert_map.integrate_scan(
             simulate_scan(scene, np.array(pose), directions, 8.0, 0.005, rng)
@@ -75,6 +75,13 @@ def test_what_left_vanished_what_arrived_appeared_and_the_walls_stayed(days):
     # Nothing changed between a map and itself.
     same = ehm.diff(old, old, resolution=0.05)
     assert len(same.appeared) == len(same.vanished) == 0 and len(same.stayed) > 0
+
+
+def test_tiled_maps_are_compared_alike(days):
+    _, new = days
+    tiled = day_map([*ROOM, LEFT], 0, ehm.TiledMap(tile_size=4.0))
+    changes = ehm.diff(tiled, new, resolution=0.05)
+    assert near(changes.vanished, LEFT).all() and len(changes.vanished) > 30
 
 
 def test_diff_mistakes_are_named(days):
