@@ -189,8 +189,8 @@ class MapConfig:
     and the occupied clusters that stood on that evidence forget it in the same measure
     (ehm.core.weights.forgetting). 0, the default, keeps all evidence: the map never forgets.
     0.5 follows a changing room (a cart that left: 9 % of its surface read occupied three
-    scans after, against OctoMap's 69 %) and costs held-out F1 where rays graze surfaces
-    seen from other poses (TUM 0.957 against 0.968; BENCHMARKS.md)."""
+    scans after, against OctoMap's 69 %) and costs held-out F1 where rays pass close to noisy
+    surfaces seen from other poses (TUM 0.961 against 0.968; BENCHMARKS.md)."""
     forget_after: float | None = None
     """Seconds a place may go unseen before what the map learned there starts to fade back to
     unknown (0.5, with the prior's std): from then on its weights, and the past evidence kept

@@ -89,3 +89,56 @@ def test_an_empty_memory_has_nothing_to_pass():
     memory = EvidenceMemory.of_config(3, MapConfig())
     rays = rays_of(np.zeros((1, 3)), np.ones((1, 3)), np.array([True]), 0.05)
     assert len(occupied_passes(memory, rays, 0.03, 0.15)[0]) == 0
+
+
+def wall_memory() -> EvidenceMemory:
+    """Occupied entries on the plane x = 1.1 m, 4 x 4 of them 5 cm apart, in one region."""
+    y, z = np.meshgrid(np.arange(4) * 0.05 + 0.025, np.arange(4) * 0.05 + 0.025)
+    points = np.column_stack([np.full(16, 1.1), y.ravel(), z.ravel()])
+    return memory_of(points, np.full(16, OCCUPIED))
+
+
+def test_a_region_of_entries_on_a_plane_has_its_normal():
+    normals = passes_module.region_normals(wall_memory())
+    np.testing.assert_allclose(np.abs(normals), [[1.0, 0.0, 0.0]], atol=1e-9)
+    # Entries on a line, or too few to span a plane, have none.
+    line = memory_of(
+        np.array([[1.1, 0.025, 0.025], [1.1, 0.075, 0.075], [1.1, 0.125, 0.125]]),
+        np.full(3, OCCUPIED),
+    )
+    assert np.isnan(passes_module.region_normals(line)).all()
+
+
+@pytest.mark.parametrize("degrees, passed", [(0.0, True), (60.0, True), (80.0, False)])
+def test_rays_along_a_surface_do_not_pass_it(degrees, passed):
+    """Rays through the middle of the wall's patch, at `degrees` to its normal, hitting 2 m
+    beyond: one that runs along it (more than GRAZING_DEGREES) passes none of its entries."""
+    angle = np.radians(degrees)
+    direction = np.array([[np.cos(angle), np.sin(angle), 0.0]])
+    through = np.array([[1.1, 0.1, 0.1]])
+    rays = rays_of(through - 2.0 * direction, through + 2.0 * direction, np.array([True]), 0.05)
+    entries, _ = occupied_passes(wall_memory(), rays, 0.04, 0.15)
+    assert (len(entries) > 0) == passed
+    want, _ = occupied_passes_reference(wall_memory(), rays, 0.04, 0.15)
+    np.testing.assert_array_equal(entries, want)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_region_normals_agree_with_their_numpy_twin(rng, dim):
+    # Patches of planes (lines in 2D) of random orientations with a little noise, and clutter.
+    centres = rng.uniform(-2.0, 2.0, (60, dim))
+    normals = rng.normal(size=(60, dim))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    spread = rng.normal(size=(60, 40, dim)) * 0.1
+    spread -= np.einsum("pnd,pd->pn", spread, normals)[..., None] * normals[:, None, :]
+    points = centres[:, None, :] + spread + rng.normal(size=(60, 40, 1)) * 0.003 * normals[:, None]
+    points = np.concatenate([points.reshape(-1, dim), rng.uniform(-2.0, 2.0, (500, dim))])
+    memory = memory_of(points, np.full(len(points), OCCUPIED))
+    compiled = passes_module.region_normals(memory)
+    reference = passes_module.region_normals_reference(memory)
+    np.testing.assert_array_equal(np.isnan(compiled), np.isnan(reference))
+    planar = ~np.isnan(reference[:, 0])
+    assert planar.sum() > 40
+    # Each normal up to its sign.
+    signs = np.sign(np.sum(compiled[planar] * reference[planar], axis=1))
+    np.testing.assert_allclose(compiled[planar] * signs[:, None], reference[planar], atol=1e-7)

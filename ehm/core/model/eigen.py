@@ -34,11 +34,19 @@ def _jacobi(matrices):  # pragma: no cover - compiled
         a = np.empty((d, d))
         for m in range(chunk * CHUNK, min((chunk + 1) * CHUNK, m_count)):
             a[:] = matrices[m]
-            _diagonalise(a, vectors[m])
-            for i in range(d):
-                values[m, i] = a[i, i]
-            _sort_ascending(values[m], vectors[m])
+            eigen_in_place(a, values[m], vectors[m])
     return values, vectors
+
+
+@numba.njit(cache=True, inline="always")
+def eigen_in_place(a, values, vectors):  # pragma: no cover - compiled
+    """For compiled callers: the eigenvalues of the symmetric (d, d) `a` (overwritten) into
+    values (d,), ascending, and its unit eigenvectors as the columns of vectors (d, d), zeros
+    on entry."""
+    _diagonalise(a, vectors)
+    for i in range(a.shape[0]):
+        values[i] = a[i, i]
+    _sort_ascending(values, vectors)
 
 
 @numba.njit(cache=True, inline="always")

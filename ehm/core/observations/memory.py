@@ -431,8 +431,17 @@ class EvidenceMemory:
 
     def points_at(self, entries: np.ndarray) -> np.ndarray:
         """(k, d) float64 metres, world frame: the mean of each of `entries` (k,) int64."""
+        return self._means(entries, self._keys_at(entries))
+
+    def corners_at(self, entries: np.ndarray) -> np.ndarray:
+        """(k, d) float64 metres, world frame: the low corner of the evidence cell of each of
+        `entries` (k,) int64."""
+        return self._corners(self._keys_at(entries))
+
+    def _keys_at(self, entries: np.ndarray) -> np.ndarray:
+        """(k,) int64: the key of each of `entries` (k,) int64."""
         regions = np.searchsorted(self.region_first(), entries, side="right") - 1
-        return self._means(entries, (self.regions[regions] << REGION_BITS) | self.cells[entries])
+        return (self.regions[regions] << REGION_BITS) | self.cells[entries]
 
     def _means(self, entries: np.ndarray, keys: np.ndarray) -> np.ndarray:
         """(e, d) float64 metres, world frame: the means of `entries` (e,) with `keys` (e,)."""
