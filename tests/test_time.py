@@ -77,7 +77,7 @@ def test_times_are_saved_with_the_map_and_it_goes_on_fading_as_it_would(tmp_path
     assert original.n_waiting_scans == 1
     original.save(tmp_path / "m.ehm")
     loaded = ehm.load(tmp_path / "m.ehm")
-    assert loaded.time_ == original.time_ and loaded._waiting[0].time == 3.0
+    assert loaded.time_ == original.time_ and loaded.state().waiting[0].time == 3.0
     for time in range(4, 9):
         for hilbert_map in (original, loaded):
             hilbert_map.integrate_scan(wall_scan(-2.0, float(time)))

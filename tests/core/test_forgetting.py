@@ -7,6 +7,21 @@ from ehm.core.model.features import SparseFeatures
 from ehm.core.weights.forgetting import fade, fade_shares, forget, mark_seen, standing_shares
 
 
+def clusters_of(coarse: list[bool], occupied: list[bool]) -> ClusterSet:
+    """2D clusters at the origin, one per flag, each of 10 samples with posterior precision 5."""
+    n = len(coarse)
+    clusters = ClusterSet.empty(2)
+    clusters.append(
+        np.zeros((n, 2)),
+        np.tile(np.eye(2), (n, 1, 1)),
+        np.full(n, 10.0),
+        coarse=np.array(coarse),
+        occupied=np.array(occupied),
+        precision=5.0,
+    )
+    return clusters
+
+
 def test_the_standing_share_weighs_each_entry_by_its_kernel_value():
     # Entry 0 reaches clusters 0 (0.5) and 1 (1.0); entry 1 reaches cluster 1 (0.25).
     features = SparseFeatures(np.array([0, 2, 3]), np.array([0, 1, 1]), np.array([0.5, 1.0, 0.25]))
@@ -17,15 +32,7 @@ def test_the_standing_share_weighs_each_entry_by_its_kernel_value():
 
 
 def test_occupied_fine_clusters_forget_in_that_share():
-    clusters = ClusterSet.empty(2)
-    clusters.append(
-        np.zeros((4, 2)),
-        np.tile(np.eye(2), (4, 1, 1)),
-        np.full(4, 10.0),
-        coarse=np.array([False, False, True, False]),
-        occupied=np.array([True, True, True, False]),
-        precision=5.0,
-    )
+    clusters = clusters_of(coarse=[False, False, True, False], occupied=[True, True, True, False])
     clusters.weights[:] = [2.0, -1.0, 2.0, 2.0]
     clusters.grad_sq[:] = 8.0
     rows = forget(clusters, np.array([0.25, 0.5, 0.5, 0.5]), prior_precision=1.0)
@@ -51,15 +58,7 @@ def test_unseen_evidence_stands_whole_for_forget_after_then_halves_every_quarter
 
 
 def test_faded_clusters_drift_to_the_prior_free_and_occupied_alike():
-    clusters = ClusterSet.empty(2)
-    clusters.append(
-        np.zeros((3, 2)),
-        np.tile(np.eye(2), (3, 1, 1)),
-        np.full(3, 10.0),
-        coarse=np.array([False, True, False]),
-        occupied=np.array([True, False, False]),
-        precision=5.0,
-    )
+    clusters = clusters_of(coarse=[False, True, False], occupied=[True, False, False])
     clusters.weights[:] = [2.0, -4.0, 1.0]
     clusters.grad_sq[:] = 8.0
     rows = fade(clusters, np.array([0.5, 0.25, 1.0]), prior_precision=1.0)
@@ -71,10 +70,7 @@ def test_faded_clusters_drift_to_the_prior_free_and_occupied_alike():
 
 
 def test_clusters_the_new_samples_reach_are_seen_now():
-    clusters = ClusterSet.empty(2)
-    clusters.append(
-        np.zeros((3, 2)), np.tile(np.eye(2), (3, 1, 1)), np.ones(3), [False] * 3, [True] * 3
-    )
+    clusters = clusters_of(coarse=[False] * 3, occupied=[True] * 3)
     assert np.isnan(clusters.seen).all()
     # Sample 0 (new) reaches clusters 0 and 2, sample 1 (replayed) cluster 1.
     features = SparseFeatures(np.array([0, 2, 3]), np.array([0, 2, 1]), np.ones(3))
