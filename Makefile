@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint bench clean chromium
+.PHONY: demo test docs lint bench clean chromium
 
 # The viewer's tests look at it in a real browser: Debian's headless Chromium.
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
@@ -47,4 +47,8 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/changing_scene.py --seeds 0,1,2
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build site *.egg-info
+
+# The documentation site, into site/ (every warning an error).
+docs: $(BIN)/ehm
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict

@@ -1,0 +1,105 @@
+"""ROS bags for tests and the docs' examples: messages of a ROS distribution's types, written
+by the rosbags library's writers."""
+
+import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+SECOND = 1_000_000_000
+QUARTER_TURN = (0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5))  # x y z w: 90 degrees about z
+
+
+class Messages:
+    """Builds messages of one ROS distribution's types."""
+
+    def __init__(self, store):
+        self.typestore = get_typestore(store)
+        if "tf2_msgs/msg/TFMessage" not in self.typestore.types:  # not in ROS 1's store
+            definition = "geometry_msgs/TransformStamped[] transforms"
+            self.typestore.register(get_types_from_msg(definition, "tf2_msgs/msg/TFMessage"))
+        self.types = self.typestore.types
+        self.ros1 = store == Stores.ROS1_NOETIC
+
+    def header(self, stamp, frame):
+        time = self.types["builtin_interfaces/msg/Time"](
+            sec=stamp // SECOND, nanosec=stamp % SECOND
+        )
+        if self.ros1:
+            return self.types["std_msgs/msg/Header"](seq=0, stamp=time, frame_id=frame)
+        return self.types["std_msgs/msg/Header"](stamp=time, frame_id=frame)
+
+    def transform(self, stamp, parent, child, xyz, quaternion=(0.0, 0.0, 0.0, 1.0)):
+        t = self.types
+        transform = t["geometry_msgs/msg/Transform"](
+            translation=t["geometry_msgs/msg/Vector3"](*xyz),
+            rotation=t["geometry_msgs/msg/Quaternion"](*quaternion),
+        )
+        stamped = t["geometry_msgs/msg/TransformStamped"](
+            header=self.header(stamp, parent), child_frame_id=child, transform=transform
+        )
+        return t["tf2_msgs/msg/TFMessage"](transforms=[stamped])
+
+    def cloud(self, stamp, frame, points):
+        t = self.types
+        fields = [
+            t["sensor_msgs/msg/PointField"](name=c, offset=4 * i, datatype=7, count=1)
+            for i, c in enumerate("xyz")
+        ]
+        # 16 bytes a point: x y z and 4 bytes of padding.
+        records = np.zeros((len(points), 4), dtype="<f4")
+        records[:, :3] = points
+        data = np.frombuffer(records.tobytes(), dtype=np.uint8)
+        return t["sensor_msgs/msg/PointCloud2"](
+            header=self.header(stamp, frame), height=1, width=len(points), fields=fields,
+            is_bigendian=False, point_step=16, row_step=16 * len(points), data=data,
+            is_dense=True,
+        )  # fmt: skip
+
+    def laser(self, stamp, frame, ranges):
+        return self.types["sensor_msgs/msg/LaserScan"](
+            header=self.header(stamp, frame), angle_min=0.0, angle_max=np.pi,
+            angle_increment=np.pi / 2, time_increment=0.0, scan_time=0.1, range_min=0.1,
+            range_max=10.0, ranges=np.array(ranges, dtype=np.float32),
+            intensities=np.zeros(0, dtype=np.float32),
+        )  # fmt: skip
+
+    def odometry(self, stamp, parent, child, xyz, quaternion):
+        t = self.types
+        pose = t["geometry_msgs/msg/Pose"](
+            position=t["geometry_msgs/msg/Point"](*xyz),
+            orientation=t["geometry_msgs/msg/Quaternion"](*quaternion),
+        )
+        zero = t["geometry_msgs/msg/Vector3"](0.0, 0.0, 0.0)
+        return t["nav_msgs/msg/Odometry"](
+            header=self.header(stamp, parent), child_frame_id=child,
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+            twist=t["geometry_msgs/msg/TwistWithCovariance"](
+                twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
+                covariance=np.zeros(36),
+            ),
+        )  # fmt: skip
+
+    def serialize(self, message):
+        if self.ros1:
+            return self.typestore.serialize_ros1(message, message.__msgtype__)
+        return self.typestore.serialize_cdr(message, message.__msgtype__)
+
+
+def write_bag(path, store, messages, storage=None, compression=None):
+    """Write (topic, stamp, message) triples, in order, to a ROS 1 bag (its chunks compressed
+    with `compression`, a Writer1.CompressionFormat, or not) or a ROS 2 folder."""
+    build = Messages(store)
+    writer = Writer1(path) if build.ros1 else Writer2(path, version=9, storage_plugin=storage)
+    if compression is not None:
+        writer.set_compression(compression)
+    with writer:
+        connections = {}
+        for topic, stamp, make in messages:
+            message = make(build)
+            if topic not in connections:
+                connections[topic] = writer.add_connection(
+                    topic, message.__msgtype__, typestore=build.typestore
+                )
+            writer.write(connections[topic], stamp, build.serialize(message))
+    return path
