@@ -72,10 +72,17 @@ def read_scans(
     origin: Sequence[float] | None = None,
     poses: str | PathLike[str] | None = None,
     calib: str | PathLike[str] | None = None,
+    every: int = 1,
+    limit: int | None = None,
+    topic: str | None = None,
+    frame: str | None = None,
+    odometry: str | None = None,
 ) -> list[Scan]:
     """Scans from one or more files of one format, in world frame, all read now (see
-    scan_stream for the arguments and for reading them one at a time)."""
-    return list(scan_stream(paths, format, origin, poses, calib))
+    ScanFiles for the arguments, scan_stream for reading them one at a time)."""
+    return list(
+        scan_stream(paths, format, origin, poses, calib, every, limit, topic, frame, odometry)
+    )
 
 
 def scan_stream(

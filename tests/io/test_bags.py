@@ -8,6 +8,7 @@ import pytest
 from ehm.core.sensor.frames import FrameTree, interpolate_pose
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans
+from ehm.io.readers import read_scans
 
 rosbags = pytest.importorskip("rosbags")
 from ros_bags import QUARTER_TURN, SECOND, write_bag  # noqa: E402
@@ -65,6 +66,8 @@ def test_clouds_are_placed_by_tf_at_their_stamp(lidar_bag, cloud):
     np.testing.assert_allclose(scans[0].points_world, expected, atol=1e-5)
     np.testing.assert_allclose(scans[0].origin, [1, 0, 1], atol=1e-12)
     assert scans[0].time == 1.0  # its header's stamp, seconds
+    (read,) = read_scans(lidar_bag, topic="/points", frame="map")
+    np.testing.assert_array_equal(read.points_world, scans[0].points_world)
 
 
 def test_a_poses_file_places_each_message(lidar_bag, cloud, tmp_path):
