@@ -25,8 +25,8 @@ chromium:
 		DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq chromium >/dev/null)
 
 lint: $(BIN)/ehm
-	$(BIN)/ruff check ehm tests benchmarks
-	$(BIN)/ruff format --check ehm tests benchmarks
+	$(BIN)/ruff check ehm tests benchmarks docs
+	$(BIN)/ruff format --check ehm tests benchmarks docs
 
 bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/octomap_scan.py

@@ -6,8 +6,8 @@ live view open.
 Open: `MapViewer` on OctoMap's sample scan's map at 0.1 m (grid with the std, mesh, scene).
 Re-mesh: the level slider moved to 0.7, then back to 0.5. Live: the TUM sequence mapped with
 the defaults without and with `LiveView` (refreshing every 2 s), one run each, same process.
-Then the README's picture: the virtual room's map, cut above 2.2 m, in headless Chromium,
-into benchmarks/figures/viewer.png.
+Then the docs' picture of the viewer: the virtual room's map, cut above 2.2 m, in headless
+Chromium, into docs/images/viewer.png.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def main() -> None:
         print(f"skipped TUM: {missing}")
     print(heading("Viewer", "seconds"))
     print(markdown_table(["step", "seconds"], rows))
-    picture = Path(__file__).resolve().parent / "figures" / "viewer.png"
+    picture = Path(__file__).resolve().parents[1] / "docs" / "images" / "viewer.png"
     take_picture(ehm.HilbertMap().fit(virtual_room().scans), picture)
     print(f"wrote {picture}")
 

@@ -4,7 +4,8 @@
 
 The virtual room mapped by one LiDAR scan (its mesh, occupancy slices and their standard
 deviation), the 2D floor plan exported for nav2, and what changed in the changing room between
-the cart's last scan and the end.
+the cart's last scan and the end. The viewer's picture (images/viewer.png) needs a browser:
+benchmarks/viewer.py takes it.
 """
 
 from __future__ import annotations
