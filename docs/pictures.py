@@ -53,7 +53,8 @@ def main() -> None:
         after.integrate_scan(scan)
     bounds = np.array([[-4.0, -3.0, 0.0], [4.0, 3.0, 2.5]])
     changes = ehm.diff(before, after, bounds=bounds)
-    changes_picture(changes, IMAGES / "changes.png", title="changing room: after scan 4 and at the end")
+    title = "changing room: after scan 4 and at the end"
+    changes_picture(changes, IMAGES / "changes.png", title=title)
 
 
 if __name__ == "__main__":
