@@ -7,6 +7,7 @@ options as `ehm COMMAND --help` describes them.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import typer
@@ -30,7 +31,11 @@ def commands_markdown() -> str:
     for name in group.list_commands(root):
         command = group.commands[name]
         context = typer.Context(command, info_name=name, parent=root)
-        usage = " ".join(command.collect_usage_pieces(context))
+        usage = re.sub(
+            r"\{(\w+)\}",
+            lambda m: m.group(1).upper(),
+            " ".join(command.collect_usage_pieces(context)),
+        )
         rows = [_row(param, context) for param in command.params if not param.hidden]
         sections.append(
             "\n".join(
