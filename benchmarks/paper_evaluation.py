@@ -5,7 +5,7 @@ method on every data set (time per scan against the scans in the map: scan_times
     python benchmarks/paper_evaluation.py [--seeds 3]
 
 Rewrites its section of BENCHMARKS.md (between the paper-evaluation markers, appended when
-missing), draws the figures into benchmarks/figures/ and writes every record to
+missing), draws Figure 9 into docs/images/ (the docs show it too) and writes every record to
 benchmarks/results/paper_evaluation.json. Data sets whose files are absent are left out,
 with a line saying so.
 """
@@ -102,7 +102,7 @@ def table_3(runs: Runs, seeds: Sequence[int], figures: Path) -> str:
     text += markdown_table(["method", "training ms", "query ms", "memory MB"], rows)
     text += (
         "\n### Figure 9: accuracy and F1 against sparsity, virtual room\n\n"
-        "![accuracy and F1 against the share of rays held out](benchmarks/figures/"
+        "![accuracy and F1 against the share of rays held out](docs/images/"
         "fig9_virtual_room.png)\n\n"
     )
     rows = []
@@ -190,7 +190,7 @@ def main() -> None:
     parser.add_argument("--output", type=Path, default=HERE.parent / "BENCHMARKS.md")
     args = parser.parse_args()
     seeds = list(range(args.seeds))
-    figures, results = HERE / "figures", HERE / "results"
+    figures, results = HERE.parent / "docs" / "images", HERE / "results"
     figures.mkdir(exist_ok=True)
     results.mkdir(exist_ok=True)
 
