@@ -7,6 +7,7 @@ folder of small files of every format the guides use (`workspace`). Blocks marke
 shown, not run.
 """
 
+import importlib
 import os
 import re
 import shlex
@@ -178,6 +179,32 @@ def _check_command(args: list[str], shown: list[str], where: str) -> None:
         assert errors[0] in result.output.splitlines(), f"{where}: {result.output}"
     else:
         assert result.exit_code == 0, f"{where}: {shlex.join(args)}\n{result.output}"
+
+
+def test_the_api_reference_covers_every_public_name():
+    """Every name of ehm.__all__, ehm.io.readers, ehm.pipeline and ehm.tiles has a `:::`
+    entry of its own in the API page, or is a listed member of a module's entry."""
+    page = (ROOT / "docs" / "reference" / "api.md").read_text()
+    documented = set()
+    for entry in re.finditer(r"^::: ([\w.]+)\n((?:    .*\n)*)", page, re.MULTILINE):
+        target, options = entry.group(1), entry.group(2)
+        members = re.search(r"members: \[(.*)\]", options)
+        if members:
+            module = importlib.import_module(target)
+            documented |= {id(getattr(module, n.strip())) for n in members.group(1).split(",")}
+        else:
+            module_name, _, name = target.rpartition(".")
+            documented.add(id(getattr(importlib.import_module(module_name), name)))
+    missing = []
+    for module_name in ("ehm", "ehm.io.readers", "ehm.pipeline", "ehm.tiles"):
+        module = importlib.import_module(module_name)
+        names = getattr(module, "__all__", None) or [
+            n
+            for n, value in vars(module).items()
+            if not n.startswith("_") and getattr(value, "__module__", None) == module_name
+        ]
+        missing += [f"{module_name}.{n}" for n in names if id(getattr(module, n)) not in documented]
+    assert not missing, f"not in docs/reference/api.md: {missing}"
 
 
 def test_the_site_builds_strictly(tmp_path):

@@ -1,10 +1,11 @@
 """Reading input files whole, with errors that name the file: missing, a folder, unreadable,
-not text, or a broken gzip or bzip2 stream; and writing files whole, atomically."""
+not text, or a broken gzip, bzip2 or xz stream; and writing files whole, atomically."""
 
 from __future__ import annotations
 
 import bz2
 import gzip
+import lzma
 import os
 import tempfile
 import zlib
@@ -14,7 +15,12 @@ from pathlib import Path
 from ehm.errors import FileReadError
 
 # Name endings of compressed inputs: the reader is chosen by the ending before them.
-COMPRESSED_SUFFIXES = (".gz", ".bz2")
+COMPRESSED_SUFFIXES = (".gz", ".bz2", ".xz")
+# How each kind of compressed stream begins: text inputs are recognised by it whatever their
+# name (bzip2: its signature, a block size digit, then the magic of its first block).
+GZIP_MAGIC = b"\x1f\x8b"
+XZ_MAGIC = b"\xfd7zXZ\x00"
+BZIP2_SIGNATURE, BZIP2_BLOCK_MAGIC = b"BZh", b"1AY&SY"
 
 
 def read_bytes(path: str | PathLike[str]) -> bytes:
@@ -34,7 +40,7 @@ def read_bytes(path: str | PathLike[str]) -> bytes:
 
 def uncompressed_suffix(path: str | PathLike[str]) -> str:
     """The lower-case extension that names the format of the file at `path`: the one before
-    .gz or .bz2 for a compressed file ('' when there is none), else its own."""
+    .gz, .bz2 or .xz for a compressed file ('' when there is none), else its own."""
     path = Path(path)
     if path.suffix.lower() in COMPRESSED_SUFFIXES:
         return Path(path.stem).suffix.lower()
@@ -42,26 +48,47 @@ def uncompressed_suffix(path: str | PathLike[str]) -> str:
 
 
 def read_input(path: str | PathLike[str]) -> bytes:
-    """The bytes of the input file at `path`, decompressed when its name ends in .gz or .bz2
-    (CARMEN logs and point files are often distributed so); FileReadError for a stream that
-    is broken or cut short."""
-    data = read_bytes(path)
-    suffix = Path(path).suffix.lower()
-    if suffix == ".bz2":
-        return _bunzip(path, data)
-    if suffix == ".gz":
-        return _gunzip(path, data)
-    return data
+    """The bytes of the input file at `path`, decompressed when its name ends in .gz, .bz2 or
+    .xz (CARMEN logs and point files are often distributed so); FileReadError for a stream
+    that is broken or cut short."""
+    return _decompressed(path, read_bytes(path), Path(path).suffix.lower())
 
 
 def read_text(path: str | PathLike[str]) -> str:
-    """The text (UTF-8) of the input file at `path`, decompressed if its name ends in .gz or
-    .bz2; FileReadError naming the first byte that is not text."""
-    data = read_input(path)
+    """The text (UTF-8) of the input file at `path`, decompressed when its name ends in .gz,
+    .bz2 or .xz or its bytes begin as such a stream does (a compressed log renamed .log);
+    FileReadError naming the first byte that is not text."""
+    data = read_bytes(path)
+    suffix = Path(path).suffix.lower()
+    compression = suffix if suffix in COMPRESSED_SUFFIXES else _compression_of(data)
+    data = _decompressed(path, data, compression)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as error:
         raise FileReadError(path, "not a text file", f"byte {error.start}") from None
+
+
+def _decompressed(path: str | PathLike[str], data: bytes, compression: str) -> bytes:
+    """`data` decompressed as `compression` says ('.gz', '.bz2', '.xz'; anything else: as
+    it is)."""
+    if compression == ".bz2":
+        return _bunzip(path, data)
+    if compression == ".gz":
+        return _gunzip(path, data)
+    if compression == ".xz":
+        return _unxz(path, data)
+    return data
+
+
+def _compression_of(data: bytes) -> str:
+    """'.gz', '.bz2' or '.xz' when `data` begins as such a stream does, else ''."""
+    if data.startswith(GZIP_MAGIC):
+        return ".gz"
+    if data.startswith(XZ_MAGIC):
+        return ".xz"
+    if data.startswith(BZIP2_SIGNATURE) and data[4:10] == BZIP2_BLOCK_MAGIC:
+        return ".bz2"
+    return ""
 
 
 def _gunzip(path: str | PathLike[str], data: bytes) -> bytes:
@@ -87,6 +114,16 @@ def _bunzip(path: str | PathLike[str], data: bytes) -> bytes:
             raise FileReadError(path, "truncated bzip2 stream")
         data = stream.unused_data
     return b"".join(parts)
+
+
+def _unxz(path: str | PathLike[str], data: bytes) -> bytes:
+    """The decompressed xz streams of `data`, one after another."""
+    try:
+        return lzma.decompress(data, format=lzma.FORMAT_XZ)
+    except EOFError:
+        raise FileReadError(path, "truncated xz stream") from None
+    except lzma.LZMAError as error:
+        raise FileReadError(path, f"not an xz stream ({error})") from None
 
 
 def write_atomically(path: str | PathLike[str], data: bytes) -> None:

@@ -43,7 +43,7 @@ _EXTENSIONS = {
 def guess_format(path: str | PathLike[str]) -> str:
     """The reader for a path: a folder holding poses.txt is TUM, one holding metadata.yaml a
     ROS 2 bag, one holding velodyne/ a KITTI sequence, otherwise by extension (the one
-    before .gz or .bz2 for compressed files: x.log.gz is a CARMEN log, scan.bz2 points)."""
+    before .gz, .bz2 or .xz for compressed files: x.log.gz is a CARMEN log, scan.bz2 points)."""
     path = Path(path)
     if is_bag(path):
         return "bag"

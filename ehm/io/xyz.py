@@ -14,7 +14,7 @@ from ehm.io.files import read_text
 
 def read_xyz(path: str | PathLike[str]) -> np.ndarray:
     """(N, 3) float64 points, metres: whitespace-separated `x y z` per line (extra columns
-    ignored, `#` starts a comment); a name ending in .bz2 is decompressed. FileReadError naming
+    ignored, `#` starts a comment), also compressed (ehm.io.files.read_text). FileReadError naming
     the row for a line that is not three numbers, or for a file without points."""
     text = read_text(path)
     try:

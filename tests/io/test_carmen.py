@@ -1,10 +1,15 @@
-"""CARMEN 2D laser logs."""
+"""CARMEN 2D laser logs, and text inputs compressed as logs are distributed."""
 
+import bz2
 import gzip
+import lzma
 
 import numpy as np
+import pytest
 
+from ehm.errors import FileReadError
 from ehm.io.readers import read_scans
+from ehm.io.xyz import read_xyz
 
 
 def test_carmen_log(tmp_path):
@@ -19,16 +24,41 @@ def test_carmen_log(tmp_path):
     np.testing.assert_allclose(scan.points_world[1], [3.0, 2.0], atol=1e-12)  # 0 degrees
 
 
-def test_gzipped_carmen_log_reads_as_the_log(tmp_path):
-    # Public CARMEN logs are distributed as x.log.gz.
+COMPRESSORS = {".gz": gzip.compress, ".bz2": bz2.compress, ".xz": lzma.compress}
+
+
+@pytest.mark.parametrize("suffix", COMPRESSORS)
+@pytest.mark.parametrize("named", [True, False])
+def test_compressed_carmen_log_reads_as_the_log(tmp_path, suffix, named):
+    # Public CARMEN logs are distributed as x.log.gz, and sometimes renamed x.log.
     text = "".join(f"FLASER 3 1.0 2.0 3.0 {i} 0.5 0.1 0 0 0 host {i}\n" for i in range(4))
     (tmp_path / "a.log").write_text(text)
-    (tmp_path / "a.log.gz").write_bytes(gzip.compress(text.encode()))
-    plain, packed = read_scans(tmp_path / "a.log"), read_scans(tmp_path / "a.log.gz")
+    packed_path = tmp_path / ("b.log" + (suffix if named else ""))
+    packed_path.write_bytes(COMPRESSORS[suffix](text.encode()))
+    plain, packed = read_scans(tmp_path / "a.log"), read_scans(packed_path)
     assert len(packed) == len(plain) == 4
     for a, b in zip(plain, packed, strict=True):
         np.testing.assert_array_equal(a.points_world, b.points_world)
         np.testing.assert_array_equal(a.origin, b.origin)
+
+
+@pytest.mark.parametrize("suffix", COMPRESSORS)
+def test_compressed_text_points_and_poses_read_as_plain(tmp_path, suffix):
+    points = "1 2 3\n4 5 6\n"
+    poses = "1 0 0 0 0 1 0 0 0 0 1 0\n"
+    (tmp_path / "a.xyz").write_bytes(COMPRESSORS[suffix](points.encode()))  # named as plain
+    (tmp_path / f"b.xyz{suffix}").write_bytes(COMPRESSORS[suffix](points.encode()))
+    (tmp_path / f"poses.txt{suffix}").write_bytes(COMPRESSORS[suffix](poses.encode()))
+    for name in ("a.xyz", f"b.xyz{suffix}"):
+        np.testing.assert_array_equal(read_xyz(tmp_path / name), [[1, 2, 3], [4, 5, 6]])
+    (scan,) = read_scans(tmp_path / "a.xyz", poses=tmp_path / f"poses.txt{suffix}")
+    np.testing.assert_array_equal(scan.points_world, [[1, 2, 3], [4, 5, 6]])
+
+
+def test_a_cut_xz_stream_is_named(tmp_path):
+    (tmp_path / "a.log.xz").write_bytes(lzma.compress(b"FLASER 2 1.0 2.0 0 0 0\n" * 50)[:-20])
+    with pytest.raises(FileReadError, match=r"a\.log\.xz: .*xz stream"):
+        read_scans(tmp_path / "a.log.xz")
 
 
 def test_a_flaser_line_without_its_timestamps_has_no_time(tmp_path):
