@@ -91,7 +91,10 @@ def test_mutated_files_are_read_or_refused_by_name(input_files, tmp_path):
             start = time.perf_counter()
             try:
                 read()
-            except EhmError:
+            except EhmError as error:
+                # A refusal gives its reason after the file's name, never an empty "()".
+                reason = str(error).partition(f"{path}: ")[2] or str(error)
+                assert reason.strip() and not reason.rstrip().endswith("()"), (name, str(error))
                 refused += 1
             except Exception as error:
                 pytest.fail(f"{name}: {type(error).__name__}: {error} on {variant[:200]!r}")
