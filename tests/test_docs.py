@@ -8,6 +8,7 @@ shown, not run.
 """
 
 import importlib
+import inspect
 import os
 import re
 import shlex
@@ -22,6 +23,7 @@ import pytest
 from typer.testing import CliRunner
 
 from ehm.cli import app
+from ehm.core.sensor.frames import matrix_to_quaternion
 from ehm.eval.datasets.simulated import (
     lidar_directions,
     simulate_scan,
@@ -84,7 +86,7 @@ def workspace(tmp_path_factory, plan_log):
         simulate_scan(scene, o, lidar_directions(32, 512, 30.0), 20.0, 0.01, rng) for o in origins
     ]
     _write_bag(folder / "room.bag", sweeps)
-    _write_tum(folder / "tum", scene, origins, rng)
+    _write_tum(folder / "tum", scene, origins)
     _write_kitti(folder / "kitti", sweeps)
     return folder
 
@@ -105,37 +107,37 @@ def _write_bag(path: Path, sweeps) -> None:
     write_bag(path, Stores.ROS1_NOETIC, messages)
 
 
-def _write_tum(folder: Path, scene, origins, rng) -> None:
-    """Depth frames of 80 x 60 pixels looking along +x (the camera's z), in TUM's layout."""
+def _write_tum(folder: Path, scene, origins) -> None:
+    """640 x 480 depth frames looking along +x (the camera's z), in TUM's layout, through
+    Freiburg 2's intrinsics (the reader's defaults); only the pixels the reader takes (every
+    second row and column) are rendered, the rest read 0, no depth."""
     from PIL import Image
 
+    from ehm.io.tum import tum_scans
+
+    camera = inspect.signature(tum_scans).parameters
+    fx, fy, cx, cy = (camera[name].default for name in ("fx", "fy", "cx", "cy"))
+    stride = camera["pixel_stride"].default
     (folder / "depth").mkdir(parents=True)
-    u, v = np.meshgrid(np.arange(80) - 39.5, np.arange(60) - 29.5)
-    rays_camera = np.column_stack([u.ravel() / 60.0, v.ravel() / 60.0, np.ones(u.size)])
+    v, u = np.mgrid[0:480:stride, 0:640:stride]
+    rays_camera = np.column_stack([(u.ravel() - cx) / fx, (v.ravel() - cy) / fy, np.ones(u.size)])
     # Camera: x right, y down, z forward -> world: x forward, y left, z up.
     R_world_camera = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
     directions = rays_camera @ R_world_camera.T
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    q = _quaternion(R_world_camera)
+    w, x, y, z = matrix_to_quaternion(R_world_camera)
+    q = (x, y, z, w)  # TUM's order
     lines = []
     for i, origin in enumerate(origins):
         ranges = scene.raycast(origin, directions)
         depth = ranges * (directions @ R_world_camera[:, 2])
-        image = np.where(ranges < 8.0, np.round(depth * 5000), 0).astype(np.uint16)
-        Image.fromarray(image.reshape(60, 80)).save(folder / "depth" / f"{i}.png")
+        image = np.zeros((480, 640), dtype=np.uint16)
+        image[::stride, ::stride] = np.where(ranges < 8.0, np.round(depth * 5000), 0).reshape(
+            v.shape
+        )
+        Image.fromarray(image).save(folder / "depth" / f"{i}.png")
         lines.append(f"depth/{i}.png {' '.join(map(str, origin))} {' '.join(map(str, q))}")
     (folder / "poses.txt").write_text("\n".join(lines) + "\n")
-
-
-def _quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
-    """x y z w of a rotation matrix whose trace is above -1."""
-    w = np.sqrt(1.0 + np.trace(R)) / 2.0
-    return (
-        (R[2, 1] - R[1, 2]) / (4 * w),
-        (R[0, 2] - R[2, 0]) / (4 * w),
-        (R[1, 0] - R[0, 1]) / (4 * w),
-        w,
-    )
 
 
 def _write_kitti(folder: Path, sweeps) -> None:
