@@ -27,6 +27,7 @@ LENGTH_SETTINGS = (
     "free_cluster_radius",
     "min_std",
     "query_cell",
+    "distance_reach",
 )
 # The shortest length a setting may take, metres: below it, kernels of that spread
 # overflow in double precision.
@@ -219,6 +220,10 @@ class MapConfig:
     'exact', once per point. With 'support' both are the same."""
     query_cell: float = 0.1
     """Side of the cubic cells that group query points for one neighbour search, metres."""
+    distance_reach: float = 2.0
+    """Farthest distance `HilbertMap.distance` tells, metres: points farther from every
+    obstacle read distance_reach (inside one, -distance_reach). The field it keeps reaches this
+    far beyond the map, and an update looks this far around what changed."""
 
     seed: int = 0
     """Seed of every random choice (sampling, quick-means order, SGD order)."""
@@ -251,6 +256,7 @@ class MapConfig:
             "learning_rate",
             "merge_threshold",
             "query_cell",
+            "distance_reach",
             "planar_ratio",
             "coplanar_angle",
             "coplanar_distance",

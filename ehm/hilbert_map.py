@@ -59,7 +59,7 @@ from ehm.core.weights.uncertainty import add_curvature, logit_variance, occupanc
 from ehm.errors import EmptyMapError, InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
-from ehm.grid.ray_support import RaySupport
+from ehm.grid.planner_support import PlannerSupport
 from ehm.io.map_file import read_map, write_map
 
 # Side of the cells that tell rays where the occupancy may rise above the level, in cluster
@@ -106,9 +106,13 @@ class HilbertMap:
         self._rng = np.random.default_rng(self.config.seed)
         # Snapshots carry this token, so grids tell a map that was refitted from one that grew.
         self._lineage = object()
-        # What rays march (raycast), made when first needed and kept up to date as it learns.
-        self._rays = RaySupport(
-            self.config.cluster_radius, RAY_CELLS_PER_RADIUS * self.config.cluster_radius
+        # What rays march and distances are read from, made when first needed and kept up to
+        # date as it learns.
+        self._planner = PlannerSupport(
+            self.config.cluster_radius,
+            RAY_CELLS_PER_RADIUS * self.config.cluster_radius,
+            self.config.distance_reach,
+            self._point_log_odds,
         )
 
     # ------------------------------------------------------------------ state
@@ -168,7 +172,7 @@ class HilbertMap:
         learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
         search = self._supports if self.config.features == "support" else self._index
         path = sum(origin.nbytes for origin in self._origins)
-        return learned + search.nbytes + self._rays.nbytes + path
+        return learned + search.nbytes + self._planner.nbytes + path
 
     def state(self) -> MapState:
         """Everything the map has learned and the scans waiting for their batch, as plain data
@@ -557,7 +561,7 @@ class HilbertMap:
         point, metres, world frame; directions: (n, d), any length but 0; max_range: metres,
         one for all rays or (n,). Rays march cluster_radius / 2 apart through a grid of the
         log-odds (made on the first call, then kept up to date as the map learns, in each
-        update's stage 'grids': ehm.grid.ray_support), and the crossing near the grid's is
+        update's stage 'grids': ehm.grid.planner_support), and the crossing near the grid's is
         found in the exact log-odds and located to cluster_radius / 10
         (ehm.core.queries.raycast); a ray starting inside reads 0. Unknown space reads 0.5: it
         stops no ray at the default level."""
@@ -571,7 +575,7 @@ class HilbertMap:
             return self._scores(points, mode, False)[0]
 
         distance = np.full(len(origins), np.nan)
-        ray_grid = self._rays.grid(self.snapshot)
+        ray_grid = self._planner.grid(self.snapshot)
         if ray_grid is not None:
             guess = ray_grid.crossings(origins, directions, max_range, threshold, radius / 2.0)
             guided = np.flatnonzero(np.isfinite(guess))
@@ -597,7 +601,7 @@ class HilbertMap:
             threshold,
             radius / 2.0,
             radius / 10.0,
-            self._rays.cells(self.snapshot, threshold),
+            self._planner.cells(self.snapshot, threshold),
         )
         return distance
 
@@ -609,6 +613,42 @@ class HilbertMap:
         finds it. Unknown space (0.5) counts as free at the default level."""
         starts, directions, lengths = segment_rays(starts, ends, self.dim)
         return np.isinf(self.raycast(starts, directions, lengths, level, mode))
+
+    def distance(
+        self,
+        points: np.ndarray,
+        level: float = 0.5,
+        return_gradient: bool = False,
+        unknown_is_occupied: bool = False,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
+        frame) to the nearest point whose occupancy is at or above `level`: positive outside,
+        negative inside; with return_gradient, also its (n, d) gradient (unit vectors away from
+        the nearest obstacle; 0 beyond reach). Distances are kept up to
+        config.distance_reach: farther points read that. Unknown space (no kernel reaches it)
+        is free unless unknown_is_occupied. Read from a signed distance field of the map's
+        log-odds on cluster_radius voxels, its surface located between voxel centres
+        (ehm.core.queries.distance), made on the first call for a level and kept up to date
+        as the map learns (each update's stage 'grids'). NaN rows for points that are not
+        finite."""
+        self._learned("measure distances in it")
+        threshold = log_odds_level(level)
+        points, finite, query = self._query_points(points)
+        distance = np.full(len(points), np.nan)
+        found, gradient = self._planner.distances(
+            self.snapshot, query, threshold, bool(unknown_is_occupied), return_gradient
+        )
+        distance[finite] = found
+        if not return_gradient:
+            return distance
+        gradients = np.full(points.shape, np.nan)
+        gradients[finite] = gradient
+        return distance, gradients
+
+    def _point_log_odds(self, points: np.ndarray) -> np.ndarray:
+        """(n,) log-odds at (n, d) points as `occupancy` reads each point alone (mode 'exact':
+        a function of the point, whatever else is asked with it)."""
+        return self._scores(points, "exact", False)[0]
 
     def _query_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Checked (n, d) float64 points, which rows are finite, and those rows (contiguous)."""
@@ -711,13 +751,13 @@ class HilbertMap:
     def _update_followers(self) -> None:
         """Bring every following grid and what rays march up to date, timed as the stage
         'grids'."""
-        if len(self._followers) == 0 and not self._rays.follows:
-            self._rays.update(None)
+        if len(self._followers) == 0 and not self._planner.follows:
+            self._planner.update(None)
             return
         timer = StageTimer()
         with timer("grids"):
             snapshot = self.snapshot()
-            self._rays.update(snapshot)
+            self._planner.update(snapshot)
             for grid in self._followers:
                 grid.update(snapshot)
         self.timings_.update(timer.seconds)

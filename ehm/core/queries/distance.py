@@ -1,0 +1,318 @@
+"""Signed distances to the surface where a map's occupancy reaches a level (a Euclidean
+signed distance field), kept on a grid of its log-odds as the map learns.
+
+The surface is a set of surfels (ehm.core.queries.surfels), one per voxel it passes. Every
+voxel keeps the voxel of the surfel nearest its centre (a feature transform,
+scipy.ndimage.distance_transform_edt, exact between centres). A point's distance is the least
+distance from it to the surfels that the eight voxel centres around it keep, each surfel a
+disc of half a voxel's radius (a flat surface between two surfels reads its plane, not the
+dimples between two points). It is positive in free and unknown space, negative inside
+obstacles: by the side of the disc's normal the point lies on where it is within
+SIGN_FROM_NORMAL voxels of the disc and faces it (lies no farther beside its rim than above
+its plane); elsewhere, where a disc's side says little of the point, by the voxel the point
+lies in. Its gradient is the unit vector away from that disc, signed alike. Distances are
+kept up to `reach` metres: beyond, they read `reach` (negative inside), with gradient 0, so an
+update only has to look `reach` beyond the voxels whose log-odds changed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numba
+import numpy as np
+from scipy import ndimage
+
+from ehm.core.queries.surfels import (
+    KNOWN_SCORE,
+    Surfels,
+    box_surfels,
+    is_obstacle,
+    on_level,
+    with_midpoints,
+)
+
+# The radius of each surfel's disc, in voxels.
+DISC_RADIUS = 0.5
+# Points nearer their surfel than this many voxels take their sign from its normal; the others
+# from their voxel.
+SIGN_FROM_NORMAL = 2.0
+
+
+class DistanceField:
+    """Signed distances, metres, to the surface where the log-odds of a 3D grid of scores reach
+    `threshold` (see the module). origin: (3,) metres, world frame, low corner of voxel
+    (0, 0, 0); resolution: voxel side, metres; shape: voxels per axis; unknown_is_occupied:
+    voxels no kernel reaches are obstacles too (else free); reach: metres, farthest distance
+    kept. Fed the grid's scores by `update`; `distances` answers."""
+
+    def __init__(
+        self,
+        origin: np.ndarray,
+        resolution: float,
+        shape: tuple[int, int, int],
+        threshold: float,
+        unknown_is_occupied: bool,
+        reach: float,
+    ) -> None:
+        self.origin = np.asarray(origin, dtype=np.float64)
+        self.resolution = float(resolution)
+        self.shape = tuple(int(n) for n in shape)
+        self.threshold = float(threshold)
+        self.unknown_is_occupied = bool(unknown_is_occupied)
+        self.reach = float(reach)
+        # Per voxel: the flat index of the voxel whose surfel is nearest its centre; -1: none.
+        self.nearest = np.full(self.shape, -1, dtype=np.int32)
+        # The scores surfels are found in: the grid's, with thin obstacles between centres.
+        self.levels = np.zeros(self.shape)
+        self.surfels = Surfels.empty()
+        self.intercept: float | None = None
+
+    def update(
+        self,
+        scores: np.ndarray,
+        intercept: float,
+        log_odds: Callable[[np.ndarray], np.ndarray],
+        changed: np.ndarray | None = None,
+    ) -> None:
+        """Follow the grid's new `scores` (the field's shape, float64, log-odds less
+        `intercept`) where they changed, in `changed` ((2, 3) int64, the box of voxels [low,
+        high); None: everywhere): the levels of voxels within one voxel of it, with the map's
+        `log_odds` ((n, 3) metres -> (n,), as point queries read them) half way between
+        centres (ehm.core.queries.surfels.with_midpoints); the surfels of voxels within one
+        voxel of those, put on the level of `log_odds` (on_level); and the nearest surfels of
+        voxels within `reach` of those."""
+        shape = np.array(self.shape)
+        if changed is None or intercept != self.intercept:
+            changed = np.array([np.zeros(3, dtype=np.int64), shape])
+        if np.any(changed[1] <= changed[0]):
+            return
+        self.intercept = intercept
+        levels_low, levels_high = _grown(changed, 1, shape)
+        outer_low, outer_high = _grown(changed, 2, shape)
+        outer = tuple(slice(a, b) for a, b in zip(outer_low, outer_high, strict=True))
+        raised = with_midpoints(
+            scores[outer],
+            intercept,
+            self.threshold,
+            log_odds,
+            self.origin + outer_low * self.resolution,
+            self.resolution,
+        )
+        inner = tuple(
+            slice(a - o, b - o) for a, b, o in zip(levels_low, levels_high, outer_low, strict=True)
+        )
+        levels = tuple(slice(a, b) for a, b in zip(levels_low, levels_high, strict=True))
+        self.levels[levels] = raised[inner]
+        low, high = outer_low, outer_high
+        fresh = box_surfels(
+            self.levels,
+            intercept,
+            self.threshold,
+            self.unknown_is_occupied,
+            self.origin,
+            self.resolution,
+            low,
+            high,
+        )
+        fresh = on_level(fresh, log_odds, self.threshold, self.resolution)
+        self.surfels = Surfels.joined(self.surfels.outside(low, high, self.shape), fresh)
+        margin = int(np.ceil(self.reach / self.resolution)) + 1
+        ahead_low, ahead_high = np.maximum(low - margin, 0), np.minimum(high + margin, shape)
+        self._nearest_in(ahead_low, ahead_high, margin)
+
+    def _nearest_in(self, low: np.ndarray, high: np.ndarray, margin: int) -> None:
+        """Set `nearest` in the box of voxels [low, high) from the surfels within `margin`
+        voxels of it (all that can lie within reach of its voxels)."""
+        shape = np.array(self.shape)
+        seen_low, seen_high = np.maximum(low - margin, 0), np.minimum(high + margin, shape)
+        index = np.column_stack(np.unravel_index(self.surfels.keys, self.shape))
+        inside = np.all((index >= seen_low) & (index < seen_high), axis=1)
+        box = tuple(slice(a, b) for a, b in zip(low, high, strict=True))
+        if not np.any(inside):
+            self.nearest[box] = -1
+            return
+        free_of_surfels = np.ones(tuple(seen_high - seen_low), dtype=bool)
+        free_of_surfels[tuple((index[inside] - seen_low).T)] = False
+        found = ndimage.distance_transform_edt(
+            free_of_surfels, return_distances=False, return_indices=True
+        )
+        part = tuple(slice(a, b) for a, b in zip(low - seen_low, high - seen_low, strict=True))
+        voxel = tuple(found[axis][part] + seen_low[axis] for axis in range(3))
+        self.nearest[box] = np.ravel_multi_index(voxel, self.shape)
+
+    def distances(self, points: np.ndarray, with_gradient: bool) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) signed distances, metres, at (n, 3) float64 points, metres, world frame, and
+        with_gradient their (n, 3) gradients (else (0, 3)). Points outside the grid lie beyond
+        reach of every surfel: reach, or -reach where unknown space is an obstacle."""
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        distance = np.empty(len(points))
+        gradient = np.zeros((len(points) if with_gradient else 0, 3))
+        _field_distances(
+            points,
+            self.origin,
+            self.resolution,
+            self.nearest,
+            self.surfels.keys,
+            self.surfels.positions,
+            self.surfels.normals,
+            DISC_RADIUS * self.resolution,
+            self.reach,
+            self.levels,
+            self.intercept,
+            self.threshold,
+            self.unknown_is_occupied,
+            distance,
+            gradient,
+        )
+        return distance, gradient
+
+    @property
+    def nbytes(self) -> int:
+        surfels = self.surfels
+        return self.nearest.nbytes + self.levels.nbytes + sum(a.nbytes for a in surfels)
+
+
+def _grown(box: np.ndarray, voxels: int, shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The box of voxels [low, high) ((2, 3) int64) grown by `voxels` on every side, within a
+    grid of `shape`."""
+    return np.maximum(box[0] - voxels, 0), np.minimum(box[1] + voxels, shape)
+
+
+@numba.njit(cache=True, inline="always")
+def _disc_distance(px, py, pz, positions, normals, row, radius):  # pragma: no cover - compiled
+    """Distance from a point to surfel `row`'s disc of `radius`, the point's height above its
+    plane along the normal, how far beside the disc's rim it lies, and the distance's gradient
+    (3 values)."""
+    ux = px - positions[row, 0]
+    uy = py - positions[row, 1]
+    uz = pz - positions[row, 2]
+    nx, ny, nz = normals[row, 0], normals[row, 1], normals[row, 2]
+    height = ux * nx + uy * ny + uz * nz
+    tx, ty, tz = ux - height * nx, uy - height * ny, uz - height * nz
+    across = np.sqrt(tx * tx + ty * ty + tz * tz)
+    beyond = max(across - radius, 0.0)
+    distance = np.sqrt(height * height + beyond * beyond)
+    if distance == 0.0:
+        return 0.0, height, beyond, nx, ny, nz
+    side = beyond / across if beyond > 0.0 else 0.0
+    gx = (height * nx + side * tx) / distance
+    gy = (height * ny + side * ty) / distance
+    gz = (height * nz + side * tz) / distance
+    return distance, height, beyond, gx, gy, gz
+
+
+@numba.njit(cache=True, parallel=True)
+def _field_distances(
+    points,
+    origin,
+    resolution,
+    nearest,
+    keys,
+    positions,
+    normals,
+    radius,
+    reach,
+    scores,
+    intercept,
+    threshold,
+    unknown_is_occupied,
+    distance,
+    gradient,
+):  # pragma: no cover - compiled
+    nx, ny, nz = nearest.shape
+    with_gradient = gradient.shape[0] > 0
+    for n in numba.prange(points.shape[0]):
+        ux = (points[n, 0] - origin[0]) / resolution
+        uy = (points[n, 1] - origin[1]) / resolution
+        uz = (points[n, 2] - origin[2]) / resolution
+        if not (0.0 <= ux < nx and 0.0 <= uy < ny and 0.0 <= uz < nz):
+            distance[n] = -reach if unknown_is_occupied else reach
+            continue
+        # The eight voxel centres around the point (repeated at the grid's faces).
+        bx, by, bz = int(np.floor(ux - 0.5)), int(np.floor(uy - 0.5)), int(np.floor(uz - 0.5))
+        best = np.inf
+        best_height = best_beside = 0.0
+        gx = gy = gz = 0.0
+        for corner in range(8):
+            i = min(max(bx + (corner & 1), 0), nx - 1)
+            j = min(max(by + ((corner >> 1) & 1), 0), ny - 1)
+            k = min(max(bz + ((corner >> 2) & 1), 0), nz - 1)
+            key = nearest[i, j, k]
+            if key < 0:
+                continue
+            row = np.searchsorted(keys, key)
+            if row == keys.shape[0] or keys[row] != key:
+                continue
+            d, height, beside, dx, dy, dz = _disc_distance(
+                points[n, 0], points[n, 1], points[n, 2], positions, normals, row, radius
+            )
+            if d < best:
+                best, best_height, best_beside = d, height, beside
+                gx, gy, gz = dx, dy, dz
+        if best < SIGN_FROM_NORMAL * resolution and abs(best_height) >= best_beside:
+            sign = 1.0 if best_height >= 0.0 else -1.0
+        else:
+            score = scores[int(ux), int(uy), int(uz)]
+            sign = -1.0 if is_obstacle(score, intercept, threshold, unknown_is_occupied) else 1.0
+        if best >= reach:
+            distance[n] = sign * reach
+            continue
+        distance[n] = sign * best
+        if with_gradient:
+            gradient[n, 0] = sign * gx
+            gradient[n, 1] = sign * gy
+            gradient[n, 2] = sign * gz
+
+
+def field_distances_reference(
+    field: DistanceField, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `DistanceField.distances` (with gradients)."""
+    points = np.asarray(points, dtype=np.float64)
+    shape = np.array(field.shape)
+    units = (points - field.origin) / field.resolution
+    inside_grid = np.all((units >= 0) & (units < shape), axis=1)
+    base = np.floor(units - 0.5).astype(np.int64)
+    corners = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
+    voxels = np.clip(base[:, None, :] + corners[None], 0, shape - 1)  # (n, 8, 3)
+    keys = field.nearest[tuple(np.moveaxis(voxels, -1, 0))].astype(np.int64)  # (n, 8)
+    surfels = field.surfels
+    if len(surfels.keys) == 0:  # nothing to find: one far surfel that no point takes
+        surfels = Surfels(np.array([-1]), np.full((1, 3), np.inf), np.zeros((1, 3)))
+    rows = np.minimum(np.searchsorted(surfels.keys, keys), len(surfels.keys) - 1)
+    valid = (keys >= 0) & (surfels.keys[rows] == keys)
+    offsets = points[:, None, :] - surfels.positions[rows]
+    normals = surfels.normals[rows]
+    height = np.sum(offsets * normals, axis=-1)
+    tangent = offsets - height[..., None] * normals
+    across = np.linalg.norm(tangent, axis=-1)
+    beyond = np.maximum(across - DISC_RADIUS * field.resolution, 0.0)
+    d = np.where(valid, np.hypot(height, beyond), np.inf)
+    best = np.argmin(d, axis=1)
+    pick = np.arange(len(points))
+    nearest_d, nearest_height, beside = d[pick, best], height[pick, best], beyond[pick, best]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        side = np.where(beyond > 0, beyond / across, 0.0)[pick, best]
+        slope = (
+            nearest_height[:, None] * normals[pick, best] + side[:, None] * tangent[pick, best]
+        ) / nearest_d[:, None]
+    slope = np.where((nearest_d == 0)[:, None], normals[pick, best], slope)
+    voxel = np.clip(np.floor(units).astype(np.int64), 0, shape - 1)
+    score = field.levels[tuple(voxel.T)]
+    obstacle = np.where(
+        np.abs(score) <= KNOWN_SCORE,
+        field.unknown_is_occupied,
+        score + field.intercept >= field.threshold,
+    )
+    by_normal = (nearest_d < SIGN_FROM_NORMAL * field.resolution) & (
+        np.abs(nearest_height) >= beside
+    )
+    sign = np.where(
+        by_normal, np.where(nearest_height >= 0, 1.0, -1.0), np.where(obstacle, -1.0, 1.0)
+    )
+    sign = np.where(inside_grid, sign, -1.0 if field.unknown_is_occupied else 1.0)
+    within = inside_grid & (nearest_d < field.reach)
+    distance = sign * np.where(within, nearest_d, field.reach)
+    gradient = np.where(within[:, None], sign[:, None] * slope, 0.0)
+    return distance, gradient

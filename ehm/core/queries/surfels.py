@@ -1,0 +1,364 @@
+"""The surface of a level of a log-odds grid as small discs (surfels), one per voxel it passes.
+
+A voxel is an obstacle where its log-odds reach the level and the map knows it (some kernel
+reaches its centre: |scores| > KNOWN_SCORE), and, when unknown space is taken for occupied,
+also where the map does not know it. Every pair of neighbouring voxels (along an axis) of
+which one is an obstacle and the other not crosses the surface once: where the log-odds,
+linear between the two centres, meet the level when both are known, else half way. Each voxel
+with such a crossing on one of its six edges holds one surfel: the mean of its crossings, with
+the normal pointing out of the obstacle (towards falling log-odds: minus their gradient by
+central differences, or the mean of its edges' directions where that gradient is flat or
+points the other way). Grids are 3D; a 2D map's grid is one voxel thick.
+
+Voxel centres can miss an obstacle thinner than a voxel that lies between two of them (a
+table top between the centres above and below it): where two neighbouring centres are both
+free, yet within MIDPOINT_MARGIN of the level, the log-odds half way between them are read
+too, and each of the two voxels takes the larger (`with_midpoints`), so the obstacle shows.
+
+A grid's log-odds are those of its voxel centres, linear in between only approximately: the
+surfels are then moved along their normals to where the map's own log-odds, as point queries
+read them, meet the level, or left out where they do not nearby (`on_level`), so that
+distances agree with `occupancy`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+# Voxels whose summed kernel scores are this close to 0 are unknown: no kernel reaches them.
+KNOWN_SCORE = 1e-9
+
+# The six neighbours of a voxel.
+_STEPS = np.array(
+    [[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]], dtype=np.int64
+)
+
+
+class Surfels(NamedTuple):
+    """Surfels of voxels, sorted by key: keys (S,) int64, flat voxel index in the grid's C
+    order; positions (S, 3) float64, metres, world frame; normals (S, 3) float64, unit, out of
+    the obstacle."""
+
+    keys: np.ndarray
+    positions: np.ndarray
+    normals: np.ndarray
+
+    @classmethod
+    def empty(cls) -> Surfels:
+        return cls(np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
+
+    def outside(self, low: np.ndarray, high: np.ndarray, shape: tuple[int, int, int]) -> Surfels:
+        """The surfels of voxels outside the box of voxels [low, high) ((3,) int64)."""
+        index = np.column_stack(np.unravel_index(self.keys, shape))
+        keep = ~np.all((index >= low) & (index < high), axis=1)
+        return Surfels(self.keys[keep], self.positions[keep], self.normals[keep])
+
+    @staticmethod
+    def joined(a: Surfels, b: Surfels) -> Surfels:
+        """Surfels of two disjoint sets of voxels, sorted by key."""
+        keys = np.concatenate([a.keys, b.keys])
+        order = np.argsort(keys, kind="stable")
+        return Surfels(
+            keys[order],
+            np.concatenate([a.positions, b.positions])[order],
+            np.concatenate([a.normals, b.normals])[order],
+        )
+
+
+# Where on_level looks for the level along a surfel's normal: this many voxels to either side,
+# at this many points.
+LEVEL_SPAN = 1.0
+LEVEL_STEPS = 9
+
+
+# Neighbouring voxel centres both free by less than this (log-odds) have the point half way
+# between them read as well.
+MIDPOINT_MARGIN = 2.0
+
+
+def with_midpoints(
+    scores: np.ndarray,
+    intercept: float,
+    threshold: float,
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origin: np.ndarray,
+    resolution: float,
+) -> np.ndarray:
+    """A copy of `scores` ((X, Y, Z) float64, log-odds less `intercept` at the centres of
+    voxels of `resolution` metres from `origin`, (3,) metres) where each voxel takes the
+    log-odds (less the intercept) at the midpoints of its edges to neighbours, by `log_odds`
+    ((n, 3) metres -> (n,)), where larger: read on edges whose two centres are known and below
+    `threshold` by less than MIDPOINT_MARGIN (see the module)."""
+    raised = scores.copy()
+    known = np.abs(scores) > KNOWN_SCORE
+    level = scores + intercept
+    near = known & (level < threshold) & (level >= threshold - MIDPOINT_MARGIN)
+    for axis in range(3):
+        if scores.shape[axis] < 2:
+            continue
+        first = [slice(None)] * 3
+        second = [slice(None)] * 3
+        first[axis], second[axis] = slice(0, -1), slice(1, None)
+        a, b = tuple(first), tuple(second)
+        edges = np.argwhere(near[a] & near[b])
+        if len(edges) == 0:
+            continue
+        step = np.zeros(3)
+        step[axis] = 0.5
+        read = log_odds(origin + (edges + 0.5 + step) * resolution) - intercept
+        for start in (edges, edges + np.eye(3, dtype=np.int64)[axis]):
+            index = tuple(start.T)
+            np.maximum.at(raised, index, read)
+    return raised
+
+
+def on_level(
+    surfels: Surfels,
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    threshold: float,
+    resolution: float,
+) -> Surfels:
+    """`surfels` each moved along its normal to the crossing of `threshold` by `log_odds`
+    ((n, 3) metres -> (n,) log-odds, as point queries read them) nearest its position, within
+    LEVEL_SPAN voxels of `resolution` metres to either side, located linearly between
+    LEVEL_STEPS points. Surfels with no crossing there are left out: the grid's voxel centres
+    saw a surface the map's own log-odds do not have."""
+    count = len(surfels.keys)
+    if count == 0:
+        return surfels
+    along = np.linspace(-LEVEL_SPAN, LEVEL_SPAN, LEVEL_STEPS) * resolution
+    points = surfels.positions[:, None, :] + along[None, :, None] * surfels.normals[:, None, :]
+    above = log_odds(points.reshape(-1, 3)).reshape(count, LEVEL_STEPS) - threshold
+    # Crossings out of the obstacle (behind the surfel, against its normal) into free space.
+    crossing = (above[:, :-1] >= 0.0) & (above[:, 1:] < 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = above[:, :-1] / (above[:, :-1] - above[:, 1:])
+    offset = along[:-1] + share * (along[1] - along[0])
+    nearest = np.argmin(np.where(crossing, np.abs(offset), np.inf), axis=1)
+    rows = np.flatnonzero(crossing[np.arange(count), nearest])
+    moved = offset[rows, nearest[rows]]
+    normals = surfels.normals[rows]
+    return Surfels(surfels.keys[rows], surfels.positions[rows] + moved[:, None] * normals, normals)
+
+
+def box_surfels(
+    scores: np.ndarray,
+    intercept: float,
+    threshold: float,
+    unknown_is_occupied: bool,
+    origin: np.ndarray,
+    resolution: float,
+    low: np.ndarray,
+    high: np.ndarray,
+) -> Surfels:
+    """The surfels of the voxels in the box [low, high) ((3,) int64) of a grid of `scores`
+    (X, Y, Z float64, log-odds less the `intercept`) with voxel (0, 0, 0)'s low corner at
+    `origin` ((3,) metres) and sides of `resolution` metres, for the surface where the log-odds
+    reach `threshold` (see the module)."""
+    box = high - low
+    counts = np.zeros(tuple(box), dtype=np.int64)
+    positions = np.zeros((*box, 3))
+    normals = np.zeros((*box, 3))
+    _box_surfels(
+        scores,
+        intercept,
+        threshold,
+        unknown_is_occupied,
+        origin,
+        resolution,
+        low,
+        counts,
+        positions,
+        normals,
+        _STEPS,
+    )
+    return _compressed(counts, positions, normals, low, scores.shape)
+
+
+def _compressed(
+    counts: np.ndarray,
+    positions: np.ndarray,
+    normals: np.ndarray,
+    low: np.ndarray,
+    shape: tuple[int, ...],
+) -> Surfels:
+    """The voxels of a box with a crossing (counts > 0) as Surfels keyed in the whole grid."""
+    local = np.flatnonzero(counts.ravel() > 0)
+    index = np.column_stack(np.unravel_index(local, counts.shape)) + low
+    keys = np.ravel_multi_index(tuple(index.T), shape).astype(np.int64)
+    order = np.argsort(keys, kind="stable")
+    return Surfels(
+        keys[order], positions.reshape(-1, 3)[local][order], normals.reshape(-1, 3)[local][order]
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def is_obstacle(score, intercept, threshold, unknown_is_occupied):  # pragma: no cover - compiled
+    """A voxel of `score` (log-odds less `intercept`) is an obstacle (see the module)."""
+    if abs(score) <= KNOWN_SCORE:
+        return unknown_is_occupied
+    return score + intercept >= threshold
+
+
+@numba.njit(cache=True, parallel=True)
+def _box_surfels(
+    scores,
+    intercept,
+    threshold,
+    unknown_is_occupied,
+    origin,
+    resolution,
+    low,
+    counts,
+    positions,
+    normals,
+    steps,
+):  # pragma: no cover - compiled
+    shape = scores.shape
+    for bi in numba.prange(counts.shape[0]):
+        i = low[0] + bi
+        for bj in range(counts.shape[1]):
+            j = low[1] + bj
+            for bk in range(counts.shape[2]):
+                k = low[2] + bk
+                score = scores[i, j, k]
+                here = is_obstacle(score, intercept, threshold, unknown_is_occupied)
+                known_here = abs(score) > KNOWN_SCORE
+                n = 0
+                px = py = pz = 0.0  # the crossings' offsets from the centre, summed
+                ex = ey = ez = 0.0  # the crossing edges' directions out of the obstacle, summed
+                for s in range(6):
+                    a, b, c = i + steps[s, 0], j + steps[s, 1], k + steps[s, 2]
+                    if a < 0 or b < 0 or c < 0 or a >= shape[0] or b >= shape[1] or c >= shape[2]:
+                        continue
+                    there_score = scores[a, b, c]
+                    there = is_obstacle(there_score, intercept, threshold, unknown_is_occupied)
+                    if there == here:
+                        continue
+                    # t: share of the edge from the obstacle's centre to the crossing.
+                    t = 0.5
+                    if known_here and abs(there_score) > KNOWN_SCORE:
+                        inside = score if here else there_score
+                        outside = there_score if here else score
+                        t = (inside + intercept - threshold) / (inside - outside)
+                        t = min(max(t, 0.0), 1.0)
+                    along = (t if here else 1.0 - t) * resolution
+                    outward = 1.0 if here else -1.0
+                    px += along * steps[s, 0]
+                    py += along * steps[s, 1]
+                    pz += along * steps[s, 2]
+                    ex += outward * steps[s, 0]
+                    ey += outward * steps[s, 1]
+                    ez += outward * steps[s, 2]
+                    n += 1
+                if n == 0:
+                    continue
+                counts[bi, bj, bk] = n
+                positions[bi, bj, bk, 0] = origin[0] + (i + 0.5) * resolution + px / n
+                positions[bi, bj, bk, 1] = origin[1] + (j + 0.5) * resolution + py / n
+                positions[bi, bj, bk, 2] = origin[2] + (k + 0.5) * resolution + pz / n
+                gx = _slope(scores, i, j, k, 0, resolution)
+                gy = _slope(scores, i, j, k, 1, resolution)
+                gz = _slope(scores, i, j, k, 2, resolution)
+                # Minus the gradient where it points out of the obstacle, else the edges' mean.
+                if -(gx * ex + gy * ey + gz * ez) > 0.0:
+                    norm = -np.sqrt(gx * gx + gy * gy + gz * gz)
+                    nx, ny, nz = gx / norm, gy / norm, gz / norm
+                else:
+                    norm = np.sqrt(ex * ex + ey * ey + ez * ez)
+                    if norm == 0.0:  # crossings on opposite faces only: no direction wins
+                        norm = 1.0
+                    nx, ny, nz = ex / norm, ey / norm, ez / norm
+                normals[bi, bj, bk, 0] = nx
+                normals[bi, bj, bk, 1] = ny
+                normals[bi, bj, bk, 2] = nz
+
+
+@numba.njit(cache=True, inline="always")
+def _slope(scores, i, j, k, axis, resolution):  # pragma: no cover - compiled
+    """The scores' central difference along `axis` at voxel (i, j, k), one-sided at the grid's
+    faces, per metre; 0 along an axis one voxel thick."""
+    at = i if axis == 0 else (j if axis == 1 else k)
+    lo, hi = max(at - 1, 0), min(at + 1, scores.shape[axis] - 1)
+    if hi == lo:
+        return 0.0
+    if axis == 0:
+        rise = scores[hi, j, k] - scores[lo, j, k]
+    elif axis == 1:
+        rise = scores[i, hi, k] - scores[i, lo, k]
+    else:
+        rise = scores[i, j, hi] - scores[i, j, lo]
+    return rise / ((hi - lo) * resolution)
+
+
+def box_surfels_reference(
+    scores: np.ndarray,
+    intercept: float,
+    threshold: float,
+    unknown_is_occupied: bool,
+    origin: np.ndarray,
+    resolution: float,
+    low: np.ndarray,
+    high: np.ndarray,
+) -> Surfels:
+    """Plain NumPy twin of `box_surfels`, one axis of edges at a time."""
+    known = np.abs(scores) > KNOWN_SCORE
+    obstacle = np.where(known, scores + intercept >= threshold, unknown_is_occupied)
+    shape = np.array(scores.shape)
+    counts = np.zeros(scores.shape, dtype=np.int64)
+    offsets = np.zeros((*scores.shape, 3))
+    edges = np.zeros((*scores.shape, 3))
+    for axis in range(3):
+        first = [slice(None)] * 3
+        second = [slice(None)] * 3
+        first[axis], second[axis] = slice(0, -1), slice(1, None)
+        a, b = tuple(first), tuple(second)
+        crossing = obstacle[a] != obstacle[b]
+        # t: share of the edge from the obstacle's centre to the crossing
+        inside = np.where(obstacle[a], scores[a], scores[b])
+        outside = np.where(obstacle[a], scores[b], scores[a])
+        both = known[a] & known[b]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.clip((inside + intercept - threshold) / (inside - outside), 0.0, 1.0)
+        t = np.where(both, t, 0.5)
+        # The voxel before the crossing moves +axis, the one after -axis.
+        along_a = np.where(obstacle[a], t, 1.0 - t)
+        along_b = np.where(obstacle[b], t, 1.0 - t)
+        out_a = np.where(obstacle[a], 1.0, -1.0)
+        counts[a] += crossing
+        counts[b] += crossing
+        offsets[(*a, axis)] += np.where(crossing, along_a * resolution, 0.0)
+        offsets[(*b, axis)] -= np.where(crossing, along_b * resolution, 0.0)
+        edges[(*a, axis)] += np.where(crossing, out_a, 0.0)
+        edges[(*b, axis)] += np.where(crossing, out_a, 0.0)
+    gradient = np.zeros((*scores.shape, 3))
+    for axis in range(3):
+        index = np.arange(shape[axis])
+        lo, hi = np.maximum(index - 1, 0), np.minimum(index + 1, shape[axis] - 1)
+        span = ((hi - lo) * resolution).astype(float)
+        rise = np.take(scores, hi, axis=axis) - np.take(scores, lo, axis=axis)
+        view = [None] * 3
+        view[axis] = slice(None)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gradient[..., axis] = np.where(span[tuple(view)] > 0, rise / span[tuple(view)], 0.0)
+    box = tuple(slice(lo, hi) for lo, hi in zip(low, high, strict=True))
+    counts, offsets, edges, gradient = counts[box], offsets[box], edges[box], gradient[box]
+    centres = np.stack(
+        np.meshgrid(
+            *(np.arange(lo, hi) + 0.5 for lo, hi in zip(low, high, strict=True)), indexing="ij"
+        ),
+        axis=-1,
+    )
+    n = np.maximum(counts, 1)[..., None]
+    positions = origin + centres * resolution + offsets / n
+    use_gradient = -(gradient * edges).sum(axis=-1) > 0
+    gradient_norm = np.linalg.norm(gradient, axis=-1, keepdims=True)
+    edge_norm = np.linalg.norm(edges, axis=-1, keepdims=True)
+    from_gradient = -gradient / np.where(use_gradient[..., None], gradient_norm, 1.0)
+    from_edges = edges / np.where(edge_norm > 0, edge_norm, 1.0)
+    normals = np.where(use_gradient[..., None], from_gradient, from_edges)
+    return _compressed(counts, positions, normals, np.asarray(low), scores.shape)

@@ -1,0 +1,286 @@
+"""What planner queries keep with a map as it learns: rays (`raycast`, `segment_free`) and
+distances (`distance`).
+
+One grid of the map's log-odds, at voxels of about a cluster radius, serves both. Rays march it
+first, and the cells kernels of positive weight reach with their summed weight
+(ehm.core.queries.cover), from which the cells where the occupancy may pass a level, guide the
+rays the grid does not settle. Distance fields (ehm.core.queries.distance), one per level and
+rule for unknown space asked for, are made from the map's log-odds as point queries read them
+at the grid's voxel centres (the grid sums every kernel, point queries the nearest ones:
+where the two differ, distances follow point queries), read wherever the grid knows the
+map. Each is made on first use and then
+follows the map: after each update only what clusters that changed cover is counted again
+(OccupancyGrid.update, KernelCover.changed), and a distance field looks again only within its
+reach of the voxels whose log-odds changed, so a planner that queries right after the map
+learned pays what it pays with them kept. The grid reaches somewhat beyond the map (and a
+distance field's reach beyond that); a map that grows beyond that has it made again as it
+learns, and a grid too large to keep is tried again at the next query after an update.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ehm.core.model.kernels import kernel_reach
+from ehm.core.queries.cover import KernelCover
+from ehm.core.queries.distance import DistanceField
+from ehm.core.queries.raycast import CandidateCells, GridLogOdds
+from ehm.core.queries.surfels import KNOWN_SCORE
+from ehm.core.snapshot import MapSnapshot
+from ehm.errors import InputError
+from ehm.grid.bounds import support_bounds, support_half_widths
+from ehm.grid.local_grids import Lattice
+from ehm.grid.occupancy_grid import OccupancyGrid
+
+# The grid is left out for maps whose grid would take more than this many bytes.
+RAY_GRID_MAX_BYTES = 2**28
+# The grid reaches this share of the map's extent beyond it on each side (and at least the
+# distance fields' reach), so that a map that grows a little keeps its grid; one that grows
+# more has it made again as it learns.
+GRID_SLACK = 0.1
+
+
+class PlannerSupport:
+    """The grid, the cells rays march and the distance fields, for one map: voxels of
+    `resolution` metres, cells of `cell_side` metres, distances kept up to `reach` metres,
+    surfaces put where the map's `log_odds` ((n, d) metres -> (n,), as point queries read
+    them) meet the level (see the module)."""
+
+    def __init__(
+        self,
+        resolution: float,
+        cell_side: float,
+        reach: float,
+        log_odds: Callable[[np.ndarray], np.ndarray],
+    ) -> None:
+        self.resolution = resolution
+        self.cell_side = cell_side
+        self.reach = reach
+        self._log_odds_at = log_odds
+        self._grid: OccupancyGrid | None = None
+        self._log_odds: GridLogOdds | None = None
+        self._grid_tried = False  # a grid too large to keep is not tried again until an update
+        self._cover: KernelCover | None = None
+        self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
+        self._cells: dict[float, CandidateCells | None] = {}
+        # Distance fields by (log-odds level, unknown space is an obstacle), and the map's
+        # log-odds as point queries read them at the grid's voxel centres, less its intercept
+        # (3D; 0 where the grid knows nothing), which they are made from.
+        self._fields: dict[tuple[float, bool], DistanceField] = {}
+        self._point_scores: np.ndarray | None = None
+
+    def grid(self, take_snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
+        """The log-odds at the grid's voxel centres (intercept included), made from the map's
+        kernels (`take_snapshot()`) when there is none; None when that grid would take over
+        RAY_GRID_MAX_BYTES."""
+        if self._log_odds is None and not self._grid_tried:
+            self._grid_tried = True
+            self._make_grid(self._kernels_of(take_snapshot))
+        return self._log_odds
+
+    def _kernels_of(self, take_snapshot: Callable[[], MapSnapshot]) -> MapSnapshot:
+        """The map's kernels since its last update: taken once, shared by the grid and the
+        cover."""
+        if self._kernels is None:
+            self._kernels = take_snapshot()
+        return self._kernels
+
+    def _make_grid(self, snapshot: MapSnapshot) -> None:
+        """The grid of `snapshot` over its kernels' supports and GRID_SLACK of their extent
+        more on each side, or none when it would take over RAY_GRID_MAX_BYTES."""
+        support = support_bounds(snapshot)
+        slack = np.maximum(GRID_SLACK * (support[1] - support[0]), self.reach)
+        bounds = support + np.stack([-slack, slack]) + 2 * self.resolution * np.array([[-1], [1]])
+        try:
+            self._grid = OccupancyGrid.of(snapshot, bounds, self.resolution, RAY_GRID_MAX_BYTES)
+        except InputError:
+            self._grid = self._log_odds = self._point_scores = None
+            self._fields = {}
+            return
+        self._log_odds = GridLogOdds(
+            self._grid.scores + self._grid.intercept, self._grid.origin, self.resolution
+        )
+        self._point_scores = None
+        if self._fields:
+            self._read_point_scores(None)
+        self._fields = {key: self._new_field(*key) for key in self._fields}
+
+    def cells(
+        self, take_snapshot: Callable[[], MapSnapshot], threshold: float
+    ) -> CandidateCells | None:
+        """The cells where the map's kernels (`take_snapshot()`) could lift the log-odds above
+        `threshold` (None: every cell can), from their cover, made on the first call."""
+        if threshold not in self._cells:
+            kernels = self._kernels_of(take_snapshot)
+            if self._cover is None:
+                reach = kernel_reach(kernels.transforms, kernels.planar_kernel)
+                self._cover = KernelCover.of_kernels(
+                    kernels.means, reach, kernels.weights, self.cell_side
+                )
+            self._cells[threshold] = CandidateCells.of_cover(
+                self._cover, kernels.intercept, threshold
+            )
+        return self._cells[threshold]
+
+    def distances(
+        self,
+        take_snapshot: Callable[[], MapSnapshot],
+        points: np.ndarray,
+        threshold: float,
+        unknown_is_occupied: bool,
+        with_gradient: bool,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) signed distances, metres, from (n, d) float64 points, metres, world frame, to
+        the surface where the map's log-odds (kernels from `take_snapshot()`) reach
+        `threshold`, and with_gradient their (n, d) gradients (else (0, d)); the field is made
+        on the first call for a threshold and rule. InputError when the map's grid would be
+        too large to keep."""
+        self.grid(take_snapshot)
+        if self._grid is None:
+            raise InputError(
+                f"the map is too large for a distance field at {self.resolution:g} m voxels "
+                f"(over {RAY_GRID_MAX_BYTES / 2**20:.0f} MiB); tile it (ehm.tiles.TiledMap)"
+            )
+        key = (threshold, unknown_is_occupied)
+        if self._point_scores is None:
+            self._read_point_scores(None)
+        if key not in self._fields:
+            self._fields[key] = self._new_field(*key)
+        dim = self._grid.dim
+        lifted = points if dim == 3 else np.column_stack([points, np.zeros(len(points))])
+        field = self._fields[key]
+        distance, gradient = field.distances(lifted, with_gradient)
+        return distance, gradient[:, :dim]
+
+    def _new_field(self, threshold: float, unknown_is_occupied: bool) -> DistanceField:
+        """A distance field of the grid as it stands."""
+        lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
+        field = DistanceField(
+            lattice.origin,
+            self.resolution,
+            lattice.shape,
+            threshold,
+            unknown_is_occupied,
+            self.reach,
+        )
+        field.update(self._point_scores, self._grid.intercept, self._lifted_log_odds)
+        return field
+
+    def _read_point_scores(self, box: np.ndarray | None) -> None:
+        """Read the map's log-odds by point queries at the voxel centres the grid knows in
+        `box` ((2, 3) int64 voxels [low, high) of the 3D lattice; None: all)."""
+        scores = self._scores_3d()
+        if self._point_scores is None:
+            self._point_scores = np.zeros(scores.shape)
+        if box is None:
+            box = np.array([np.zeros(3, dtype=np.int64), scores.shape])
+        region = tuple(slice(low, high) for low, high in zip(box[0], box[1], strict=True))
+        known = np.abs(scores[region]) > KNOWN_SCORE
+        lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
+        voxels = np.argwhere(known) + box[0]
+        centres = lattice.origin + (voxels + 0.5) * self.resolution
+        read = np.zeros(known.shape)
+        read[known] = self._lifted_log_odds(centres) - self._grid.intercept
+        self._point_scores[region] = read
+
+    def _lifted_log_odds(self, points: np.ndarray) -> np.ndarray:
+        """The map's log-odds at (n, 3) points of the 3D lattice (a 2D map's: their x, y)."""
+        return self._log_odds_at(np.ascontiguousarray(points[:, : self._grid.dim]))
+
+    def _scores_3d(self) -> np.ndarray:
+        """The grid's scores as a 3D array (a view; a 2D grid is one voxel thick)."""
+        scores = self._grid.scores
+        return scores if scores.ndim == 3 else scores[..., None]
+
+    def _changed_voxels(self, old: MapSnapshot | None, snapshot: MapSnapshot) -> np.ndarray | None:
+        """(2, 3) int64, the box of the grid's voxels [low, high) whose log-odds the clusters
+        that changed since `old` reach; None: everything (a refit or a first snapshot)."""
+        if old is None or old.lineage is not snapshot.lineage:
+            return None
+        removed, added = snapshot.changes_from(old)
+        means = np.concatenate([old.means[removed], snapshot.means[added]])
+        if len(means) == 0:
+            return np.zeros((2, 3), dtype=np.int64)
+        half = np.concatenate(
+            [
+                support_half_widths(old.transforms[removed], old.planar_kernel[removed]),
+                support_half_widths(snapshot.transforms[added], snapshot.planar_kernel[added]),
+            ]
+        )
+        lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
+        box = np.stack([(means - half).min(axis=0), (means + half).max(axis=0)])
+        if snapshot.dim == 2:
+            box = np.column_stack([box, lattice.origin[2] + [0.0, self.resolution]])
+        low = np.floor((box[0] - lattice.origin) / self.resolution).astype(np.int64)
+        high = np.floor((box[1] - lattice.origin) / self.resolution).astype(np.int64) + 1
+        shape = np.array(lattice.shape)
+        return np.stack([np.clip(low, 0, shape), np.clip(high, 0, shape)])
+
+    @property
+    def follows(self) -> bool:
+        """A grid or a cover is kept, to follow the map's updates."""
+        return self._grid is not None or self._cover is not None
+
+    def update(self, snapshot: MapSnapshot | None) -> None:
+        """Follow the map after it learned, to `snapshot` (None when nothing follows): the
+        grid's voxels and the cover's cells of clusters that changed are counted again, or
+        the grid is made again when the map now reaches beyond it."""
+        self._cells = {}
+        self._grid_tried = False
+        old, self._kernels = self._kernels, snapshot
+        if snapshot is None:
+            return
+        if self._cover is not None:
+            self._cover = self._cover_update(old, snapshot)
+        if self._grid is None:
+            return
+        support, kept = support_bounds(snapshot), self._grid.bounds
+        within = kept + self.reach * np.array([[1.0], [-1.0]])
+        if np.any(support[0] < within[0]) or np.any(support[1] > within[1]):
+            self._make_grid(snapshot)  # the map grew beyond the grid's slack
+            return
+        changed = self._changed_voxels(old, snapshot)
+        self._grid.update(snapshot)
+        np.add(self._grid.scores, self._grid.intercept, out=self._log_odds.values)
+        if not self._fields:
+            self._point_scores = None
+            return
+        self._read_point_scores(changed)
+        for field in self._fields.values():
+            field.update(self._point_scores, self._grid.intercept, self._lifted_log_odds, changed)
+
+    def _cover_update(self, old: MapSnapshot | None, snapshot: MapSnapshot) -> KernelCover | None:
+        """The cover followed from `old` to `snapshot`: out with the kernels that changed or
+        are gone, in with those that changed or are new; None (made again when needed) after a
+        refit."""
+        if old is None or old.lineage is not snapshot.lineage:
+            return None
+        removed, added = snapshot.changes_from(old)
+        return self._cover.changed(_kernels(old, removed), _kernels(snapshot, added))
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes kept: the map's kernels they count, the grid's fields and log-odds, the cover
+        and the cells' keys."""
+        total = 0
+        if self._kernels is not None and self.follows:
+            kept = self._kernels
+            arrays = (kept.means, kept.transforms, kept.weights, kept.precision)
+            total += sum(array.nbytes for array in arrays)
+        if self._grid is not None:
+            total += self._grid.scores.nbytes + self._log_odds.values.nbytes
+        if self._cover is not None:
+            total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
+        total += sum(field.nbytes for field in self._fields.values())
+        if self._point_scores is not None:
+            total += self._point_scores.nbytes
+        return total + sum(cells.keys.nbytes for cells in self._cells.values() if cells is not None)
+
+
+def _kernels(snapshot: MapSnapshot, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(means, reach, weights) of the kernels of `snapshot` at `rows`, as KernelCover takes
+    them."""
+    reach = kernel_reach(snapshot.transforms[rows], snapshot.planar_kernel[rows])
+    return snapshot.means[rows], reach, snapshot.weights[rows]

@@ -1,0 +1,157 @@
+"""Signed distance fields: surfels against their NumPy twin, surfels put on the level of exact
+log-odds, distances against a plane and a ball known exactly, and a field that follows a
+changed box against one made from scratch."""
+
+import numpy as np
+import pytest
+
+from ehm.core.queries.distance import DistanceField, field_distances_reference
+from ehm.core.queries.surfels import Surfels, box_surfels, box_surfels_reference, on_level
+
+RESOLUTION = 0.1
+ORIGIN = np.array([-1.0, -1.0, -1.0])
+SHAPE = (20, 20, 20)
+
+
+def centres(shape=SHAPE, origin=ORIGIN, resolution=RESOLUTION):
+    """(X, Y, Z, 3) voxel centres, metres."""
+    axes = [origin[a] + (np.arange(n) + 0.5) * resolution for a, n in enumerate(shape)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+
+
+def ball_log_odds(points, centre=(0.0, 0.0, 0.0), radius=0.45, slope=20.0):
+    """Log-odds rising linearly into a ball: the level 0 is its sphere."""
+    return slope * (radius - np.linalg.norm(points - centre, axis=-1))
+
+
+def field_of(scores, log_odds, unknown_is_occupied=False, reach=0.6):
+    field = DistanceField(ORIGIN, RESOLUTION, scores.shape, 0.0, unknown_is_occupied, reach)
+    field.update(scores, 0.0, log_odds)
+    return field
+
+
+def test_surfels_agree_with_their_twin(rng):
+    scores = rng.normal(size=(9, 8, 7))
+    scores[rng.random(scores.shape) < 0.2] = 0.0  # unknown voxels
+    for unknown_is_occupied in (False, True):
+        for low, high in [((0, 0, 0), (9, 8, 7)), ((2, 1, 3), (7, 8, 5))]:
+            args = (scores, 0.3, 0.1, unknown_is_occupied, ORIGIN, RESOLUTION)
+            box = (np.array(low), np.array(high))
+            compiled, reference = box_surfels(*args, *box), box_surfels_reference(*args, *box)
+            assert len(compiled.keys) > 20
+            np.testing.assert_array_equal(compiled.keys, reference.keys)
+            np.testing.assert_allclose(compiled.positions, reference.positions, atol=1e-12)
+            np.testing.assert_allclose(compiled.normals, reference.normals, atol=1e-12)
+
+
+def test_surfels_lie_on_a_ball_and_point_out_of_it():
+    scores = ball_log_odds(centres())
+    surfels = box_surfels(
+        scores, 0.0, 0.0, False, ORIGIN, RESOLUTION, np.zeros(3, int), np.array(SHAPE)
+    )
+    radii = np.linalg.norm(surfels.positions, axis=1)
+    outward = np.sum(surfels.normals * surfels.positions, axis=1) / radii
+    assert len(radii) > 300
+    assert np.abs(radii - 0.45).max() < 0.5 * RESOLUTION
+    assert outward.min() > 0.9
+
+
+def test_on_level_moves_surfels_onto_the_exact_level():
+    scores = ball_log_odds(centres())
+    surfels = box_surfels(
+        scores, 0.0, 0.0, False, ORIGIN, RESOLUTION, np.zeros(3, int), np.array(SHAPE)
+    )
+    # The map's own log-odds put the surface 3 cm inside the grid's.
+    moved = on_level(surfels, lambda p: ball_log_odds(p, radius=0.42), 0.0, RESOLUTION)
+    radii = np.linalg.norm(moved.positions, axis=1)
+    # Along each normal, within the normal's angle to the radius.
+    assert np.median(np.abs(radii - 0.42)) < 2e-3
+    np.testing.assert_array_equal(moved.keys, surfels.keys)
+    # No crossing within a voxel to either side: the surfel is left out.
+    inner = on_level(surfels, lambda p: ball_log_odds(p, radius=0.3), 0.0, RESOLUTION)
+    assert len(inner.keys) == 0
+    assert len(on_level(surfels, lambda p: np.full(len(p), 5.0), 0.0, RESOLUTION).keys) == 0
+
+
+def test_distances_to_a_ball_are_exact_to_a_few_millimetres(rng):
+    scores = ball_log_odds(centres())
+    field = field_of(scores, ball_log_odds)
+    points = rng.uniform(-0.9, 0.9, (3000, 3))
+    distance, gradient = field.distances(points, True)
+    exact = np.linalg.norm(points, axis=1) - 0.45
+    within = np.abs(exact) < 0.5
+    assert np.abs(distance - exact)[within].max() < 0.3 * RESOLUTION
+    assert np.median(np.abs(distance - exact)[within]) < 0.004
+    # Beyond reach: the reach, signed, and no gradient.
+    beyond = np.abs(exact) > 0.65
+    np.testing.assert_array_equal(distance[beyond], 0.6 * np.sign(exact[beyond]))
+    np.testing.assert_array_equal(gradient[beyond], 0.0)
+    # The gradient points away from the ball outside and towards its surface inside alike.
+    radial = points / np.linalg.norm(points, axis=1)[:, None]
+    cosine = np.sum(gradient * radial, axis=1)
+    far_enough = within & (np.abs(exact) > 0.1)
+    assert np.median(cosine[far_enough]) > 0.99
+
+
+def test_compiled_distances_agree_with_their_twin(rng):
+    scores = ball_log_odds(centres())
+    scores[:, :, :3] = 0.0  # a slab of unknown space
+    for unknown_is_occupied in (False, True):
+        field = field_of(scores, ball_log_odds, unknown_is_occupied)
+        points = np.vstack([rng.uniform(-1.2, 1.2, (4000, 3)), field.surfels.positions[:50]])
+        compiled = field.distances(points, True)
+        reference = field_distances_reference(field, points)
+        np.testing.assert_allclose(compiled[0], reference[0], atol=1e-12)
+        np.testing.assert_allclose(compiled[1], reference[1], atol=1e-9)
+        # Outside the grid: unknown space, obstacle or not as asked.
+        outside = np.abs(points).max(axis=1) >= 1.0
+        expected = -0.6 if unknown_is_occupied else 0.6
+        np.testing.assert_array_equal(compiled[0][outside], expected)
+
+
+def test_unknown_space_is_an_obstacle_only_when_asked():
+    scores = np.full(SHAPE, -3.0)
+    scores[:, :, 10:] = 0.0  # the upper half unknown
+    point = np.array([[0.05, 0.05, -0.35]])
+    free_field = field_of(scores, lambda p: np.where(p[:, 2] < 0.0, -3.0, 0.0))
+    assert free_field.distances(point, False)[0][0] == 0.6
+    occupied_field = field_of(scores, lambda p: np.where(p[:, 2] < 0.0, -3.0, 0.0), True)
+    assert occupied_field.distances(point, False)[0][0] == pytest.approx(0.35, abs=1e-9)
+
+
+def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
+    scores = ball_log_odds(centres())
+    field = field_of(scores, ball_log_odds)
+    # A second ball arrives in one corner; only its box of voxels changed.
+    second = dict(centre=np.array([0.6, 0.6, -0.6]), radius=0.25)
+
+    def both(points):
+        first, near = ball_log_odds(points), np.linalg.norm(points - second["centre"], axis=-1)
+        return np.where(near < 0.4, np.maximum(first, ball_log_odds(points, **second)), first)
+
+    new_scores = both(centres())
+    changed = np.flatnonzero(np.any(new_scores != scores, axis=(1, 2)))
+    box = np.array([[9, 9, 0], [20, 20, 11]])
+    assert changed.min() >= 9 and np.all(
+        np.flatnonzero(np.any(new_scores != scores, axis=(0, 1))) < 11
+    )
+    field.update(new_scores, 0.0, both, box)
+    fresh = field_of(new_scores, both)
+    np.testing.assert_array_equal(field.surfels.keys, fresh.surfels.keys)
+    np.testing.assert_allclose(field.surfels.positions, fresh.surfels.positions, atol=1e-12)
+    points = rng.uniform(-1.0, 1.0, (3000, 3))
+    np.testing.assert_allclose(
+        field.distances(points, False)[0],
+        fresh.distances(points, False)[0],
+        atol=1e-12,
+    )
+
+
+def test_surfels_of_disjoint_sets_join_sorted():
+    a = Surfels(np.array([1, 7]), np.zeros((2, 3)), np.zeros((2, 3)))
+    b = Surfels(np.array([3]), np.ones((1, 3)), np.ones((1, 3)))
+    joined = Surfels.joined(a, b)
+    np.testing.assert_array_equal(joined.keys, [1, 3, 7])
+    np.testing.assert_array_equal(joined.positions[1], [1.0, 1.0, 1.0])
+    kept = joined.outside(np.array([0, 0, 3]), np.array([1, 1, 4]), (1, 1, 8))
+    np.testing.assert_array_equal(kept.keys, [1, 7])
