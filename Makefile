@@ -39,6 +39,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/startup.py
 	$(BIN)/python benchmarks/soak.py
 	$(BIN)/python benchmarks/raycast.py
+	$(BIN)/python benchmarks/distance.py
 	$(BIN)/python benchmarks/bag_stream.py
 	$(BIN)/python benchmarks/viewer.py
 	$(BIN)/python benchmarks/tiles.py

@@ -626,11 +626,13 @@ class HilbertMap:
         negative inside; with return_gradient, also its (n, d) gradient (unit vectors away from
         the nearest obstacle; 0 beyond reach). Distances are kept up to
         config.distance_reach: farther points read that. Unknown space (no kernel reaches it)
-        is free unless unknown_is_occupied. Read from a signed distance field of the map's
-        log-odds on cluster_radius voxels, its surface located between voxel centres
-        (ehm.core.queries.distance), made on the first call for a level and kept up to date
-        as the map learns (each update's stage 'grids'). NaN rows for points that are not
-        finite."""
+        is free unless unknown_is_occupied. Read from a signed distance field of surfels on
+        cluster_radius voxels, put where point queries (mode 'exact') meet the level
+        (ehm.core.queries.distance, ehm.grid.planner_support), made on the first call for a
+        level and kept up to date as the map learns (each update's stage 'grids'; on large
+        maps learned scan by scan this costs several times the update, BENCHMARKS.md). NaN
+        rows for points that are not finite; InputError for maps whose grid would be too
+        large to keep (tile them)."""
         self._learned("measure distances in it")
         threshold = log_odds_level(level)
         points, finite, query = self._query_points(points)

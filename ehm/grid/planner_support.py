@@ -7,14 +7,16 @@ first, and the cells kernels of positive weight reach with their summed weight
 rays the grid does not settle. Distance fields (ehm.core.queries.distance), one per level and
 rule for unknown space asked for, are made from the map's log-odds as point queries read them
 at the grid's voxel centres (the grid sums every kernel, point queries the nearest ones:
-where the two differ, distances follow point queries), read wherever the grid knows the
-map. Each is made on first use and then
-follows the map: after each update only what clusters that changed cover is counted again
-(OccupancyGrid.update, KernelCover.changed), and a distance field looks again only within its
-reach of the voxels whose log-odds changed, so a planner that queries right after the map
-learned pays what it pays with them kept. The grid reaches somewhat beyond the map (and a
-distance field's reach beyond that); a map that grows beyond that has it made again as it
-learns, and a grid too large to keep is tried again at the next query after an update.
+where the two differ, distances follow point queries), read where the grid's log-odds lie
+within NEAR_LEVEL of a level asked for; elsewhere the grid's own tell the side alike.
+
+Each is made on first use and then follows the map: after each update only what clusters that
+changed cover is counted again (OccupancyGrid.update, KernelCover.changed), and a distance
+field looks again only within its reach of the box of voxels whose log-odds changed. The grid
+reaches somewhat beyond the map (and a distance field's reach beyond that); a map that grows
+beyond that has it made again as it learns, and a grid too large to keep is tried again at the
+next query after an update. Keeping a distance field costs many point queries per update
+where the map is large and every scan changes most of it (BENCHMARKS.md, "Distances").
 """
 
 from __future__ import annotations
@@ -34,6 +36,9 @@ from ehm.grid.bounds import support_bounds, support_half_widths
 from ehm.grid.local_grids import Lattice
 from ehm.grid.occupancy_grid import OccupancyGrid
 
+# Voxel centres whose grid log-odds lie within this of a distance field's level are read
+# again by point queries (the two differ by less than 1 at 95 % of the virtual room's).
+NEAR_LEVEL = 1.5
 # The grid is left out for maps whose grid would take more than this many bytes.
 RAY_GRID_MAX_BYTES = 2**28
 # The grid reaches this share of the map's extent beyond it on each side (and at least the
@@ -104,7 +109,7 @@ class PlannerSupport:
         )
         self._point_scores = None
         if self._fields:
-            self._read_point_scores(None)
+            self._read_point_scores(None, self._levels())
         self._fields = {key: self._new_field(*key) for key in self._fields}
 
     def cells(
@@ -144,8 +149,8 @@ class PlannerSupport:
                 f"(over {RAY_GRID_MAX_BYTES / 2**20:.0f} MiB); tile it (ehm.tiles.TiledMap)"
             )
         key = (threshold, unknown_is_occupied)
-        if self._point_scores is None:
-            self._read_point_scores(None)
+        if self._point_scores is None or threshold not in self._levels():
+            self._read_point_scores(None, self._levels() | {threshold})
         if key not in self._fields:
             self._fields[key] = self._new_field(*key)
         dim = self._grid.dim
@@ -168,21 +173,27 @@ class PlannerSupport:
         field.update(self._point_scores, self._grid.intercept, self._lifted_log_odds)
         return field
 
-    def _read_point_scores(self, box: np.ndarray | None) -> None:
-        """Read the map's log-odds by point queries at the voxel centres the grid knows in
-        `box` ((2, 3) int64 voxels [low, high) of the 3D lattice; None: all)."""
+    def _levels(self) -> set[float]:
+        """The log-odds levels of the distance fields kept."""
+        return {threshold for threshold, _ in self._fields}
+
+    def _read_point_scores(self, box: np.ndarray | None, levels: set[float]) -> None:
+        """The grid's scores in `box` ((2, 3) int64 voxels [low, high) of the 3D lattice;
+        None: all), read again by point queries at the centres within NEAR_LEVEL of one of
+        `levels` (log-odds)."""
         scores = self._scores_3d()
         if self._point_scores is None:
             self._point_scores = np.zeros(scores.shape)
         if box is None:
             box = np.array([np.zeros(3, dtype=np.int64), scores.shape])
         region = tuple(slice(low, high) for low, high in zip(box[0], box[1], strict=True))
-        known = np.abs(scores[region]) > KNOWN_SCORE
+        read = scores[region].copy()
+        log_odds = read + self._grid.intercept
+        near = np.abs(read) > KNOWN_SCORE
+        near &= np.any([np.abs(log_odds - level) < NEAR_LEVEL for level in levels], axis=0)
         lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
-        voxels = np.argwhere(known) + box[0]
-        centres = lattice.origin + (voxels + 0.5) * self.resolution
-        read = np.zeros(known.shape)
-        read[known] = self._lifted_log_odds(centres) - self._grid.intercept
+        centres = lattice.origin + (np.argwhere(near) + box[0] + 0.5) * self.resolution
+        read[near] = self._lifted_log_odds(centres) - self._grid.intercept
         self._point_scores[region] = read
 
     def _lifted_log_odds(self, points: np.ndarray) -> np.ndarray:
@@ -247,7 +258,7 @@ class PlannerSupport:
         if not self._fields:
             self._point_scores = None
             return
-        self._read_point_scores(changed)
+        self._read_point_scores(changed, self._levels())
         for field in self._fields.values():
             field.update(self._point_scores, self._grid.intercept, self._lifted_log_odds, changed)
 
