@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 import ehm
 from ehm.cli import app
 from ehm.eval.runner import RECORD_KEYS
+from ehm.io.distance_file import load_distance_grid
 from ehm.io.grid_file import load_grid
 from ehm.io.ply import read_ply
 
@@ -271,6 +272,31 @@ def test_export_writes_each_format(room_map_file, map_file, tmp_path):
     assert result.exit_code == 2 and "expected a name ending in .ot, .bt, .pgm" in result.stderr
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.pgm")])
     assert result.exit_code == 2 and "plan.pgm exists: --force overwrites it" in result.stderr
+
+
+def test_export_writes_a_distance_field(map_file, tmp_path):
+    output = tmp_path / "field.npz"
+    args = ["export", str(map_file), "-o", str(output), "--distance", "--resolution", "0.1"]
+    result = runner.invoke(app, [*args, "--bounds", "-4.95,-3.45,4.95,3.45"])
+    assert result.exit_code == 0, result.output
+    assert "100 x 70 voxels of 0.1 m" in result.output
+    field = load_distance_grid(output)
+    assert field.distance.shape == (100, 70) and field.gradient.shape == (100, 70, 2)
+    np.testing.assert_allclose(field.origin, [-5.0, -3.5])
+    centres = np.array([[-4.95 + 0.1 * i, -3.45 + 0.1 * j] for i, j in [(20, 20), (70, 30)]])
+    expected, slope = ehm.load(map_file).distance(centres, return_gradient=True)
+    np.testing.assert_allclose(field.distance[[20, 70], [20, 30]], expected, atol=1e-12)
+    np.testing.assert_allclose(field.gradient[[20, 70], [20, 30]], slope, atol=1e-12)
+    assert field.level == 0.5 and not field.unknown_is_occupied
+    assert field.distance.min() < 0.0 < field.distance.max()  # walls and the rooms between
+    result = runner.invoke(app, [*args, "--unknown-is-occupied", "--force"])
+    assert result.exit_code == 0, result.output
+    assert load_distance_grid(output).unknown_is_occupied
+    result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "f.npz")])
+    assert result.exit_code == 2 and "--distance writes .npz files" in result.stderr
+    args = ["export", str(map_file), "-o", str(tmp_path / "f.pgm"), "--unknown-is-occupied"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2 and "--unknown-is-occupied goes with --distance" in result.stderr
 
 
 def test_map_takes_every_nth_scan_up_to_a_limit_quietly(plan_log, tmp_path):

@@ -16,6 +16,7 @@ from ehm.cli.app import (
     Resolution,
     app,
     console,
+    grid_bytes,
     load_map,
     map_grid,
     parse_box,
@@ -177,28 +178,52 @@ def export(
             "-o",
             help="File to write, by its suffix: .ot (OctoMap, log-odds), .bt (OctoMap, "
             "occupied or free), .pgm (+ .yaml, ROS map_server, 2D), .ply or .pcd (occupied "
-            "voxel centres).",
+            "voxel centres), .npz with --distance.",
         ),
     ],
     resolution: Resolution = 0.05,
     bounds: Bounds = None,
     level: Annotated[
-        float, typer.Option(help="Occupancy above which a voxel is occupied (.ply, .pcd).")
+        float,
+        typer.Option(help="Occupancy above which a voxel is occupied (.ply, .pcd, --distance)."),
     ] = 0.5,
+    distance: Annotated[
+        bool,
+        typer.Option(
+            "--distance",
+            help="Write .npz: the signed distance, metres, from each voxel centre to the "
+            "nearest point whose occupancy reaches --level, and its gradient "
+            "(ehm.io.distance_file).",
+        ),
+    ] = False,
+    unknown_is_occupied: Annotated[
+        bool,
+        typer.Option(
+            "--unknown-is-occupied", help="With --distance: unknown space is an obstacle."
+        ),
+    ] = False,
     max_gib: MaxGiB = 1.0,
     force: Force = False,
 ) -> None:
     """Export a map's grid for robotics tools: OctoMap trees that octovis and octomap_server
-    open, map_server maps for nav2, point clouds of the occupied voxels. The bounds widen to
-    multiples of the resolution, so the voxels are OctoMap's."""
+    open, map_server maps for nav2, point clouds of the occupied voxels, distance fields for
+    trajectory optimisers. The bounds widen to multiples of the resolution, so the voxels are
+    OctoMap's."""
     import numpy as np
 
     from ehm.io import exports
     from ehm.io.outputs import check_output
 
-    suffixes = (*exports.OCTOMAP_SUFFIXES, ".pgm", ".ply", ".pcd")
+    suffixes = (*exports.OCTOMAP_SUFFIXES, ".pgm", ".ply", ".pcd", ".npz")
     if output.suffix.lower() not in suffixes:
         raise InputError(f"{output}: expected a name ending in {', '.join(suffixes)}")
+    if distance != (output.suffix.lower() == ".npz"):
+        raise InputError(
+            "--distance writes .npz files, and an .npz export is a distance field: give both "
+            "(`ehm grid` writes occupancy grids)"
+        )
+    if unknown_is_occupied and not distance:
+        raise InputError("--unknown-is-occupied goes with --distance")
     check_output(output, [map_path], force)
     if output.suffix == ".pgm":
         check_output(output.with_suffix(".yaml"), [map_path], force)
@@ -207,6 +232,11 @@ def export(
         raise InputError(f"--resolution must be a positive number of metres, got {resolution}")
     box = parse_box(hilbert_map, bounds)
     aligned = exports.aligned_bounds(hilbert_map.extent() if box is None else box, resolution)
+    if distance:
+        _export_distance(
+            hilbert_map, aligned, resolution, level, unknown_is_occupied, max_gib, output
+        )
+        return
     occupancy_grid = map_grid(hilbert_map, aligned, resolution, max_gib)
     if output.suffix in exports.OCTOMAP_SUFFIXES:
         known = exports.write_octomap(occupancy_grid, output)
@@ -220,3 +250,28 @@ def export(
             points = np.column_stack([points, np.zeros(len(points))])
         exports.write_point_cloud(points, output)
         console.print(f"{len(points)} occupied voxels\nwrote {output}")
+
+
+def _export_distance(
+    any_map,
+    bounds,
+    resolution: float,
+    level: float,
+    unknown_is_occupied: bool,
+    max_gib: float,
+    output: Path,
+) -> None:
+    """Write the signed distances of `any_map` at the centres of the voxels of `bounds` ((2, d)
+    metres) to `output` (.npz)."""
+    from ehm.grid.bounds import grid_shape
+    from ehm.io.distance_file import DistanceGrid, save_distance_grid
+
+    dim = any_map.dim
+    # Per voxel: its centre, distance and gradient, float64.
+    origin, shape = grid_shape(bounds, resolution, dim, grid_bytes(max_gib), 8 * (1 + 2 * dim))
+    field = DistanceGrid.at_centres(any_map, origin, resolution, shape, level, unknown_is_occupied)
+    save_distance_grid(field, output)
+    voxels = " x ".join(str(n) for n in shape)
+    near, far = field.distance.min(), field.distance.max()
+    console.print(f"{voxels} voxels of {resolution:g} m, distances {near:.2f} to {far:.2f} m")
+    console.print(f"wrote {output}")

@@ -5,10 +5,9 @@ One grid of the map's log-odds, at voxels of about a cluster radius, serves both
 first, and the cells kernels of positive weight reach with their summed weight
 (ehm.core.queries.cover), from which the cells where the occupancy may pass a level, guide the
 rays the grid does not settle. Distance fields (ehm.core.queries.distance), one per level and
-rule for unknown space asked for, are made from the map's log-odds as point queries read them
-at the grid's voxel centres (the grid sums every kernel, point queries the nearest ones:
-where the two differ, distances follow point queries), read where the grid's log-odds lie
-within NEAR_LEVEL of a level asked for; elsewhere the grid's own tell the side alike.
+rule for unknown space asked for, are made from its log-odds, the means of the clusters of
+positive weight (where obstacles thinner than a voxel peak) and the map's log-odds as point
+queries read them, which place the surface.
 
 Each is made on first use and then follows the map: after each update only what clusters that
 changed cover is counted again (OccupancyGrid.update, KernelCover.changed), and a distance
@@ -29,16 +28,12 @@ from ehm.core.model.kernels import kernel_reach
 from ehm.core.queries.cover import KernelCover
 from ehm.core.queries.distance import DistanceField
 from ehm.core.queries.raycast import CandidateCells, GridLogOdds
-from ehm.core.queries.surfels import KNOWN_SCORE
 from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError
 from ehm.grid.bounds import support_bounds, support_half_widths
 from ehm.grid.local_grids import Lattice
 from ehm.grid.occupancy_grid import OccupancyGrid
 
-# Voxel centres whose grid log-odds lie within this of a distance field's level are read
-# again by point queries (the two differ by less than 1 at 95 % of the virtual room's).
-NEAR_LEVEL = 1.5
 # The grid is left out for maps whose grid would take more than this many bytes.
 RAY_GRID_MAX_BYTES = 2**28
 # The grid reaches this share of the map's extent beyond it on each side (and at least the
@@ -70,11 +65,8 @@ class PlannerSupport:
         self._cover: KernelCover | None = None
         self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
-        # Distance fields by (log-odds level, unknown space is an obstacle), and the map's
-        # log-odds as point queries read them at the grid's voxel centres, less its intercept
-        # (3D; 0 where the grid knows nothing), which they are made from.
+        # Distance fields by (log-odds level, unknown space is an obstacle).
         self._fields: dict[tuple[float, bool], DistanceField] = {}
-        self._point_scores: np.ndarray | None = None
 
     def grid(self, take_snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
         """The log-odds at the grid's voxel centres (intercept included), made from the map's
@@ -101,15 +93,12 @@ class PlannerSupport:
         try:
             self._grid = OccupancyGrid.of(snapshot, bounds, self.resolution, RAY_GRID_MAX_BYTES)
         except InputError:
-            self._grid = self._log_odds = self._point_scores = None
+            self._grid = self._log_odds = None
             self._fields = {}
             return
         self._log_odds = GridLogOdds(
             self._grid.scores + self._grid.intercept, self._grid.origin, self.resolution
         )
-        self._point_scores = None
-        if self._fields:
-            self._read_point_scores(None, self._levels())
         self._fields = {key: self._new_field(*key) for key in self._fields}
 
     def cells(
@@ -149,8 +138,6 @@ class PlannerSupport:
                 f"(over {RAY_GRID_MAX_BYTES / 2**20:.0f} MiB); tile it (ehm.tiles.TiledMap)"
             )
         key = (threshold, unknown_is_occupied)
-        if self._point_scores is None or threshold not in self._levels():
-            self._read_point_scores(None, self._levels() | {threshold})
         if key not in self._fields:
             self._fields[key] = self._new_field(*key)
         dim = self._grid.dim
@@ -170,31 +157,20 @@ class PlannerSupport:
             unknown_is_occupied,
             self.reach,
         )
-        field.update(self._point_scores, self._grid.intercept, self._lifted_log_odds)
+        field.update(self._scores_3d(), self._grid.intercept, self._lifted_log_odds, self._peaks())
         return field
 
-    def _levels(self) -> set[float]:
-        """The log-odds levels of the distance fields kept."""
-        return {threshold for threshold, _ in self._fields}
-
-    def _read_point_scores(self, box: np.ndarray | None, levels: set[float]) -> None:
-        """The grid's scores in `box` ((2, 3) int64 voxels [low, high) of the 3D lattice;
-        None: all), read again by point queries at the centres within NEAR_LEVEL of one of
-        `levels` (log-odds)."""
-        scores = self._scores_3d()
-        if self._point_scores is None:
-            self._point_scores = np.zeros(scores.shape)
-        if box is None:
-            box = np.array([np.zeros(3, dtype=np.int64), scores.shape])
-        region = tuple(slice(low, high) for low, high in zip(box[0], box[1], strict=True))
-        read = scores[region].copy()
-        log_odds = read + self._grid.intercept
-        near = np.abs(read) > KNOWN_SCORE
-        near &= np.any([np.abs(log_odds - level) < NEAR_LEVEL for level in levels], axis=0)
+    def _peaks(self) -> np.ndarray:
+        """(P, 3) float64 metres, world frame (a 2D map's at the height of its lattice): the
+        means of the map's clusters of positive weight, where thin obstacles peak."""
+        kernels = self._kernels
+        means = kernels.means[kernels.weights > 0.0]
+        if kernels.dim == 3:
+            return means
         lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
-        centres = lattice.origin + (np.argwhere(near) + box[0] + 0.5) * self.resolution
-        read[near] = self._lifted_log_odds(centres) - self._grid.intercept
-        self._point_scores[region] = read
+        return np.column_stack(
+            [means, np.full(len(means), lattice.origin[2] + self.resolution / 2)]
+        )
 
     def _lifted_log_odds(self, points: np.ndarray) -> np.ndarray:
         """The map's log-odds at (n, 3) points of the 3D lattice (a 2D map's: their x, y)."""
@@ -255,12 +231,11 @@ class PlannerSupport:
         changed = self._changed_voxels(old, snapshot)
         self._grid.update(snapshot)
         np.add(self._grid.scores, self._grid.intercept, out=self._log_odds.values)
-        if not self._fields:
-            self._point_scores = None
-            return
-        self._read_point_scores(changed, self._levels())
+        peaks = self._peaks() if self._fields else np.zeros((0, 3))
         for field in self._fields.values():
-            field.update(self._point_scores, self._grid.intercept, self._lifted_log_odds, changed)
+            field.update(
+                self._scores_3d(), self._grid.intercept, self._lifted_log_odds, peaks, changed
+            )
 
     def _cover_update(self, old: MapSnapshot | None, snapshot: MapSnapshot) -> KernelCover | None:
         """The cover followed from `old` to `snapshot`: out with the kernels that changed or
@@ -285,8 +260,6 @@ class PlannerSupport:
         if self._cover is not None:
             total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
         total += sum(field.nbytes for field in self._fields.values())
-        if self._point_scores is not None:
-            total += self._point_scores.nbytes
         return total + sum(cells.keys.nbytes for cells in self._cells.values() if cells is not None)
 
 

@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import bz2
 import gzip
+import io
 import lzma
 import os
 import tempfile
 import zlib
 from os import PathLike
 from pathlib import Path
+
+import numpy as np
 
 from ehm.errors import FileReadError
 
@@ -124,6 +127,23 @@ def _unxz(path: str | PathLike[str], data: bytes) -> bytes:
         raise FileReadError(path, "truncated xz stream") from None
     except lzma.LZMAError as error:
         raise FileReadError(path, f"not an xz stream ({error})") from None
+
+
+def read_archive(path: str | PathLike[str], kind: str, names: set[str]) -> dict[str, np.ndarray]:
+    """The arrays of the .npz file at `path`, by name; FileReadError saying it is not `kind`
+    (an 'ehm grid file') when it is no archive or lacks one of `names`."""
+    data = read_bytes(path)
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as archive:
+            arrays = {name: archive[name] for name in archive.files}
+    except Exception as error:
+        # NumPy's archive reader fails in many ways (zip, zlib, header parsing) on bytes that
+        # are not an .npz file.
+        raise FileReadError(path, f"not {kind} ({error!r})") from None
+    missing = names - set(arrays)
+    if missing:
+        raise FileReadError(path, f"not {kind} (no {', '.join(sorted(missing))})")
+    return arrays
 
 
 def write_atomically(path: str | PathLike[str], data: bytes) -> None:

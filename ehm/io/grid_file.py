@@ -3,14 +3,13 @@ grids with the occupancy's standard deviation, std and the variance sums it come
 
 from __future__ import annotations
 
-import io
 from os import PathLike
 
 import numpy as np
 
 from ehm.errors import FileReadError
 from ehm.grid.occupancy_grid import OccupancyGrid
-from ehm.io.files import read_bytes
+from ehm.io.files import read_archive
 
 
 def save_grid(grid: OccupancyGrid, path: str | PathLike[str]) -> None:
@@ -35,17 +34,8 @@ def save_grid(grid: OccupancyGrid, path: str | PathLike[str]) -> None:
 def load_grid(path: str | PathLike[str]) -> OccupancyGrid:
     """Read a grid written by save_grid (it no longer follows any map); FileReadError for a
     file that is not one."""
-    data = read_bytes(path)
-    try:
-        with np.load(io.BytesIO(data), allow_pickle=False) as archive:
-            arrays = {name: archive[name] for name in archive.files}
-    except Exception as error:
-        # NumPy's archive reader fails in many ways (zip, zlib, header parsing) on bytes that
-        # are not an .npz file.
-        raise FileReadError(path, f"not an ehm grid file ({error!r})") from None
-    missing = {"scores", "intercept", "origin", "resolution"} - set(arrays)
-    if missing:
-        raise FileReadError(path, f"not an ehm grid file (no {', '.join(sorted(missing))})")
+    names = {"scores", "intercept", "origin", "resolution"}
+    arrays = read_archive(path, "an ehm grid file", names)
     with_std = "variance_sums" in arrays
     if with_std and "prior_precision" not in arrays:
         raise FileReadError(path, "not an ehm grid file (variance_sums without prior_precision)")

@@ -465,6 +465,52 @@ class TiledMap:
         starts, directions, lengths = segment_rays(starts, ends, self._require_dim("query it"))
         return np.isinf(self.raycast(starts, directions, lengths, level, mode))
 
+    def distance(
+        self,
+        points: np.ndarray,
+        level: float = 0.5,
+        return_gradient: bool = False,
+        unknown_is_occupied: bool = False,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
+        frame) to the nearest point whose occupancy reaches `level`, and with return_gradient
+        its (n, d) gradient, as HilbertMap.distance tells them. Every tile whose learn box
+        lies within distance_reach of a point tells the distance to its own surface where it
+        lies in the tile's core (where the tile weighs most in the blend): the nearest wins,
+        and a point inside any tile's obstacle is inside (the deepest wins).
+        Unknown space is an obstacle, when asked, in the tile whose core holds the point.
+        Each tile keeps its field as it learns. NaN rows for points that are not finite."""
+        points = self._checked_points(points)
+        finite = np.all(np.isfinite(points), axis=1)
+        reach = self.config.distance_reach
+        distance = np.where(finite, reach, np.nan)
+        gradient = np.where(finite[:, None], np.zeros(points.shape), np.nan)
+        own = np.floor(points / self.tiling.size + 0.5)
+        for key in self.tile_keys:
+            box = self.tiling.learn_box(key) + np.array([[-reach], [reach]])
+            near = np.flatnonzero(finite & np.all((points >= box[0]) & (points < box[1]), axis=1))
+            tile_map = self._answering(key) if len(near) else None
+            if tile_map is None:
+                continue
+            in_core = np.all(own[near] == key, axis=1)
+            groups = [(near[~in_core], False), (near[in_core], True)]
+            for chosen, rule in groups if unknown_is_occupied else [(near, False)]:
+                if len(chosen) == 0:
+                    continue
+                found, slope = tile_map.distance(points[chosen], level, True, rule)
+                # A tile tells only of the surface in its core, where its weight is highest.
+                surface = points[chosen] - found[:, None] * slope
+                core = self.tiling.core_box(key)
+                own_surface = np.all((surface >= core[0]) & (surface <= core[1]), axis=1)
+                wins = _nearer(found, distance[chosen]) & (own_surface | (np.abs(found) >= reach))
+                distance[chosen[wins]] = found[wins]
+                gradient[chosen[wins]] = slope[wins]
+        if unknown_is_occupied:  # points in the core of a tile that learned nothing: inside
+            learned = {key for key in self.tile_keys if self._answering(key) is not None}
+            unknown = finite & np.array([tuple(key) not in learned for key in own.astype(int)])
+            distance[unknown], gradient[unknown] = -reach, 0.0
+        return (distance, gradient) if return_gradient else distance
+
     def _checked_points(self, points: np.ndarray) -> np.ndarray:
         """(n, d) float64 query points; InputError for another shape, EmptyMapError for an
         empty map."""
@@ -595,6 +641,12 @@ def _by_tile(values: np.ndarray, keys: np.ndarray) -> Iterator[tuple[TileKey, np
     starts = np.flatnonzero(np.r_[True, np.any(keys[order][1:] != keys[order][:-1], axis=1)])
     for first, end in zip(starts, np.r_[starts[1:], len(order)], strict=True):
         yield tuple(keys[order[first]].tolist()), values[order[first:end]]
+
+
+def _nearer(found: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """(n,) bool: signed distances `found` tell more than `kept`: inside (negative) and deeper,
+    or both outside and nearer."""
+    return np.where(found < 0.0, found < kept, (kept >= 0.0) & (found < kept))
 
 
 def _same_folder(a: Path, b: Path) -> bool:

@@ -5,8 +5,19 @@ changed box against one made from scratch."""
 import numpy as np
 import pytest
 
-from ehm.core.queries.distance import DistanceField, field_distances_reference
-from ehm.core.queries.surfels import Surfels, box_surfels, box_surfels_reference, on_level
+from ehm.core.queries.distance import (
+    DistanceField,
+    field_distances_reference,
+    write_keys,
+    write_keys_reference,
+)
+from ehm.core.queries.surfels import (
+    Surfels,
+    box_surfels,
+    box_surfels_reference,
+    on_level,
+    with_peaks,
+)
 
 RESOLUTION = 0.1
 ORIGIN = np.array([-1.0, -1.0, -1.0])
@@ -24,9 +35,12 @@ def ball_log_odds(points, centre=(0.0, 0.0, 0.0), radius=0.45, slope=20.0):
     return slope * (radius - np.linalg.norm(points - centre, axis=-1))
 
 
-def field_of(scores, log_odds, unknown_is_occupied=False, reach=0.6):
+NO_PEAKS = np.zeros((0, 3))
+
+
+def field_of(scores, log_odds, unknown_is_occupied=False, reach=0.6, peaks=NO_PEAKS):
     field = DistanceField(ORIGIN, RESOLUTION, scores.shape, 0.0, unknown_is_occupied, reach)
-    field.update(scores, 0.0, log_odds)
+    field.update(scores, 0.0, log_odds, peaks)
     return field
 
 
@@ -135,7 +149,7 @@ def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
     assert changed.min() >= 9 and np.all(
         np.flatnonzero(np.any(new_scores != scores, axis=(0, 1))) < 11
     )
-    field.update(new_scores, 0.0, both, box)
+    field.update(new_scores, 0.0, both, NO_PEAKS, box)
     fresh = field_of(new_scores, both)
     np.testing.assert_array_equal(field.surfels.keys, fresh.surfels.keys)
     np.testing.assert_allclose(field.surfels.positions, fresh.surfels.positions, atol=1e-12)
@@ -145,6 +159,45 @@ def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
         fresh.distances(points, False)[0],
         atol=1e-12,
     )
+
+
+def thin_slab(points):
+    """Log-odds of a slab 4 cm thick between the voxel centres at z = 0.05 and 0.15 m: +2
+    for 0.08 <= z <= 0.12, -2 elsewhere (and 0, unknown, nowhere)."""
+    z = points[..., 2]
+    return np.where((z >= 0.08) & (z <= 0.12), 2.0, -2.0)
+
+
+def test_an_obstacle_between_voxel_centres_shows_at_its_peaks(rng):
+    scores = thin_slab(centres())
+    assert np.all(scores < 0)  # every centre misses the slab
+    peaks = np.column_stack([rng.uniform(-0.9, 0.9, (40, 2)), np.full(40, 0.1)])
+    raised = with_peaks(scores, 0.0, 0.0, peaks, thin_slab, ORIGIN, RESOLUTION)
+    voxels = np.floor((peaks - ORIGIN) / RESOLUTION).astype(int)
+    np.testing.assert_array_equal(raised[tuple(voxels.T)], 2.0)
+    assert np.count_nonzero(raised != scores) == len(np.unique(voxels, axis=0))
+    # A peak where the log-odds stay below the level raises nothing.
+    low_peak = np.array([[0.0, 0.0, 0.5]])
+    np.testing.assert_array_equal(
+        with_peaks(scores, 0.0, 0.0, low_peak, thin_slab, ORIGIN, RESOLUTION), scores
+    )
+    blind = field_of(scores, thin_slab)
+    seeing = field_of(scores, thin_slab, peaks=peaks)
+    above = np.column_stack([peaks[:, :2], np.full(40, 0.4)])
+    assert np.all(blind.distances(above, False)[0] == 0.6)
+    # The surfels of the raised voxels go onto the slab's faces (its top, seen from above).
+    np.testing.assert_allclose(seeing.distances(above, False)[0], 0.28, atol=0.01)
+
+
+def test_feature_transform_keys_agree_with_their_twin(rng):
+    shape = np.array([30, 20, 10])
+    offset = np.array([4, 2, 1])
+    found = np.stack(
+        [rng.integers(0, n - o, (7, 6, 5)) for n, o in zip(shape, offset, strict=True)]
+    )
+    out = np.full((7, 6, 5), -1, dtype=np.int32)
+    write_keys(found.astype(np.int32), offset, shape, out)
+    np.testing.assert_array_equal(out, write_keys_reference(found, offset, shape))
 
 
 def test_surfels_of_disjoint_sets_join_sorted():

@@ -188,6 +188,23 @@ def test_broken_grid_and_array_files_are_named(tmp_path):
         read_points(tmp_path / "q.npy", 3)
 
 
+def test_broken_distance_files_are_named(tmp_path):
+    from ehm.io.distance_file import DistanceGrid, load_distance_grid, save_distance_grid
+
+    field = DistanceGrid(np.zeros(2), 0.1, np.ones((4, 3)), np.zeros((4, 3, 2)), 0.5, False)
+    save_distance_grid(field, tmp_path / "field.npz")
+    read = load_distance_grid(tmp_path / "field.npz")
+    np.testing.assert_array_equal(read.distance, field.distance)
+    assert (read.resolution, read.level, read.unknown_is_occupied) == (0.1, 0.5, False)
+    np.savez_compressed(tmp_path / "g.npz", scores=np.zeros((4, 3)), intercept=0.0)
+    with pytest.raises(FileReadError, match=r"g\.npz: not an ehm distance file \(no distance"):
+        load_distance_grid(tmp_path / "g.npz")
+    arrays = dict(np.load(tmp_path / "field.npz"))
+    np.savez_compressed(tmp_path / "bent.npz", **(arrays | {"gradient": np.zeros((4, 3, 3))}))
+    with pytest.raises(FileReadError, match="shapes that do not agree"):
+        load_distance_grid(tmp_path / "bent.npz")
+
+
 def test_every_file_error_is_an_ehm_error_and_a_value_error():
     error = FileReadError("a.pcd", "truncated", "byte 12")
     assert isinstance(error, EhmError) and isinstance(error, ValueError)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 import ehm
 from ehm.config import MapConfig
@@ -237,3 +238,42 @@ def test_rays_stop_where_the_blended_map_rises_above_the_level(tiled_room, room)
         tiled_room.raycast(np.zeros(3), np.ones((4, 2)), 5.0)
     with pytest.raises(InputError, match="segment ends must be"):
         tiled_room.segment_free(np.zeros((2, 3)), np.ones((3, 3)))
+
+
+def test_distances_across_tiles_follow_the_blended_level(tiled_room, rng):
+    """Around the tile border at x = 1.5 m and the table: distances against the nearest point of
+    a 3 cm raster on the other side of the blended map's 0.5 level."""
+    low, high = np.array([0.5, -1.0, 0.2]), np.array([2.5, 1.0, 1.6])
+    axes = [np.arange(a, b, 0.03) + 0.015 for a, b in zip(low, high, strict=True)]
+    raster = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    points = rng.uniform(low + 0.3, high - 0.3, (3000, 3))
+
+    def at_level(where):
+        occupancy = tiled_room.occupancy(where, mode="exact")
+        return (occupancy >= 0.5) & (np.abs(occupancy - 0.5) > 1e-9)
+
+    on_raster, at_points = at_level(raster), at_level(points)
+    to_obstacle = cKDTree(raster[on_raster]).query(points)[0]
+    to_free = cKDTree(raster[~on_raster]).query(points)[0]
+    expected = np.where(at_points, -to_free, to_obstacle)
+    distance, gradient = tiled_room.distance(points, return_gradient=True)
+    near = np.abs(expected) < 0.3
+    error = np.abs(distance - expected)[near]
+    assert near.sum() > 500
+    assert np.median(error) < 0.03
+    assert np.percentile(error, 90) < 0.1
+    moving = np.abs(distance) < 1.0
+    np.testing.assert_allclose(np.linalg.norm(gradient[moving], axis=1), 1.0, atol=1e-9)
+
+
+def test_distances_outside_every_tile_and_bad_rows(tiled_room, room_map):
+    reach = tiled_room.config.distance_reach
+    far = np.array([[40.0, 0.0, 1.0], [np.nan, 0.0, 1.0]])
+    found = tiled_room.distance(far)
+    assert found[0] == reach and np.isnan(found[1])
+    assert tiled_room.distance(far[:1], unknown_is_occupied=True)[0] == -reach
+    # Above the sensor, space no ray saw lies nearer than any surface, in tiles as in one map.
+    above = np.array([[0.0, 0.0, 1.5]])
+    kept = tiled_room.distance(above, unknown_is_occupied=True)[0]
+    assert kept < tiled_room.distance(above)[0] - 0.2
+    assert kept == pytest.approx(room_map.distance(above, unknown_is_occupied=True)[0], abs=0.05)

@@ -29,7 +29,7 @@ from ehm.core.queries.surfels import (
     box_surfels,
     is_obstacle,
     on_level,
-    with_midpoints,
+    with_peaks,
 )
 
 # The radius of each surfel's disc, in voxels.
@@ -73,38 +73,34 @@ class DistanceField:
         scores: np.ndarray,
         intercept: float,
         log_odds: Callable[[np.ndarray], np.ndarray],
+        peaks: np.ndarray,
         changed: np.ndarray | None = None,
     ) -> None:
         """Follow the grid's new `scores` (the field's shape, float64, log-odds less
         `intercept`) where they changed, in `changed` ((2, 3) int64, the box of voxels [low,
-        high); None: everywhere): the levels of voxels within one voxel of it, with the map's
-        `log_odds` ((n, 3) metres -> (n,), as point queries read them) half way between
-        centres (ehm.core.queries.surfels.with_midpoints); the surfels of voxels within one
-        voxel of those, put on the level of `log_odds` (on_level); and the nearest surfels of
-        voxels within `reach` of those."""
+        high); None: everywhere): the levels of its voxels, raised where the map's `log_odds`
+        ((n, 3) metres -> (n,), as point queries read them) reach the level at one of `peaks`
+        ((P, 3) metres, the means of clusters of positive weight;
+        ehm.core.queries.surfels.with_peaks); the surfels of voxels within one voxel of it, put
+        on the level of `log_odds` (on_level); and the nearest surfels of voxels within
+        `reach` of those."""
         shape = np.array(self.shape)
         if changed is None or intercept != self.intercept:
             changed = np.array([np.zeros(3, dtype=np.int64), shape])
         if np.any(changed[1] <= changed[0]):
             return
         self.intercept = intercept
-        levels_low, levels_high = _grown(changed, 1, shape)
-        outer_low, outer_high = _grown(changed, 2, shape)
-        outer = tuple(slice(a, b) for a, b in zip(outer_low, outer_high, strict=True))
-        raised = with_midpoints(
-            scores[outer],
+        box = tuple(slice(a, b) for a, b in zip(changed[0], changed[1], strict=True))
+        self.levels[box] = with_peaks(
+            scores[box],
             intercept,
             self.threshold,
+            peaks,
             log_odds,
-            self.origin + outer_low * self.resolution,
+            self.origin + changed[0] * self.resolution,
             self.resolution,
         )
-        inner = tuple(
-            slice(a - o, b - o) for a, b, o in zip(levels_low, levels_high, outer_low, strict=True)
-        )
-        levels = tuple(slice(a, b) for a, b in zip(levels_low, levels_high, strict=True))
-        self.levels[levels] = raised[inner]
-        low, high = outer_low, outer_high
+        low, high = _grown(changed, 1, shape)
         fresh = box_surfels(
             self.levels,
             intercept,
@@ -138,8 +134,7 @@ class DistanceField:
             free_of_surfels, return_distances=False, return_indices=True
         )
         part = tuple(slice(a, b) for a, b in zip(low - seen_low, high - seen_low, strict=True))
-        voxel = tuple(found[axis][part] + seen_low[axis] for axis in range(3))
-        self.nearest[box] = np.ravel_multi_index(voxel, self.shape)
+        write_keys(found[(slice(None), *part)], seen_low, np.array(self.shape), self.nearest[box])
 
     def distances(self, points: np.ndarray, with_gradient: bool) -> tuple[np.ndarray, np.ndarray]:
         """(n,) signed distances, metres, at (n, 3) float64 points, metres, world frame, and
@@ -177,6 +172,24 @@ def _grown(box: np.ndarray, voxels: int, shape: np.ndarray) -> tuple[np.ndarray,
     """The box of voxels [low, high) ((2, 3) int64) grown by `voxels` on every side, within a
     grid of `shape`."""
     return np.maximum(box[0] - voxels, 0), np.minimum(box[1] + voxels, shape)
+
+
+@numba.njit(cache=True, parallel=True)
+def write_keys(found, offset, shape, out):  # pragma: no cover - compiled
+    """out[i, j, k] = the flat index, in a grid of `shape`, of voxel found[:, i, j, k] +
+    `offset` (voxel indices of a feature transform of a box whose low corner is `offset`)."""
+    for i in numba.prange(out.shape[0]):
+        for j in range(out.shape[1]):
+            for k in range(out.shape[2]):
+                a = found[0, i, j, k] + offset[0]
+                b = found[1, i, j, k] + offset[1]
+                c = found[2, i, j, k] + offset[2]
+                out[i, j, k] = (a * shape[1] + b) * shape[2] + c
+
+
+def write_keys_reference(found: np.ndarray, offset: np.ndarray, shape: np.ndarray) -> np.ndarray:
+    """Plain NumPy twin of `write_keys`: the flat indices it writes, int64."""
+    return np.ravel_multi_index(tuple(found[axis] + offset[axis] for axis in range(3)), shape)
 
 
 @numba.njit(cache=True, inline="always")

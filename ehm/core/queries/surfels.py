@@ -11,9 +11,9 @@ central differences, or the mean of its edges' directions where that gradient is
 points the other way). Grids are 3D; a 2D map's grid is one voxel thick.
 
 Voxel centres can miss an obstacle thinner than a voxel that lies between two of them (a
-table top between the centres above and below it): where two neighbouring centres are both
-free, yet within MIDPOINT_MARGIN of the level, the log-odds half way between them are read
-too, and each of the two voxels takes the larger (`with_midpoints`), so the obstacle shows.
+table top between the centres above and below it). Such an obstacle peaks near the means of
+the clusters of positive weight that make it: the log-odds are read there too, and a voxel
+holding a mean where they reach the level is an obstacle (`with_peaks`), so it shows.
 
 A grid's log-odds are those of its voxel centres, linear in between only approximately: the
 surfels are then moved along their normals to where the map's own log-odds, as point queries
@@ -70,49 +70,34 @@ class Surfels(NamedTuple):
 
 
 # Where on_level looks for the level along a surfel's normal: this many voxels to either side,
-# at this many points.
+# at this many points, and how many steps then locate it.
 LEVEL_SPAN = 1.0
-LEVEL_STEPS = 9
+LEVEL_STEPS = 5
+LEVEL_REFINEMENTS = 2
 
 
-# Neighbouring voxel centres both free by less than this (log-odds) have the point half way
-# between them read as well.
-MIDPOINT_MARGIN = 2.0
-
-
-def with_midpoints(
+def with_peaks(
     scores: np.ndarray,
     intercept: float,
     threshold: float,
+    peaks: np.ndarray,
     log_odds: Callable[[np.ndarray], np.ndarray],
     origin: np.ndarray,
     resolution: float,
 ) -> np.ndarray:
     """A copy of `scores` ((X, Y, Z) float64, log-odds less `intercept` at the centres of
-    voxels of `resolution` metres from `origin`, (3,) metres) where each voxel takes the
-    log-odds (less the intercept) at the midpoints of its edges to neighbours, by `log_odds`
-    ((n, 3) metres -> (n,)), where larger: read on edges whose two centres are known and below
-    `threshold` by less than MIDPOINT_MARGIN (see the module)."""
+    voxels of `resolution` metres from `origin`, (3,) metres) where each voxel holding one of
+    `peaks` ((P, 3) metres) at which `log_odds` ((n, 3) metres -> (n,)) reach `threshold`
+    takes the largest such log-odds (less the intercept), if larger (see the module)."""
     raised = scores.copy()
-    known = np.abs(scores) > KNOWN_SCORE
-    level = scores + intercept
-    near = known & (level < threshold) & (level >= threshold - MIDPOINT_MARGIN)
-    for axis in range(3):
-        if scores.shape[axis] < 2:
-            continue
-        first = [slice(None)] * 3
-        second = [slice(None)] * 3
-        first[axis], second[axis] = slice(0, -1), slice(1, None)
-        a, b = tuple(first), tuple(second)
-        edges = np.argwhere(near[a] & near[b])
-        if len(edges) == 0:
-            continue
-        step = np.zeros(3)
-        step[axis] = 0.5
-        read = log_odds(origin + (edges + 0.5 + step) * resolution) - intercept
-        for start in (edges, edges + np.eye(3, dtype=np.int64)[axis]):
-            index = tuple(start.T)
-            np.maximum.at(raised, index, read)
+    index = np.floor((peaks - origin) / resolution).astype(np.int64)
+    inside = np.all((index >= 0) & (index < scores.shape), axis=1)
+    if not np.any(inside):
+        return raised
+    index = index[inside]
+    read = log_odds(peaks[inside])
+    high = read >= threshold
+    np.maximum.at(raised, tuple(index[high].T), read[high] - intercept)
     return raised
 
 
@@ -124,9 +109,10 @@ def on_level(
 ) -> Surfels:
     """`surfels` each moved along its normal to the crossing of `threshold` by `log_odds`
     ((n, 3) metres -> (n,) log-odds, as point queries read them) nearest its position, within
-    LEVEL_SPAN voxels of `resolution` metres to either side, located linearly between
-    LEVEL_STEPS points. Surfels with no crossing there are left out: the grid's voxel centres
-    saw a surface the map's own log-odds do not have."""
+    LEVEL_SPAN voxels of `resolution` metres to either side: bracketed between LEVEL_STEPS
+    points, then located by LEVEL_REFINEMENTS steps of false position. Surfels with no crossing
+    there are left out: the grid's voxel centres saw a surface the map's own log-odds do not
+    have."""
     count = len(surfels.keys)
     if count == 0:
         return surfels
@@ -135,14 +121,20 @@ def on_level(
     above = log_odds(points.reshape(-1, 3)).reshape(count, LEVEL_STEPS) - threshold
     # Crossings out of the obstacle (behind the surfel, against its normal) into free space.
     crossing = (above[:, :-1] >= 0.0) & (above[:, 1:] < 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        share = above[:, :-1] / (above[:, :-1] - above[:, 1:])
-    offset = along[:-1] + share * (along[1] - along[0])
-    nearest = np.argmin(np.where(crossing, np.abs(offset), np.inf), axis=1)
+    nearest = np.argmin(np.where(crossing, np.abs(along[:-1] + along[1:]), np.inf), axis=1)
     rows = np.flatnonzero(crossing[np.arange(count), nearest])
-    moved = offset[rows, nearest[rows]]
-    normals = surfels.normals[rows]
-    return Surfels(surfels.keys[rows], surfels.positions[rows] + moved[:, None] * normals, normals)
+    start, normals = surfels.positions[rows], surfels.normals[rows]
+    # The bracket [inner, outer] along the normal, the level minus the log-odds at its ends.
+    inner, outer = along[nearest[rows]], along[nearest[rows] + 1]
+    at_inner, at_outer = above[rows, nearest[rows]], above[rows, nearest[rows] + 1]
+    for _ in range(LEVEL_REFINEMENTS):
+        guess = inner + at_inner / (at_inner - at_outer) * (outer - inner)
+        at_guess = log_odds(start + guess[:, None] * normals) - threshold
+        inside = at_guess >= 0.0
+        inner, at_inner = np.where(inside, guess, inner), np.where(inside, at_guess, at_inner)
+        outer, at_outer = np.where(inside, outer, guess), np.where(inside, at_outer, at_guess)
+    moved = inner + at_inner / (at_inner - at_outer) * (outer - inner)
+    return Surfels(surfels.keys[rows], start + moved[:, None] * normals, normals)
 
 
 def box_surfels(
