@@ -1,7 +1,8 @@
 """A map in the browser, served with viser (`pip install 'ehm[viewer]'`): for a 3D map its
 surface at an occupancy level (a slider re-meshes it) coloured by height or by the occupancy's
 standard deviation, a slider that leaves out the surface above a height (to look into rooms), a
-horizontal slice of the occupancy or its std as a heat map at a chosen height, the occupied
+horizontal slice of the occupancy, its std or the distance to obstacles as a heat map at a
+chosen height, the occupied
 samples the map keeps near surfaces (where its scans hit), the sensor path and axes in metres;
 for a 2D map its grid as an image with the sensor path.
 
@@ -26,6 +27,8 @@ from ehm.pipeline import MappingRun, NullObserver
 from ehm.viz.colors import height_colors
 
 INSTALL_HINT = "the viewer needs viser: pip install 'ehm[viewer]'"
+# What a slice can show.
+SLICES = ("occupancy", "uncertainty (std)", "distance to obstacles")
 # Colours of the sensor path and the surface samples, RGB 0-255.
 PATH_COLOR = (230, 40, 40)
 SAMPLE_COLOR = (40, 40, 40)
@@ -50,6 +53,7 @@ class MapViewer:
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.surface = None
         self.mesh = None
+        self.slice_image: np.ndarray | None = None  # (nx, ny, 3) uint8, the slice shown
         self.n_faces = 0
         self.samples = self.show_samples = None  # a map that keeps samples shows them
         self._aim_camera()
@@ -71,9 +75,7 @@ class MapViewer:
             float(high[2] if cut_above is None else np.clip(cut_above, low[2], high[2])),
         )  # fmt: skip
         self.show_slice = self.server.gui.add_checkbox("show slice", False)
-        self.slice_of = self.server.gui.add_dropdown(
-            "slice of", ("occupancy", "uncertainty (std)"), initial_value="occupancy"
-        )
+        self.slice_of = self.server.gui.add_dropdown("slice of", SLICES, initial_value=SLICES[0])
         self.level.on_update(lambda _: self.show_surface())
         self.coloring.on_update(lambda _: self.show_surface())
         self.cut_above.on_update(lambda _: self.show_surface())
@@ -116,20 +118,32 @@ class MapViewer:
         self.surface = self.server.scene.add_mesh_trimesh("/surface", self.mesh)
 
     def show_slice_plane(self) -> None:
-        """(Re)draw the horizontal slice of the occupancy at the slider's height, or hide it."""
+        """(Re)draw the horizontal slice at the slider's height, or hide it: the occupancy, its
+        std, or the signed distance to obstacles (HilbertMap.distance) from inside them (red)
+        through their surface (white) to distance_reach away (blue), on a square-root scale."""
         if not self.show_slice.value:
             self.server.scene.remove_by_name("/slice")
+            self.slice_image = None
             return
         k = int(np.clip(
             (self.slice_height.value - self.grid.origin[2]) / self.grid.resolution,
             0, self.grid.shape[2] - 1,
         ))  # fmt: skip
-        if self.slice_of.value == "occupancy":
+        z = self.grid.axis_centers(2)[k]
+        if self.slice_of.value == SLICES[0]:
             image = _heat_map(self.grid.probability[:, :, k])
-        else:  # the std of the occupancy, from 0 (blue) to its largest (red)
+        elif self.slice_of.value == SLICES[1]:  # from 0 (blue) to its largest (red)
             std = self.grid.std[:, :, k]
             image = _heat_map(std / max(float(self.grid.std.max()), 1e-9))
-        add_plane_image(self.server, "/slice", self.grid, image, self.grid.axis_centers(2)[k])
+        else:
+            x, y = np.meshgrid(self.grid.axis_centers(0), self.grid.axis_centers(1), indexing="ij")
+            centres = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, z)])
+            reach = self.map.config.distance_reach
+            distance = self.map.distance(centres).reshape(x.shape) / reach
+            # On a square-root scale, so the few centimetres inside thin walls show.
+            image = _heat_map(0.5 - 0.5 * np.sign(distance) * np.sqrt(np.abs(distance)))
+        self.slice_image = image
+        add_plane_image(self.server, "/slice", self.grid, image, z)
 
     def _show_plane(self) -> None:
         """A 2D map: its grid as an image on the plane z = 0."""

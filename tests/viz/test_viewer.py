@@ -50,6 +50,28 @@ def test_colouring_by_uncertainty_and_the_slice(room_viewer):
     assert room_viewer.url.startswith("http://127.0.0.1:")
 
 
+def test_the_slice_of_distances_to_obstacles(room_viewer):
+    room_viewer.show_slice.value = True
+    room_viewer.slice_height.value = 1.2
+    room_viewer.slice_of.value = "distance to obstacles"
+    image = room_viewer.slice_image.astype(int)
+    grid = room_viewer.grid
+
+    def pixel(x, y):
+        return np.argmin(np.abs(grid.axis_centers(0) - x)), np.argmin(
+            np.abs(grid.axis_centers(1) - y)
+        )
+
+    # The room's middle, over a metre from every wall: blue; inside a wall (x = 4 to 4.2 m),
+    # a few centimetres deep: red.
+    red, _, blue = image[pixel(0.0, 0.0)]
+    assert blue > red + 80
+    red, _, blue = image[pixel(4.1, 0.0)]
+    assert red > blue + 40
+    room_viewer.show_slice.value = False
+    assert room_viewer.slice_image is None
+
+
 def test_a_plan_shows_as_an_image(plan):
     plan_map = ehm.HilbertMap().fit(plan.scans)
     viewer = MapViewer(plan_map, resolution=0.1, port=free_port())
