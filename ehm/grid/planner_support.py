@@ -143,7 +143,7 @@ class PlannerSupport:
         dim = self._grid.dim
         lifted = points if dim == 3 else np.column_stack([points, np.zeros(len(points))])
         field = self._fields[key]
-        distance, gradient = field.distances(lifted, with_gradient)
+        distance, gradient = field.distances(lifted, self._scores_3d(), with_gradient)
         return distance, gradient[:, :dim]
 
     def _new_field(self, threshold: float, unknown_is_occupied: bool) -> DistanceField:

@@ -91,7 +91,7 @@ def test_distances_to_a_ball_are_exact_to_a_few_millimetres(rng):
     scores = ball_log_odds(centres())
     field = field_of(scores, ball_log_odds)
     points = rng.uniform(-0.9, 0.9, (3000, 3))
-    distance, gradient = field.distances(points, True)
+    distance, gradient = field.distances(points, scores, True)
     exact = np.linalg.norm(points, axis=1) - 0.45
     within = np.abs(exact) < 0.5
     assert np.abs(distance - exact)[within].max() < 0.3 * RESOLUTION
@@ -113,8 +113,8 @@ def test_compiled_distances_agree_with_their_twin(rng):
     for unknown_is_occupied in (False, True):
         field = field_of(scores, ball_log_odds, unknown_is_occupied)
         points = np.vstack([rng.uniform(-1.2, 1.2, (4000, 3)), field.surfels.positions[:50]])
-        compiled = field.distances(points, True)
-        reference = field_distances_reference(field, points)
+        compiled = field.distances(points, scores, True)
+        reference = field_distances_reference(field, points, scores)
         np.testing.assert_allclose(compiled[0], reference[0], atol=1e-12)
         np.testing.assert_allclose(compiled[1], reference[1], atol=1e-9)
         # Outside the grid: unknown space, obstacle or not as asked.
@@ -128,9 +128,9 @@ def test_unknown_space_is_an_obstacle_only_when_asked():
     scores[:, :, 10:] = 0.0  # the upper half unknown
     point = np.array([[0.05, 0.05, -0.35]])
     free_field = field_of(scores, lambda p: np.where(p[:, 2] < 0.0, -3.0, 0.0))
-    assert free_field.distances(point, False)[0][0] == 0.6
+    assert free_field.distances(point, scores, False)[0][0] == 0.6
     occupied_field = field_of(scores, lambda p: np.where(p[:, 2] < 0.0, -3.0, 0.0), True)
-    assert occupied_field.distances(point, False)[0][0] == pytest.approx(0.35, abs=1e-9)
+    assert occupied_field.distances(point, scores, False)[0][0] == pytest.approx(0.35, abs=1e-9)
 
 
 def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
@@ -155,8 +155,8 @@ def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
     np.testing.assert_allclose(field.surfels.positions, fresh.surfels.positions, atol=1e-12)
     points = rng.uniform(-1.0, 1.0, (3000, 3))
     np.testing.assert_allclose(
-        field.distances(points, False)[0],
-        fresh.distances(points, False)[0],
+        field.distances(points, new_scores, False)[0],
+        fresh.distances(points, new_scores, False)[0],
         atol=1e-12,
     )
 
@@ -184,9 +184,9 @@ def test_an_obstacle_between_voxel_centres_shows_at_its_peaks(rng):
     blind = field_of(scores, thin_slab)
     seeing = field_of(scores, thin_slab, peaks=peaks)
     above = np.column_stack([peaks[:, :2], np.full(40, 0.4)])
-    assert np.all(blind.distances(above, False)[0] == 0.6)
+    assert np.all(blind.distances(above, scores, False)[0] == 0.6)
     # The surfels of the raised voxels go onto the slab's faces (its top, seen from above).
-    np.testing.assert_allclose(seeing.distances(above, False)[0], 0.28, atol=0.01)
+    np.testing.assert_allclose(seeing.distances(above, scores, False)[0], 0.28, atol=0.01)
 
 
 def test_feature_transform_keys_agree_with_their_twin(rng):

@@ -63,8 +63,6 @@ class DistanceField:
         self.reach = float(reach)
         # Per voxel: the flat index of the voxel whose surfel is nearest its centre; -1: none.
         self.nearest = np.full(self.shape, -1, dtype=np.int32)
-        # The scores surfels are found in: the grid's, with thin obstacles between centres.
-        self.levels = np.zeros(self.shape)
         self.surfels = Surfels.empty()
         self.intercept: float | None = None
 
@@ -78,40 +76,39 @@ class DistanceField:
     ) -> None:
         """Follow the grid's new `scores` (the field's shape, float64, log-odds less
         `intercept`) where they changed, in `changed` ((2, 3) int64, the box of voxels [low,
-        high); None: everywhere): the levels of its voxels, raised where the map's `log_odds`
-        ((n, 3) metres -> (n,), as point queries read them) reach the level at one of `peaks`
-        ((P, 3) metres, the means of clusters of positive weight;
-        ehm.core.queries.surfels.with_peaks); the surfels of voxels within one voxel of it, put
-        on the level of `log_odds` (on_level); and the nearest surfels of voxels within
-        `reach` of those."""
+        high); None: everywhere): the surfels of voxels within one voxel of it, found where the
+        map's `log_odds` ((n, 3) metres -> (n,), as point queries read them) reach the level at
+        one of `peaks` ((P, 3) metres, the means of clusters of positive weight) as well as at
+        the voxel centres (ehm.core.queries.surfels.with_peaks) and put on the level of
+        `log_odds` (on_level); and the nearest surfels of voxels within `reach` of those."""
         shape = np.array(self.shape)
         if changed is None or intercept != self.intercept:
             changed = np.array([np.zeros(3, dtype=np.int64), shape])
         if np.any(changed[1] <= changed[0]):
             return
         self.intercept = intercept
-        box = tuple(slice(a, b) for a, b in zip(changed[0], changed[1], strict=True))
-        self.levels[box] = with_peaks(
-            scores[box],
-            intercept,
-            self.threshold,
-            peaks,
-            log_odds,
-            self.origin + changed[0] * self.resolution,
-            self.resolution,
+        low, high = _grown(changed, 1, shape)  # the voxels whose surfels may change
+        seen_low, seen_high = _grown(changed, 2, shape)  # and their neighbours
+        seen = tuple(slice(a, b) for a, b in zip(seen_low, seen_high, strict=True))
+        corner = self.origin + seen_low * self.resolution
+        levels = with_peaks(
+            scores[seen], intercept, self.threshold, peaks, log_odds, corner, self.resolution
         )
-        low, high = _grown(changed, 1, shape)
-        fresh = box_surfels(
-            self.levels,
+        local = box_surfels(
+            levels,
             intercept,
             self.threshold,
             self.unknown_is_occupied,
-            self.origin,
+            corner,
             self.resolution,
-            low,
-            high,
+            low - seen_low,
+            high - seen_low,
         )
-        fresh = on_level(fresh, log_odds, self.threshold, self.resolution)
+        index = np.column_stack(np.unravel_index(local.keys, levels.shape)) + seen_low
+        keys = np.ravel_multi_index(tuple(index.T), self.shape).astype(np.int64)
+        fresh = on_level(
+            Surfels(keys, local.positions, local.normals), log_odds, self.threshold, self.resolution
+        )
         self.surfels = Surfels.joined(self.surfels.outside(low, high, self.shape), fresh)
         margin = int(np.ceil(self.reach / self.resolution)) + 1
         ahead_low, ahead_high = np.maximum(low - margin, 0), np.minimum(high + margin, shape)
@@ -136,10 +133,13 @@ class DistanceField:
         part = tuple(slice(a, b) for a, b in zip(low - seen_low, high - seen_low, strict=True))
         write_keys(found[(slice(None), *part)], seen_low, np.array(self.shape), self.nearest[box])
 
-    def distances(self, points: np.ndarray, with_gradient: bool) -> tuple[np.ndarray, np.ndarray]:
+    def distances(
+        self, points: np.ndarray, scores: np.ndarray, with_gradient: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) signed distances, metres, at (n, 3) float64 points, metres, world frame, and
-        with_gradient their (n, 3) gradients (else (0, 3)). Points outside the grid lie beyond
-        reach of every surfel: reach, or -reach where unknown space is an obstacle."""
+        with_gradient their (n, 3) gradients (else (0, 3)); `scores` as last given to
+        `update`, for the side of points far from every surfel. Points outside the grid lie
+        beyond reach of every surfel: reach, or -reach where unknown space is an obstacle."""
         points = np.ascontiguousarray(points, dtype=np.float64)
         distance = np.empty(len(points))
         gradient = np.zeros((len(points) if with_gradient else 0, 3))
@@ -153,7 +153,7 @@ class DistanceField:
             self.surfels.normals,
             DISC_RADIUS * self.resolution,
             self.reach,
-            self.levels,
+            scores,
             self.intercept,
             self.threshold,
             self.unknown_is_occupied,
@@ -165,7 +165,7 @@ class DistanceField:
     @property
     def nbytes(self) -> int:
         surfels = self.surfels
-        return self.nearest.nbytes + self.levels.nbytes + sum(a.nbytes for a in surfels)
+        return self.nearest.nbytes + sum(a.nbytes for a in surfels)
 
 
 def _grown(box: np.ndarray, voxels: int, shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -279,7 +279,7 @@ def _field_distances(
 
 
 def field_distances_reference(
-    field: DistanceField, points: np.ndarray
+    field: DistanceField, points: np.ndarray, scores: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plain NumPy twin of `DistanceField.distances` (with gradients)."""
     points = np.asarray(points, dtype=np.float64)
@@ -312,7 +312,7 @@ def field_distances_reference(
         ) / nearest_d[:, None]
     slope = np.where((nearest_d == 0)[:, None], normals[pick, best], slope)
     voxel = np.clip(np.floor(units).astype(np.int64), 0, shape - 1)
-    score = field.levels[tuple(voxel.T)]
+    score = scores[tuple(voxel.T)]
     obstacle = np.where(
         np.abs(score) <= KNOWN_SCORE,
         field.unknown_is_occupied,
