@@ -8,9 +8,10 @@ its own resolution (`MapConfig.for_resolution`). After the first scan a distance
 the field; every later update keeps it up to date (the update's stage 'grids'), timed beside
 the rest of the update. After the last scan, `points` points drawn in the scene's box are
 asked their distance (the field kept, JIT warm); their error is measured against the exact
-distance to the scene's surfaces, signed, where the map is known: points whose nearest
-surface the scans saw (the nearest hit lies within two resolutions of that distance) and
-nearer to it than the field's reach.
+distance to the scene's surfaces, signed, where the map is known: points some kernel reaches
+(occupancy other than 0.5: the inside of a building, behind its facade, is unknown to any
+scan), whose nearest surface the scans saw (the nearest hit lies within two resolutions of
+that distance), nearer to it than the field's reach.
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ def measure(name: str, n_points: int, rng: np.random.Generator) -> list[str]:
     query = time.perf_counter() - start
     signed, seen = signed_truth(dataset, points, resolution)
     reach = hilbert_map.config.distance_reach
-    judged = seen & (np.abs(signed) < reach)
+    known = np.abs(hilbert_map.occupancy(points) - 0.5) > 1e-9
+    judged = seen & known & (np.abs(signed) < reach)
     error = np.abs(distance - signed)[judged]
     return [
         f"{name} ({len(dataset.scans)} scans, {resolution} m)",
