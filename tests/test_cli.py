@@ -274,6 +274,21 @@ def test_export_writes_each_format(room_map_file, map_file, tmp_path):
     assert result.exit_code == 2 and "plan.pgm exists: --force overwrites it" in result.stderr
 
 
+def test_query_tells_distances_to_obstacles(map_file, tmp_path):
+    points = np.array([[-3.0, -1.5], [1.5, -0.2], [6.0, -0.2]])
+    np.save(tmp_path / "q.npy", points)
+    hilbert_map = ehm.load(map_file)
+    expected = np.column_stack(
+        [*hilbert_map.occupancy(points, return_std=True), hilbert_map.distance(points)]
+    )
+    args = ["query", str(map_file), str(tmp_path / "q.npy"), "--std", "--distance"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    rows = [line.split(",") for line in result.output.split()]
+    np.testing.assert_allclose(np.array(rows, float), expected, atol=1e-6)
+    assert expected[0, 2] > 0.3 and expected[2, 2] < 0.0  # a robot pose, inside the wall
+
+
 def test_export_writes_a_distance_field(map_file, tmp_path):
     output = tmp_path / "field.npz"
     args = ["export", str(map_file), "-o", str(output), "--distance", "--resolution", "0.1"]

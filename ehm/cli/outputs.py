@@ -37,9 +37,18 @@ def query(
     std: Annotated[
         bool, typer.Option("--std", help="Also the standard deviation: columns p, std.")
     ] = False,
+    distance: Annotated[
+        bool,
+        typer.Option(
+            "--distance",
+            help="Also the signed distance, metres, to the nearest point whose occupancy "
+            "reaches 0.5 (negative inside): the last column.",
+        ),
+    ] = False,
     force: Force = False,
 ) -> None:
-    """Occupancy probability of each point (and with --std its standard deviation)."""
+    """Occupancy probability of each point (with --std its standard deviation, with
+    --distance its distance to obstacles)."""
     import numpy as np
 
     from ehm.io.outputs import check_output
@@ -50,8 +59,12 @@ def query(
     if output is not None:
         check_output(output, [map_path, points], force)
     hilbert_map = load_map(map_path)
-    answers = hilbert_map.occupancy(read_points(points, hilbert_map.dim), mode=mode, return_std=std)
-    columns = np.column_stack(answers) if std else answers
+    asked = read_points(points, hilbert_map.dim)
+    answers = hilbert_map.occupancy(asked, mode=mode, return_std=std)
+    answers = list(answers) if std else [answers]
+    if distance:
+        answers.append(hilbert_map.distance(asked))
+    columns = np.column_stack(answers) if len(answers) > 1 else answers[0]
     if output is None:
         typer.echo("\n".join(",".join(f"{v:.6f}" for v in np.atleast_1d(row)) for row in columns))
     elif output.suffix == ".npy":
