@@ -12,7 +12,7 @@ queries read them, which place the surface.
 Each is made on first use and then follows the map: after each update only what clusters that
 changed cover is counted again (OccupancyGrid.update, KernelCover.changed), and a distance
 field looks again only within its reach of the box of voxels whose log-odds changed. The grid
-reaches somewhat beyond the map (and a distance field's reach beyond that); a map that grows
+reaches somewhat beyond the map, and at least a distance field's reach; a map that grows
 beyond that has it made again as it learns, and a grid too large to keep is tried again at the
 next query after an update. Keeping a distance field costs many point queries per update
 where the map is large and every scan changes most of it (BENCHMARKS.md, "Distances").

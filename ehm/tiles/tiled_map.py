@@ -486,7 +486,12 @@ class TiledMap:
         distance = np.where(finite, reach, np.nan)
         gradient = np.where(finite[:, None], np.zeros(points.shape), np.nan)
         own = np.floor(points / self.tiling.size + 0.5)
-        for key in self.tile_keys:
+        asked = points[finite]
+        box = (
+            np.stack([asked.min(axis=0) - reach, asked.max(axis=0) + reach]) if len(asked) else None
+        )
+        meeting = set(self.tiling.keys_meeting(box)) if box is not None else set()
+        for key in (key for key in self.tile_keys if key in meeting):
             box = self.tiling.learn_box(key) + np.array([[-reach], [reach]])
             near = np.flatnonzero(finite & np.all((points >= box[0]) & (points < box[1]), axis=1))
             tile_map = self._answering(key) if len(near) else None
@@ -506,9 +511,11 @@ class TiledMap:
                 distance[chosen[wins]] = found[wins]
                 gradient[chosen[wins]] = slope[wins]
         if unknown_is_occupied:  # points in the core of a tile that learned nothing: inside
-            learned = {key for key in self.tile_keys if self._answering(key) is not None}
-            unknown = finite & np.array([tuple(key) not in learned for key in own.astype(int)])
-            distance[unknown], gradient[unknown] = -reach, 0.0
+            rows = np.flatnonzero(finite)
+            keys = own[rows].astype(np.int64)
+            for key, entries in _by_tile(rows, keys):
+                if self._answering(key) is None:
+                    distance[entries], gradient[entries] = -reach, 0.0
         return (distance, gradient) if return_gradient else distance
 
     def _checked_points(self, points: np.ndarray) -> np.ndarray:

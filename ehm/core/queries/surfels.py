@@ -15,10 +15,11 @@ table top between the centres above and below it). Such an obstacle peaks near t
 the clusters of positive weight that make it: the log-odds are read there too, and a voxel
 holding a mean where they reach the level is an obstacle (`with_peaks`), so it shows.
 
-A grid's log-odds are those of its voxel centres, linear in between only approximately: the
-surfels are then moved along their normals to where the map's own log-odds, as point queries
-read them, meet the level, or left out where they do not nearby (`on_level`), so that
-distances agree with `occupancy`.
+A grid's log-odds are those of its voxel centres, linear in between only approximately, and
+a grid sums every kernel where point queries sum the nearest ones: the surfels are then moved
+along their normals to where the map's own log-odds, as point queries read them, meet the
+level, or left out where they do not nearby (`on_level`), so that distances agree with
+`occupancy`.
 """
 
 from __future__ import annotations
