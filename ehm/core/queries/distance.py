@@ -21,7 +21,6 @@ from collections.abc import Callable
 
 import numba
 import numpy as np
-from scipy import ndimage
 
 from ehm.core.queries.surfels import (
     KNOWN_SCORE,
@@ -125,6 +124,8 @@ class DistanceField:
         if not np.any(inside):
             self.nearest[box] = -1
             return
+        from scipy import ndimage  # only maps asked for distances load it (about 0.1 s)
+
         free_of_surfels = np.ones(tuple(seen_high - seen_low), dtype=bool)
         free_of_surfels[tuple((index[inside] - seen_low).T)] = False
         found = ndimage.distance_transform_edt(
