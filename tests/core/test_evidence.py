@@ -89,7 +89,7 @@ def test_samples_beyond_the_cells_reach_are_refused(rng):
 
 
 def test_evidence_gathered_in_parts_is_the_same_on_any_number_of_threads(rng, monkeypatch):
-    """Gathered in parts of its cells, a batch gives the cells one pass gives, and in the same
+    """Gathered in parts of its rays, a batch gives the cells one pass gives, and in the same
     order whatever the threads, so a map does not depend on the machine."""
     config = MapConfig(free_spacing=0.3)
     scans = [_scan(rng, 3000, 3)]

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.search.hashing import group_by_key, key_part, table_size, unique_keys
+from ehm.core.search.hashing import group_by_key, table_size, unique_keys
 
 
 def test_unique_keys_is_np_unique(rng):
@@ -24,11 +24,3 @@ def test_rows_grouped_by_key_as_a_stable_argsort_groups_them(rng):
 
 def test_tables_stay_at_most_half_full():
     assert [table_size(n) for n in (0, 32, 33, 1000)] == [64, 64, 128, 2048]
-
-
-def test_key_parts_agree_with_numpy_and_share_keys_evenly(rng):
-    keys = rng.integers(0, 2**62, 30_000).astype(np.int64)
-    parts = np.array([key_part(key, 3) for key in keys])
-    mixed = keys.astype(np.uint64) * np.uint64(11400714819323198485)
-    np.testing.assert_array_equal(parts, (mixed >> np.uint64(40)).astype(np.int64) % 3)
-    np.testing.assert_allclose(np.bincount(parts, minlength=3) / len(keys), 1 / 3, atol=0.02)

@@ -38,7 +38,7 @@ from ehm.core.observations.samples import (
     samples_of_rays,
 )
 from ehm.core.search.cells import packed_cell_keys
-from ehm.core.search.hashing import EMPTY_KEY, hash_slot, key_part, table_size
+from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 from ehm.errors import InputError
 
 # Kinds of samples, in the order the compiled pass numbers them: free samples along rays (in
@@ -53,23 +53,34 @@ KIND_BITS = 2
 FINE_CELLS_PER_RADIUS = 4
 COARSE_CELLS_PER_RADIUS = 3
 # A batch of at least PARALLEL_MIN_SAMPLES samples (a sweep of 88,000 rays gives 1.1 million)
-# is gathered in GATHER_PARTS parts of its cells (key_part), each on a thread of its own as
-# far as there are threads: every part places every sample and keeps those in its cells, in a
-# table of its own. The parts do not follow the threads, so a map is the same on any machine.
+# is gathered in GATHER_PARTS parts of its rays, about as many samples in each, each part in a
+# table of its own on a thread of its own as far as there are threads; the tables are then
+# merged in part order. The parts do not follow the threads, so a map is the same on any machine.
 PARALLEL_MIN_SAMPLES = 100_000
 GATHER_PARTS = 2
+# A table starts with a row for every SAMPLES_PER_CELL samples: a scan's samples fill 3-7 per
+# cell (OctoMap's sample scan 4.2, a TUM frame 6.7, a street sweep 3.2), so it seldom grows.
+SAMPLES_PER_CELL = 3
+
+
+def statistics_width(dim: int) -> int:
+    """Values a cell keeps (see _CellTable): its weight, the sum of its samples' offsets from
+    its anchor (dim) and the upper triangle of their scatter about it (dim (dim + 1) / 2)."""
+    return 1 + dim + dim * (dim + 1) // 2
 
 
 @dataclass
 class _CellTable:
     """Cells met so far: an open-addressing table of keys (ehm.core.search.hashing) pointing into
-    value arrays filled in the order cells are met (see gather_kernel for their layout)."""
+    rows filled in the order cells are met. Per row: key (c,) int64; stats (c,
+    statistics_width(d)): the weight, the sum of the samples' offsets from the anchor and the
+    upper triangle of their scatter about it, row-major (one cache line or two per sample
+    added); anchor (c, d) metres, the cell's corner; kind (c,) int64."""
 
     keys: np.ndarray
     index: np.ndarray
-    weight: np.ndarray
-    sums: np.ndarray
-    scatter: np.ndarray
+    key: np.ndarray
+    stats: np.ndarray
     anchor: np.ndarray
     kind: np.ndarray
     used: int = 0
@@ -81,25 +92,34 @@ class _CellTable:
         return cls(
             np.full(size, EMPTY_KEY, dtype=np.int64),
             np.zeros(size, dtype=np.int64),
-            np.zeros(capacity),
-            np.zeros((capacity, dim)),
-            np.zeros((capacity, dim, dim)),
+            np.zeros(capacity, dtype=np.int64),
+            np.zeros((capacity, statistics_width(dim))),
             np.zeros((capacity, dim)),
             np.zeros(capacity, dtype=np.int64),
         )
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        """(keys, index, weight, sums, scatter, anchor, kind), as the compiled pass takes them."""
-        return self.keys, self.index, self.weight, self.sums, self.scatter, self.anchor, self.kind
+        """(keys, index, key, stats, anchor, kind), as the compiled passes take them."""
+        return self.keys, self.index, self.key, self.stats, self.anchor, self.kind
 
-    def grown(self) -> _CellTable:
-        """The same cells in a table of twice the capacity."""
-        table = _CellTable.empty(2 * len(self.weight), self.sums.shape[1])
+    def grown(self, capacity: int = 0) -> _CellTable:
+        """The same cells in a table of at least twice the capacity, and of `capacity`."""
+        table = _CellTable.empty(max(2 * len(self.key), capacity), self.anchor.shape[1])
         n = self.used
-        for name in ("weight", "sums", "scatter", "anchor", "kind"):
+        for name in ("key", "stats", "anchor", "kind"):
             getattr(table, name)[:n] = getattr(self, name)[:n]
         table.used = n
         _rehash(self.keys, self.index, table.keys, table.index)
+        return table
+
+    def merged(self, other: _CellTable) -> _CellTable:
+        """This table with the cells of `other` added: the statistics of a cell in both are
+        summed (both measure offsets from the same anchor), the others follow in the order
+        `other` met them."""
+        table = (
+            self if self.used + other.used <= len(self.key) else self.grown(self.used + other.used)
+        )
+        table.used = _merge_cells(*table.arrays(), table.used, *other.arrays()[2:], other.used)
         return table
 
 
@@ -112,44 +132,72 @@ def _rehash(keys, index, new_keys, new_index):  # pragma: no cover - compiled
             new_index[t] = index[s]
 
 
+@numba.njit(cache=True, nogil=True)
+def _merge_cells(
+    keys, index, key, stats, anchor, kind, used, other_key, other_stats, other_anchor, other_kind, n
+):  # pragma: no cover - compiled
+    """Add the n cells of another table (its key, stats, anchor and kind rows) to a table's
+    arrays (see _CellTable), which have room for them all; returns the cells used."""
+    for r in range(n):
+        s = hash_slot(keys, other_key[r])
+        if keys[s] == EMPTY_KEY:
+            keys[s] = other_key[r]
+            index[s] = used
+            key[used] = other_key[r]
+            anchor[used] = other_anchor[r]
+            kind[used] = other_kind[r]
+            used += 1
+        c = index[s]
+        for v in range(stats.shape[1]):
+            stats[c, v] += other_stats[r, v]
+    return used
+
+
 @numba.njit(cache=True, inline="always")
 def _add_sample(
-    point, inv_side, side, kind, half, bits, part, parts, cell, table, used
+    point, inv_side, side, kind, half, bits, cell, table, used, last
 ):  # pragma: no cover - compiled
     """Add `point` (d,) to the statistics of its cell of `kind` in `table` (the arrays of a
-    _CellTable, `used` cells filled) when the cell is in `part` of `parts`; returns the cells
-    used."""
-    keys, index, weight, sums, scatter, anchor, kinds = table
+    _CellTable, `used` cells filled); returns the cells used. last: (2, kinds) int64, the key
+    and row of the cell each kind met last (a scan's neighbouring rays often meet it again,
+    and the table is not searched)."""
+    keys, index, row_key, stats, anchor, kinds = table
     d = point.shape[0]
     key = np.int64(0)
     for a in range(d):
         cell[a] = np.floor(point[a] * inv_side)
         key = (key << bits) | (np.int64(cell[a]) + half)
     key = (key << KIND_BITS) | kind
-    if parts > 1 and key_part(key, parts) != part:
-        return used
-    s = hash_slot(keys, key)
-    if keys[s] == EMPTY_KEY:
-        keys[s] = key
-        index[s] = used
-        for a in range(d):
-            anchor[used, a] = cell[a] * side
-        kinds[used] = kind
-        used += 1
-    c = index[s]
-    weight[c] += 1.0
+    if last[0, kind] == key:
+        c = last[1, kind]
+    else:
+        s = hash_slot(keys, key)
+        if keys[s] == EMPTY_KEY:
+            keys[s] = key
+            index[s] = used
+            row_key[used] = key
+            for a in range(d):
+                anchor[used, a] = cell[a] * side
+            kinds[used] = kind
+            used += 1
+        c = index[s]
+        last[0, kind], last[1, kind] = key, c
+    stats[c, 0] += 1.0
     for a in range(d):
         cell[a] = point[a] - anchor[c, a]  # the offset from the cell's anchor
-        sums[c, a] += cell[a]
+        stats[c, 1 + a] += cell[a]
+    v = 1 + d
     for a in range(d):
-        for b in range(d):
-            scatter[c, a, b] += cell[a] * cell[b]
+        for b in range(a, d):
+            stats[c, v] += cell[a] * cell[b]
+            v += 1
     return used
 
 
 @numba.njit(cache=True, nogil=True)
 def gather_kernel(
     first_ray,
+    last_ray,
     origins,
     directions,
     lengths,
@@ -164,33 +212,28 @@ def gather_kernel(
     fine_side,
     coarse_side,
     bits,
-    part,
-    parts,
     table,
     used,
 ):  # pragma: no cover - compiled
-    """Add the samples of rays first_ray, first_ray + 1, ... to the cells of `table`: the
-    arrays of a _CellTable (keys, index: the open-addressing table; weight (c,), sums (c, d)
-    of offsets from each cell's anchor, scatter (c, d, d) about the anchor, anchor (c, d)
-    metres, kinds (c,): values of the cells in the order met, `used` of them so far). Stops
-    before a ray whose samples might fill the table over half or the value arrays; returns
-    (the next ray, cells used).
+    """Add the samples of rays first_ray, first_ray + 1, ..., last_ray - 1 to the cells of
+    `table` (the arrays of a _CellTable, `used` cells filled). Stops before a ray whose samples
+    might fill the table over half or its rows; returns (the next ray, cells used).
 
     origins (n, d) metres, each ray's start; directions (n, d) unit; lengths (n,) metres to
     each ray's end; hits (n,) bool; free_start (n,) metres: where each ray's free samples
     begin, spacing (n,) metres between them, free_counts (n,) how many; random (n, 3)
     uniforms in [0, 1): depth behind the hit, depth in front, offset of the free samples
     (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around hits
-    outside it are left out; bits: bits per axis of a key; only the cells of part `part` of
-    `parts` (ehm.core.search.hashing.key_part) are kept.
+    outside it are left out; bits: bits per axis of a key.
     """
-    n, d = directions.shape
+    d = directions.shape[1]
     half = np.int64(1) << (bits - 1)
     inv_fine, inv_coarse = 1.0 / fine_side, 1.0 / coarse_side
     capacity = min(len(table[2]), len(table[0]) // 2)
     point = np.empty(d)
     cell = np.empty(d)
-    for r in range(first_ray, n):
+    last = np.full((2, 1 << KIND_BITS), EMPTY_KEY, dtype=np.int64)
+    for r in range(first_ray, last_ray):
         if used + 3 + free_counts[r] > capacity:
             return r, used
         if hits[r]:
@@ -208,39 +251,29 @@ def gather_kernel(
                 if inside:
                     kind = FREE_AT_SURFACE if j == 2 else OCCUPIED
                     used = _add_sample(
-                        point, inv_fine, fine_side, kind, half, bits, part, parts, cell, table, used
+                        point, inv_fine, fine_side, kind, half, bits, cell, table, used, last
                     )
         for k in range(free_counts[r]):
             t = free_start[r] + (k + random[r, 2]) * spacing[r]
             for a in range(d):
                 point[a] = origins[r, a] + directions[r, a] * t
             used = _add_sample(
-                point,
-                inv_coarse,
-                coarse_side,
-                FREE_ALONG_RAY,
-                half,
-                bits,
-                part,
-                parts,
-                cell,
-                table,
-                used,
+                point, inv_coarse, coarse_side, FREE_ALONG_RAY, half, bits, cell, table, used, last
             )
-    return n, used
+    return last_ray, used
 
 
-def _gather_part(arguments: tuple, part: int, parts: int) -> _CellTable:
-    """The cells of part `part` of `parts` (see gather_kernel) of the samples of every ray
-    (`arguments`: gather_kernel's from `origins` to `bits`), in a table grown as they fill it."""
-    n, dim = arguments[1].shape
-    table = _CellTable.empty(n, dim)
-    counts = arguments[6]
-    ray = 0
-    while ray < n:
-        if table.used + 3 + counts[ray] > len(table.weight):
+def _gather_rays(arguments: tuple, first: int, last: int) -> _CellTable:
+    """The cells of the samples of rays first, ..., last - 1 (`arguments`: gather_kernel's from
+    `origins` to `bits`), in a table grown as they fill it."""
+    dim, counts = arguments[1].shape[1], arguments[6]
+    samples = int(counts[first:last].sum()) + 3 * (last - first)
+    table = _CellTable.empty(samples // SAMPLES_PER_CELL, dim)
+    ray = first
+    while ray < last:
+        if table.used + 3 + counts[ray] > len(table.key):
             table = table.grown()
-        ray, table.used = gather_kernel(ray, *arguments, part, parts, table.arrays(), table.used)
+        ray, table.used = gather_kernel(ray, last, *arguments, table.arrays(), table.used)
     return table
 
 
@@ -280,30 +313,49 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         coarse,
         bits,
     )
-    parts = GATHER_PARTS if counts.sum() + 3 * rays.hits.sum() >= PARALLEL_MIN_SAMPLES else 1
-    if parts == 1:
-        return _evidence_of_table(_gather_part(arguments, 0, 1))
+    samples_to = np.cumsum(counts + 3 * rays.hits)  # samples of the rays up to each
+    total = samples_to[-1] if len(samples_to) else 0
+    parts = GATHER_PARTS if total >= PARALLEL_MIN_SAMPLES else 1
+    bounds = np.searchsorted(samples_to, total * np.arange(parts + 1) / parts)
+    bounds[0], bounds[-1] = 0, len(rays)
     with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
-        tables = pool.map(_gather_part, repeat(arguments), range(parts), repeat(parts))
-        return TrainingSamples.concatenate([_evidence_of_table(table) for table in tables])
+        tables = list(pool.map(_gather_rays, repeat(arguments), bounds[:-1], bounds[1:]))
+    table = tables[0]
+    for other in tables[1:]:
+        table = table.merged(other)
+    return _evidence_of_table(table)
 
 
 def _evidence_of_table(table: _CellTable) -> TrainingSamples:
     """The weighted samples of the cells of `table`."""
     n = table.used
-    return _evidence_of_sums(
-        table.weight[:n], table.sums[:n], table.scatter[:n], table.anchor[:n], table.kind[:n]
-    )
+    points, weight, scatter = _cell_samples(table.stats[:n], table.anchor[:n])
+    occupied, at_surface = sample_flags(table.kind[:n])
+    return TrainingSamples(points, occupied, at_surface, weight, scatter)
 
 
-def _evidence_of_sums(
-    weight: np.ndarray, sums: np.ndarray, scatter: np.ndarray, anchor: np.ndarray, kind: np.ndarray
-) -> TrainingSamples:
-    """Weighted samples from the sums and scatter of offsets from each cell's anchor."""
-    local_mean = sums / weight[:, None]
-    scatter = scatter - weight[:, None, None] * np.einsum("ni,nj->nij", local_mean, local_mean)
-    occupied, at_surface = sample_flags(kind)
-    return TrainingSamples(anchor + local_mean, occupied, at_surface, weight, scatter)
+@numba.njit(cache=True, nogil=True)
+def _cell_samples(stats, anchor):  # pragma: no cover - compiled
+    """(points (c, d) metres, weight (c,), scatter (c, d, d) m^2 about the points): the mean
+    of each cell's samples, their number and their scatter, from its row of statistics
+    (see _CellTable) and its anchor (c, d)."""
+    n, d = anchor.shape
+    points = np.empty((n, d))
+    weight = np.empty(n)
+    scatter = np.empty((n, d, d))
+    mean = np.empty(d)
+    for c in range(n):
+        w = stats[c, 0]
+        weight[c] = w
+        for a in range(d):
+            mean[a] = stats[c, 1 + a] / w
+            points[c, a] = anchor[c, a] + mean[a]
+        v = 1 + d
+        for a in range(d):
+            for b in range(a, d):
+                scatter[c, a, b] = scatter[c, b, a] = stats[c, v] - w * mean[a] * mean[b]
+                v += 1
+    return points, weight, scatter
 
 
 def sample_flags(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -344,15 +396,16 @@ def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -
     _, cell, weight = np.unique(keys, return_inverse=True, return_counts=True)
     cell = cell.ravel()
     dim = samples.points.shape[1]
-    anchor = np.floor(samples.points / side[:, None]) * side[:, None]
-    offsets = samples.points - anchor
-    sums = np.stack([np.bincount(cell, offsets[:, a], len(weight)) for a in range(dim)], 1)
+    means = (
+        np.stack([np.bincount(cell, samples.points[:, a], len(weight)) for a in range(dim)], 1)
+        / weight[:, None]
+    )
+    offsets = samples.points - means[cell]
     outer = np.einsum("ni,nj->nij", offsets, offsets).reshape(len(offsets), -1)
     scatter = np.stack(
         [np.bincount(cell, outer[:, c], len(weight)) for c in range(dim * dim)], 1
     ).reshape(-1, dim, dim)
     first = np.zeros(len(weight), dtype=np.int64)
     first[cell] = np.arange(len(cell))
-    return _evidence_of_sums(
-        weight.astype(np.float64), sums, scatter, anchor[first], kind[first].astype(np.int64)
-    )
+    occupied, at_surface = sample_flags(kind[first])
+    return TrainingSamples(means, occupied, at_surface, weight.astype(np.float64), scatter)

@@ -48,14 +48,6 @@ def unique_keys(keys):  # pragma: no cover - compiled
     return np.sort(distinct[:n])
 
 
-@numba.njit(cache=True, inline="always")
-def key_part(key, parts):  # pragma: no cover - compiled
-    """Which of `parts` parts of the keys `key` belongs to: about as many keys in each,
-    wherever they lie."""
-    mixed = np.uint64(key) * _HASH_MULTIPLIER
-    return np.int64(mixed >> np.uint64(40)) % parts
-
-
 @numba.njit(cache=True, nogil=True)
 def group_by_key(keys):  # pragma: no cover - compiled
     """Rows of `keys` (n,) int64 >= 0 grouped by key: (distinct (u,) int64, sorted; starts
