@@ -1,29 +1,105 @@
 """Stochastic gradient descent on the logistic loss (Eq. 2-3)."""
 
+import numba
 import numpy as np
 import pytest
 
+from ehm.core.model.features import SparseFeatures
 from ehm.core.weights.sgd import (
+    BORDER,
     blocked_order,
     loss_weights,
-    sgd_pass,
-    sgd_pass_reference,
+    sample_sides,
+    sample_sides_reference,
+    sgd_rounds,
+    sgd_rounds_reference,
+    space_sides,
+    visiting_plan,
+    visiting_plan_reference,
 )
 
 
-def test_sgd_pass_matches_reference(rng, sparse_batch):
-    n, n_clusters = 400, 30
-    indptr, rows, values, labels = sparse_batch(rng, n, 5, 20, n_clusters)
-    order = rng.permutation(n)
+def sgd_pass(indptr, rows, values, labels, sample_weights, order, *state):
+    """One pass over the samples in `order`, one after the other (every sample on the
+    border)."""
+    visits, starts = visiting_plan(order, np.full(len(labels), BORDER))
+    sgd_rounds(indptr, rows, values, labels, sample_weights, visits, starts, *state)
+
+
+def _two_sided_batch(rng, sparse_batch, n=2000, n_clusters=60):
+    """A batch whose samples' sides follow random sides of its clusters."""
+    indptr, rows, values, labels = sparse_batch(rng, n, 5, 80, n_clusters)
+    cluster_side = rng.integers(0, 2, n_clusters)
+    sides = sample_sides(indptr, rows, cluster_side)
+    return indptr, rows, values, labels, sides
+
+
+def test_sgd_rounds_match_reference(rng, sparse_batch):
+    indptr, rows, values, labels, sides = _two_sided_batch(rng, sparse_batch)
+    assert set(np.unique(sides)) == {0, 1, BORDER}
+    n, n_clusters = len(labels), 60
+    visits, starts = visiting_plan(rng.permutation(n), sides, 256)
     state = [rng.normal(size=n_clusters), rng.uniform(0, 1, n_clusters), np.array([0.1, 0.5])]
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
     sample_weights = rng.uniform(0.5, 3.0, n)
-    sgd_pass(indptr, rows, values, labels, sample_weights, order, *compiled, 0.3, 1e-3)
-    sgd_pass_reference(indptr, rows, values, labels, sample_weights, order, *reference, 0.3, 1e-3)
+    arguments = (indptr, rows, values, labels, sample_weights, visits, starts)
+    sgd_rounds(*arguments, *compiled, 0.3, 1e-3)
+    sgd_rounds_reference(*arguments, *reference, 0.3, 1e-3)
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     assert not np.allclose(compiled[0], state[0])
+
+
+def test_sgd_rounds_do_not_depend_on_the_threads(rng, sparse_batch):
+    indptr, rows, values, labels, sides = _two_sided_batch(rng, sparse_batch)
+    visits, starts = visiting_plan(rng.permutation(len(labels)), sides, 256)
+    runs = []
+    for threads in (1, 2):
+        state = [np.zeros(60), np.zeros(60), np.zeros(2)]
+        numba.set_num_threads(threads)
+        try:
+            sgd_rounds(
+                indptr, rows, values, labels, np.ones(len(labels)), visits, starts, *state, 0.3, 0.0
+            )
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        runs.append(state)
+    for got, want in zip(*runs, strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_sample_sides_and_the_visiting_plan_match_their_references(rng, sparse_batch):
+    indptr, rows, _, _ = sparse_batch(rng, 3000, 6, 200, 90)
+    cluster_side = rng.integers(0, 2, 90)
+    sides = sample_sides(indptr, rows, cluster_side)
+    np.testing.assert_array_equal(sides, sample_sides_reference(indptr, rows, cluster_side))
+    order = rng.permutation(len(sides))
+    for got, want in zip(
+        visiting_plan(order, sides, 512), visiting_plan_reference(order, sides, 512), strict=True
+    ):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_space_sides_split_the_features_at_a_plane_and_never_share_a_cluster(rng):
+    """Clusters on a line from x = 0 to 9, each sample reaching the clusters within 1 m of
+    it: samples reach one side's clusters only, or they are on the border, near x = 4.5."""
+    means = np.column_stack([np.arange(10.0), rng.uniform(0, 0.1, 10), np.zeros(10)])
+    x = rng.uniform(0, 9, 5000)
+    reached = [np.flatnonzero(np.abs(means[:, 0] - xi) <= 1.0) for xi in x]
+    features = SparseFeatures(
+        np.r_[0, np.cumsum([len(r) for r in reached])],
+        np.concatenate(reached),
+        np.ones(sum(len(r) for r in reached)),
+    )
+    sides = space_sides(features, means)
+    assert np.all(np.abs(x[sides == BORDER] - 4.5) <= 1.5)
+    for side in (0, 1):
+        touched = np.concatenate([reached[i] for i in np.flatnonzero(sides == side)])
+        assert len(np.unique(means[touched, 0] > 4.5)) == 1
+    assert 0.3 < np.mean(sides == 0) < 0.5 and 0.3 < np.mean(sides == 1) < 0.5
+    empty = SparseFeatures(np.zeros(4, dtype=np.int64), np.zeros(0, np.int64), np.zeros(0))
+    np.testing.assert_array_equal(space_sides(empty, means), [BORDER] * 3)
 
 
 def test_sgd_separates_two_classes():

@@ -10,6 +10,11 @@ sqrt(w), about what w steps of one sample each would take, and the cost of a pas
 samples, not what they stand for. Steps of one unweighted sample each would be a million on a LiDAR
 sweep; one weighted step per cell scores the same held-out F1 (BENCHMARKS.md), while one step scaled
 by w alone (no sqrt) lost 0.02-0.05 against stepping w times.
+
+A pass runs on two threads: a plane across the clusters splits the samples into those whose
+features reach only clusters on one side, only on the other, or both (the border). Round by
+round, the two sides are stepped at once, since they share no weight (the bias moves by the
+sum of both sides' steps), and the round's border samples after them.
 """
 
 from __future__ import annotations
@@ -24,7 +29,14 @@ from ehm.core.model.logistic import sigmoid, sigmoid_scalar
 
 EPSILON = 1e-8
 SGD_BLOCK = 4096
-"""Samples a pass visits together (see `blocked_order`): their features stay in cache."""
+"""Samples a pass visits together (see `blocked_order`): their features stay in cache. A
+round of sgd_rounds visits as many."""
+BORDER = 2
+"""The side of a sample whose clusters lie on both sides of space (see `space_sides`)."""
+TWO_SIDED_MIN_SAMPLES = 8 * SGD_BLOCK
+"""Fewer samples are stepped one after the other, all on the border: in a batch of few
+rounds, the border's samples would all come late in the pass (in a 2D scan of 400 rays
+learned after another, a wall read up to 26 cm in front of where it stands)."""
 
 
 def loss_weights(occupied: np.ndarray, weight: np.ndarray, balance: bool) -> np.ndarray:
@@ -51,23 +63,115 @@ def train_weights(
 ) -> None:
     """`config.epochs` passes of SGD over samples with `features`, labels `occupied` (n,)
     bool and loss weights `sample_weights` (n,) float64, each in a fresh random order (Alg. 2
-    lines 26-28, see `blocked_order`: the samples must come shuffled); updates the clusters'
-    weights and AdaGrad state and bias_state in place."""
+    lines 26-28, see `blocked_order`: the samples must come shuffled), the two sides of space
+    on two threads (see `space_sides`); updates the clusters' weights and AdaGrad state and
+    bias_state in place. Batches of fewer than TWO_SIDED_MIN_SAMPLES samples run on one.
+    """
     labels = occupied.astype(np.float64)
+    if len(labels) >= TWO_SIDED_MIN_SAMPLES:
+        sides = space_sides(features, clusters.means)
+    else:
+        sides = np.full(len(labels), BORDER, dtype=np.int64)
     for _ in range(config.epochs):
-        sgd_pass(
+        visits, starts = visiting_plan(blocked_order(len(labels), rng), sides)
+        sgd_rounds(
             features.indptr,
             features.rows,
             features.values,
             labels,
             sample_weights,
-            blocked_order(len(labels), rng),
+            visits,
+            starts,
             clusters.weights,
             clusters.grad_sq,
             bias_state,
             config.learning_rate,
             config.l2,
         )
+
+
+def space_sides(features: SparseFeatures, means: np.ndarray) -> np.ndarray:
+    """(n,) int64 side of each sample: 0 or 1 when all the clusters its features reach lie on
+    that side of a plane across the clusters, BORDER when they lie on both or it has none.
+
+    The plane is normal to the axis along which the reached clusters spread most, at the
+    median of their coordinates weighted by how often the features reach them, so both sides
+    hold about as many features; samples of one side never touch the weights of the other,
+    so the two sides can be stepped at once (sgd_rounds)."""
+    n = len(features.indptr) - 1
+    if len(features.rows) == 0:
+        return np.full(n, BORDER, dtype=np.int64)
+    reached = np.bincount(features.rows, minlength=len(means)).astype(np.float64)
+    used = np.flatnonzero(reached)
+    axis = int(np.argmax(np.ptp(means[used], axis=0)))
+    coordinate = means[used, axis]
+    order = np.argsort(coordinate, kind="stable")
+    cumulative = np.cumsum(reached[used][order])
+    middle = coordinate[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])]
+    cluster_side = (means[:, axis] > middle).astype(np.int64)
+    return sample_sides(features.indptr, features.rows, cluster_side)
+
+
+@numba.njit(cache=True)
+def sample_sides(indptr, rows, cluster_side):  # pragma: no cover - compiled
+    """(n,) int64: the side of `cluster_side` (c,) 0 or 1 that all of a sample's clusters
+    share, BORDER where they differ or it has none (indptr, rows: its features)."""
+    n = len(indptr) - 1
+    side = np.full(n, BORDER, dtype=np.int64)
+    for i in range(n):
+        if indptr[i + 1] > indptr[i]:
+            first = cluster_side[rows[indptr[i]]]
+            side[i] = first
+            for e in range(indptr[i] + 1, indptr[i + 1]):
+                if cluster_side[rows[e]] != first:
+                    side[i] = BORDER
+                    break
+    return side
+
+
+def sample_sides_reference(indptr: np.ndarray, rows: np.ndarray, cluster_side: np.ndarray):
+    """Plain NumPy twin of `sample_sides`."""
+    sample = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+    ones = np.bincount(sample, cluster_side[rows], len(indptr) - 1)
+    counts = np.diff(indptr)
+    return np.where(
+        counts == 0, BORDER, np.where(ones == 0, 0, np.where(ones == counts, 1, BORDER))
+    )
+
+
+@numba.njit(cache=True)
+def visiting_plan(order, sides, round_size=SGD_BLOCK):  # pragma: no cover - compiled
+    """The visits of one pass in `order` (n,) int64, round by round (`round_size` visits
+    each), each round's side 0, side 1 and BORDER samples (`sides` (n,) int64) in their order:
+    (visits (n,) int64, starts (3 rounds + 1,) int64 where each round's group of each side
+    begins)."""
+    n = len(order)
+    rounds = max(1, (n + round_size - 1) // round_size)
+    starts = np.zeros(3 * rounds + 1, dtype=np.int64)
+    for k in range(n):
+        starts[(k // round_size) * 3 + sides[order[k]] + 1] += 1
+    for g in range(3 * rounds):
+        starts[g + 1] += starts[g]
+    filled = starts[:-1].copy()
+    visits = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        g = (k // round_size) * 3 + sides[order[k]]
+        visits[filled[g]] = order[k]
+        filled[g] += 1
+    return visits, starts
+
+
+def visiting_plan_reference(
+    order: np.ndarray, sides: np.ndarray, round_size: int = SGD_BLOCK
+) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `visiting_plan`."""
+    n = len(order)
+    rounds = max(1, -(-n // round_size))
+    group = (np.arange(n) // round_size) * 3 + sides[order]
+    visits = order[np.argsort(group, kind="stable")]
+    starts = np.zeros(3 * rounds + 1, dtype=np.int64)
+    starts[1:] = np.cumsum(np.bincount(group, minlength=3 * rounds))
+    return visits, starts
 
 
 def blocked_order(n: int, rng: np.random.Generator, block: int = SGD_BLOCK) -> np.ndarray:
@@ -84,62 +188,121 @@ def blocked_order(n: int, rng: np.random.Generator, block: int = SGD_BLOCK) -> n
     return np.concatenate([order[starts[b] : starts[b] + block] for b in picked] or [order])
 
 
-@numba.njit(cache=True)
-def sgd_pass(
+@numba.njit(cache=True, inline="always")
+def _step(
+    i, indptr, rows, values, labels, sample_weights, weights, grad_sq, bias, learning_rate, l2
+):  # pragma: no cover - compiled
+    """One AdaGrad step on sample i (see sgd_rounds); bias: [bias, its squared gradients]."""
+    score = bias[0]
+    for e in range(indptr[i], indptr[i + 1]):
+        score += weights[rows[e]] * values[e]
+    error = sigmoid_scalar(score) - labels[i]
+    weight = sample_weights[i]
+    for e in range(indptr[i], indptr[i + 1]):
+        cluster = rows[e]
+        grad = error * values[e] + l2 * weights[cluster]
+        grad_sq[cluster] += weight * grad * grad
+        weights[cluster] -= learning_rate * weight * grad / np.sqrt(grad_sq[cluster] + EPSILON)
+    bias[1] += weight * error * error
+    bias[0] -= learning_rate * weight * error / np.sqrt(bias[1] + EPSILON)
+
+
+@numba.njit(cache=True, parallel=True)
+def sgd_rounds(
     indptr,
     rows,
     values,
     labels,
     sample_weights,
-    order,
+    visits,
+    starts,
     weights,
     grad_sq,
     bias_state,
     learning_rate,
     l2,
 ):  # pragma: no cover - compiled
-    """One pass over the samples in `order`, updating weights, grad_sq and bias_state in place.
+    """One pass over the samples in the rounds of `visits` and `starts` (visiting_plan),
+    updating weights, grad_sq and bias_state in place. In each round the two sides' samples
+    are stepped at once, each side from the bias at the round's start, and the bias then
+    moves by both sides' steps; the round's BORDER samples follow. The result does not depend
+    on the threads.
 
     indptr, rows, values: the samples' features (see SparseFeatures); labels: (n,) 0 or 1;
     sample_weights: (n,) loss weight of each sample (how many it stands for, see the module's
     docstring); bias_state: [bias, its accumulated squared gradient].
     """
-    for i in order:
-        score = bias_state[0]
-        for e in range(indptr[i], indptr[i + 1]):
-            score += weights[rows[e]] * values[e]
-        error = sigmoid_scalar(score) - labels[i]
-        weight = sample_weights[i]
-        for e in range(indptr[i], indptr[i + 1]):
-            cluster = rows[e]
-            grad = error * values[e] + l2 * weights[cluster]
-            grad_sq[cluster] += weight * grad * grad
-            step = learning_rate * weight * grad / np.sqrt(grad_sq[cluster] + EPSILON)
-            weights[cluster] -= step
-        bias_state[1] += weight * error * error
-        bias_state[0] -= learning_rate * weight * error / np.sqrt(bias_state[1] + EPSILON)
+    shift = np.zeros((2, 2))
+    for r in range((len(starts) - 1) // 3):
+        for side in numba.prange(2):
+            bias = bias_state.copy()
+            for k in range(starts[3 * r + side], starts[3 * r + side + 1]):
+                _step(
+                    visits[k],
+                    indptr,
+                    rows,
+                    values,
+                    labels,
+                    sample_weights,
+                    weights,
+                    grad_sq,
+                    bias,
+                    learning_rate,
+                    l2,
+                )
+            shift[side, 0] = bias[0] - bias_state[0]
+            shift[side, 1] = bias[1] - bias_state[1]
+        bias_state[0] += shift[0, 0] + shift[1, 0]
+        bias_state[1] += shift[0, 1] + shift[1, 1]
+        for k in range(starts[3 * r + 2], starts[3 * r + 3]):
+            _step(
+                visits[k],
+                indptr,
+                rows,
+                values,
+                labels,
+                sample_weights,
+                weights,
+                grad_sq,
+                bias_state,
+                learning_rate,
+                l2,
+            )
 
 
-def sgd_pass_reference(
+def sgd_rounds_reference(
     indptr: np.ndarray,
     rows: np.ndarray,
     values: np.ndarray,
     labels: np.ndarray,
     sample_weights: np.ndarray,
-    order: np.ndarray,
+    visits: np.ndarray,
+    starts: np.ndarray,
     weights: np.ndarray,
     grad_sq: np.ndarray,
     bias_state: np.ndarray,
     learning_rate: float,
     l2: float,
 ) -> None:
-    """Plain NumPy twin of `sgd_pass`, one sample at a time."""
-    for i in order:
+    """Plain NumPy twin of `sgd_rounds`, one sample at a time, the sides one after the other."""
+
+    def step(i: int, bias: np.ndarray) -> None:
         touched, phi = rows[indptr[i] : indptr[i + 1]], values[indptr[i] : indptr[i + 1]]
-        score = bias_state[0] + np.dot(weights[touched], phi)
+        score = bias[0] + np.dot(weights[touched], phi)
         error, weight = sigmoid(score) - labels[i], sample_weights[i]
         grad = error * phi + l2 * weights[touched]
         grad_sq[touched] += weight * grad * grad
         weights[touched] -= learning_rate * weight * grad / np.sqrt(grad_sq[touched] + EPSILON)
-        bias_state[1] += weight * error * error
-        bias_state[0] -= learning_rate * weight * error / np.sqrt(bias_state[1] + EPSILON)
+        bias[1] += weight * error * error
+        bias[0] -= learning_rate * weight * error / np.sqrt(bias[1] + EPSILON)
+
+    for r in range((len(starts) - 1) // 3):
+        shifts = []
+        for side in (0, 1):
+            bias = bias_state.copy()
+            for k in range(starts[3 * r + side], starts[3 * r + side + 1]):
+                step(visits[k], bias)
+            shifts.append(bias - bias_state)
+        bias_state += shifts[0] + shifts[1]
+        for k in range(starts[3 * r + 2], starts[3 * r + 3]):
+            step(visits[k], bias_state)
