@@ -5,9 +5,10 @@ them): the hit and a point up to `occupied_depth` behind it are occupied, a poin
 front of it is free, and free points lie along the ray `free_spacing` apart. Drawn one by one they
 are about twelve samples a ray, and every later step paid for each (a LiDAR sweep of 88,000 rays
 gave 1.1 million). Here they are not kept: each is added where it falls to the statistics of its
-cell and kind (weight, sum and scatter of positions), in one compiled pass over the rays, and a
-batch leaves one weighted sample per cell and kind, at the mean of the samples that fell there, with
-their scatter about it. Clustering pools the statistics exactly (ehm.core.clustering.quickmeans),
+cell and kind (weight, sum and scatter of positions), in a compiled pass over the rays (two,
+each over half of a large batch's rays, on two threads), and a batch leaves one weighted sample
+per cell and kind (and pass), at the mean of the samples that fell there, with their scatter
+about it. Clustering pools the statistics exactly (ehm.core.clustering.quickmeans),
 and the loss of a cell's samples is, to first order in the cell's size, the loss of its mean
 weighted by their number.
 
@@ -23,7 +24,7 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from itertools import repeat
+from itertools import pairwise, repeat
 
 import numba
 import numpy as np
@@ -54,8 +55,11 @@ FINE_CELLS_PER_RADIUS = 4
 COARSE_CELLS_PER_RADIUS = 3
 # A batch of at least PARALLEL_MIN_SAMPLES samples (a sweep of 88,000 rays gives 1.1 million)
 # is gathered in GATHER_PARTS parts of its rays, about as many samples in each, each part in a
-# table of its own on a thread of its own as far as there are threads; the tables are then
-# merged in part order. The parts do not follow the threads, so a map is the same on any machine.
+# table of its own on a thread of its own as far as there are threads, and the parts' cells
+# follow one another: a cell met by both parts gives a weighted sample in each (0.5-1.1 % of
+# the cells of OctoMap's sample scan, a TUM frame and a street sweep; merging them cost more
+# than the second thread saved). The parts do not follow the threads, so a map is the same on
+# any machine.
 PARALLEL_MIN_SAMPLES = 100_000
 GATHER_PARTS = 2
 # A table starts with a row for every SAMPLES_PER_CELL samples: a scan's samples fill 3-7 per
@@ -112,16 +116,6 @@ class _CellTable:
         _rehash(self.keys, self.index, table.keys, table.index)
         return table
 
-    def merged(self, other: _CellTable) -> _CellTable:
-        """This table with the cells of `other` added: the statistics of a cell in both are
-        summed (both measure offsets from the same anchor), the others follow in the order
-        `other` met them."""
-        table = (
-            self if self.used + other.used <= len(self.key) else self.grown(self.used + other.used)
-        )
-        table.used = _merge_cells(*table.arrays(), table.used, *other.arrays()[2:], other.used)
-        return table
-
 
 @numba.njit(cache=True)
 def _rehash(keys, index, new_keys, new_index):  # pragma: no cover - compiled
@@ -130,27 +124,6 @@ def _rehash(keys, index, new_keys, new_index):  # pragma: no cover - compiled
             t = hash_slot(new_keys, keys[s])
             new_keys[t] = keys[s]
             new_index[t] = index[s]
-
-
-@numba.njit(cache=True, nogil=True)
-def _merge_cells(
-    keys, index, key, stats, anchor, kind, used, other_key, other_stats, other_anchor, other_kind, n
-):  # pragma: no cover - compiled
-    """Add the n cells of another table (its key, stats, anchor and kind rows) to a table's
-    arrays (see _CellTable), which have room for them all; returns the cells used."""
-    for r in range(n):
-        s = hash_slot(keys, other_key[r])
-        if keys[s] == EMPTY_KEY:
-            keys[s] = other_key[r]
-            index[s] = used
-            key[used] = other_key[r]
-            anchor[used] = other_anchor[r]
-            kind[used] = other_kind[r]
-            used += 1
-        c = index[s]
-        for v in range(stats.shape[1]):
-            stats[c, v] += other_stats[r, v]
-    return used
 
 
 @numba.njit(cache=True, inline="always")
@@ -288,8 +261,8 @@ def cell_sides(config: MapConfig) -> tuple[float, float]:
 
 def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
     """The evidence of the `rays` of a batch of scans (ehm.core.observations.samples.scan_rays):
-    their training samples, one weighted sample per cell and kind, with its scatter, in the
-    order the cells were met (part by part, for a batch gathered in parts)."""
+    their training samples, one weighted sample per cell and kind (and part, for a batch
+    gathered in parts), with its scatter, in the order the cells were met, part by part."""
     randoms = ray_randoms(len(rays), rng)
     fine, coarse = cell_sides(config)
     dim = rays.directions.shape[1]
@@ -320,29 +293,32 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
     bounds[0], bounds[-1] = 0, len(rays)
     with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
         tables = list(pool.map(_gather_rays, repeat(arguments), bounds[:-1], bounds[1:]))
-    table = tables[0]
-    for other in tables[1:]:
-        table = table.merged(other)
-    return _evidence_of_table(table)
-
-
-def _evidence_of_table(table: _CellTable) -> TrainingSamples:
-    """The weighted samples of the cells of `table`."""
-    n = table.used
-    points, weight, scatter = _cell_samples(table.stats[:n], table.anchor[:n])
-    occupied, at_surface = sample_flags(table.kind[:n])
+        firsts = np.cumsum([0] + [table.used for table in tables])
+        n = firsts[-1]
+        points, weight, scatter = np.empty((n, dim)), np.empty(n), np.empty((n, dim, dim))
+        outputs = [
+            (points[first:last], weight[first:last], scatter[first:last])
+            for first, last in pairwise(firsts)
+        ]
+        list(pool.map(_cell_samples_of, tables, outputs))
+    occupied, at_surface = sample_flags(
+        np.concatenate([table.kind[: table.used] for table in tables])
+    )
     return TrainingSamples(points, occupied, at_surface, weight, scatter)
 
 
+def _cell_samples_of(table: _CellTable, outputs: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    """Write the weighted samples of the cells of `table` to `outputs` (points, weight,
+    scatter; see _cell_samples)."""
+    _cell_samples(table.stats[: table.used], table.anchor[: table.used], *outputs)
+
+
 @numba.njit(cache=True, nogil=True)
-def _cell_samples(stats, anchor):  # pragma: no cover - compiled
-    """(points (c, d) metres, weight (c,), scatter (c, d, d) m^2 about the points): the mean
-    of each cell's samples, their number and their scatter, from its row of statistics
-    (see _CellTable) and its anchor (c, d)."""
+def _cell_samples(stats, anchor, points, weight, scatter):  # pragma: no cover - compiled
+    """Write the mean of each cell's samples to points (c, d) metres, their number to weight
+    (c,) and their scatter about the mean to scatter (c, d, d) m^2, from the cell's row of
+    statistics (see _CellTable) and its anchor (c, d)."""
     n, d = anchor.shape
-    points = np.empty((n, d))
-    weight = np.empty(n)
-    scatter = np.empty((n, d, d))
     mean = np.empty(d)
     for c in range(n):
         w = stats[c, 0]
@@ -355,7 +331,6 @@ def _cell_samples(stats, anchor):  # pragma: no cover - compiled
             for b in range(a, d):
                 scatter[c, a, b] = scatter[c, b, a] = stats[c, v] - w * mean[a] * mean[b]
                 v += 1
-    return points, weight, scatter
 
 
 def sample_flags(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
