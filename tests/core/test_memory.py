@@ -11,14 +11,20 @@ from ehm.core.observations.memory import (
     MIN_WEIGHT,
     OFFSET_STEPS,
     PASSED,
-    SUB_BITS,
     EvidenceMemory,
     _find,
-    memory_keys,
     merge_entries,
     merge_entries_reference,
 )
+from ehm.core.observations.memory_keys import (
+    SUB_BITS,
+    cell_corners,
+    cell_corners_reference,
+    memory_keys,
+    memory_keys_reference,
+)
 from ehm.core.observations.samples import TrainingSamples
+from ehm.errors import InputError
 
 # Fine cells of 0.25 m (regions of 1 m around hits), coarse ones of 2.5 m (regions of 5 m).
 SIDES = (0.25, 2.5)
@@ -39,11 +45,19 @@ def test_memory_keys_name_the_cell_and_kind_of_each_point(rng, dim):
     points = rng.uniform(-80.0, 80.0, (2000, dim))
     kinds = rng.integers(0, 3, 2000)
     keys = memory_keys(points, kinds, SIDES)
-    memory = EvidenceMemory(dim, True, SIDES)
-    corners = memory._corners(keys)
+    np.testing.assert_array_equal(keys, memory_keys_reference(points, kinds, SIDES))
+    corners = cell_corners(keys, dim, SIDES)
+    np.testing.assert_array_equal(corners, cell_corners_reference(keys, dim, SIDES))
     side = np.where(kinds == FREE_ALONG_RAY, SIDES[1], SIDES[0])[:, None]
     assert np.all((points >= corners - 1e-9) & (points < corners + side + 1e-9))
     np.testing.assert_array_equal((keys >> SUB_BITS) & 3, kinds)
+
+
+def test_points_beyond_the_reach_of_memory_keys_are_refused():
+    far = np.array([[0.0, 0.0, 1e15]])
+    for keys in (memory_keys, memory_keys_reference):
+        with pytest.raises(InputError, match="set max_range"):
+            keys(far, np.array([OCCUPIED]), SIDES)
 
 
 def test_an_entry_sums_the_weight_and_mean_of_its_cell_and_kind():

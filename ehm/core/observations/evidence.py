@@ -6,9 +6,9 @@ front of it is free, and free points lie along the ray `free_spacing` apart. Dra
 are about twelve samples a ray, and every later step paid for each (a LiDAR sweep of 88,000 rays
 gave 1.1 million). Here they are not kept: each is added where it falls to the statistics of its
 cell and kind (weight, sum and scatter of positions), in a compiled pass over the rays (two,
-each over half of a large batch's rays, on two threads), and a batch leaves one weighted sample
-per cell and kind (and pass), at the mean of the samples that fell there, with their scatter
-about it. Clustering pools the statistics exactly (ehm.core.clustering.quickmeans),
+each over half of a large batch's rays, on two threads, their cells then joined), and a batch
+leaves one weighted sample per cell and kind, at the mean of the samples that fell there, with
+their scatter about it. Clustering pools the statistics exactly (ehm.core.clustering.quickmeans),
 and the loss of a cell's samples is, to first order in the cell's size, the loss of its mean
 weighted by their number.
 
@@ -55,11 +55,11 @@ FINE_CELLS_PER_RADIUS = 4
 COARSE_CELLS_PER_RADIUS = 3
 # A batch of at least PARALLEL_MIN_SAMPLES samples (a sweep of 88,000 rays gives 1.1 million)
 # is gathered in GATHER_PARTS parts of its rays, about as many samples in each, each part in a
-# table of its own on a thread of its own as far as there are threads, and the parts' cells
-# follow one another: a cell met by both parts gives a weighted sample in each (0.5-1.1 % of
-# the cells of OctoMap's sample scan, a TUM frame and a street sweep; merging them cost more
-# than the second thread saved). The parts do not follow the threads, so a map is the same on
-# any machine.
+# table of its own on a thread of its own as far as there are threads; a cell a later part
+# met too (0.5-1.1 % of the cells of OctoMap's sample scan, a TUM frame and a street sweep,
+# most of them coarse cells along rays) is folded into the earlier part's, and the parts'
+# cells follow one another. The parts do not follow the threads, so a map is the same on any
+# machine.
 PARALLEL_MIN_SAMPLES = 100_000
 GATHER_PARTS = 2
 # A table starts with a row for every SAMPLES_PER_CELL samples: a scan's samples fill 3-7 per
@@ -261,8 +261,8 @@ def cell_sides(config: MapConfig) -> tuple[float, float]:
 
 def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
     """The evidence of the `rays` of a batch of scans (ehm.core.observations.samples.scan_rays):
-    their training samples, one weighted sample per cell and kind (and part, for a batch
-    gathered in parts), with its scatter, in the order the cells were met, part by part."""
+    their training samples, one weighted sample per cell and kind, with its scatter, in the
+    order the cells were met, part by part."""
     randoms = ray_randoms(len(rays), rng)
     fine, coarse = cell_sides(config)
     dim = rays.directions.shape[1]
@@ -293,44 +293,73 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
     bounds[0], bounds[-1] = 0, len(rays)
     with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
         tables = list(pool.map(_gather_rays, repeat(arguments), bounds[:-1], bounds[1:]))
-        firsts = np.cumsum([0] + [table.used for table in tables])
+        kept = [np.ones(table.used, dtype=bool) for table in tables]
+        for later, table in enumerate(tables[1:], 1):
+            for earlier in tables[:later]:
+                _fold_into(*earlier.arrays()[:4], table.key, table.stats, kept[later], table.used)
+        firsts = np.cumsum([0] + [int(rows.sum()) for rows in kept])
         n = firsts[-1]
         points, weight, scatter = np.empty((n, dim)), np.empty(n), np.empty((n, dim, dim))
         outputs = [
             (points[first:last], weight[first:last], scatter[first:last])
             for first, last in pairwise(firsts)
         ]
-        list(pool.map(_cell_samples_of, tables, outputs))
-    occupied, at_surface = sample_flags(
-        np.concatenate([table.kind[: table.used] for table in tables])
-    )
+        list(pool.map(_cell_samples_of, tables, kept, outputs))
+    kinds = [table.kind[: table.used][rows] for table, rows in zip(tables, kept, strict=True)]
+    occupied, at_surface = sample_flags(np.concatenate(kinds))
     return TrainingSamples(points, occupied, at_surface, weight, scatter)
 
 
-def _cell_samples_of(table: _CellTable, outputs: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
-    """Write the weighted samples of the cells of `table` to `outputs` (points, weight,
-    scatter; see _cell_samples)."""
-    _cell_samples(table.stats[: table.used], table.anchor[: table.used], *outputs)
+@numba.njit(cache=True, nogil=True)
+def _fold_into(
+    keys, index, key, stats, other_key, other_stats, other_kept, n
+):  # pragma: no cover - compiled
+    """Add the statistics of the first n cells of another table (other_key, other_stats) that
+    are still kept (other_kept (n,) bool) and that a table (its keys, index, key and stats
+    arrays, see _CellTable) holds too to its rows, and keep them no longer: the two measure
+    offsets from the same anchor."""
+    for r in range(n):
+        if other_kept[r]:
+            s = hash_slot(keys, other_key[r])
+            if keys[s] != EMPTY_KEY:
+                c = index[s]
+                for v in range(stats.shape[1]):
+                    stats[c, v] += other_stats[r, v]
+                other_kept[r] = False
+
+
+def _cell_samples_of(
+    table: _CellTable, kept: np.ndarray, outputs: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> None:
+    """Write the weighted samples of the `kept` (used,) bool cells of `table` to `outputs`
+    (points, weight, scatter; see _cell_samples)."""
+    used = table.used
+    _cell_samples(table.stats[:used], table.anchor[:used], kept, *outputs)
 
 
 @numba.njit(cache=True, nogil=True)
-def _cell_samples(stats, anchor, points, weight, scatter):  # pragma: no cover - compiled
-    """Write the mean of each cell's samples to points (c, d) metres, their number to weight
-    (c,) and their scatter about the mean to scatter (c, d, d) m^2, from the cell's row of
-    statistics (see _CellTable) and its anchor (c, d)."""
-    n, d = anchor.shape
+def _cell_samples(stats, anchor, kept, points, weight, scatter):  # pragma: no cover - compiled
+    """Write, for each of the cells that are `kept` (c,) bool one after the other, the mean of
+    its samples to points (k, d) metres, their number to weight (k,) and their scatter about
+    the mean to scatter (k, d, d) m^2, from the cell's row of statistics (see _CellTable) and
+    its anchor (c, d)."""
+    d = anchor.shape[1]
     mean = np.empty(d)
-    for c in range(n):
-        w = stats[c, 0]
-        weight[c] = w
-        for a in range(d):
-            mean[a] = stats[c, 1 + a] / w
-            points[c, a] = anchor[c, a] + mean[a]
-        v = 1 + d
-        for a in range(d):
-            for b in range(a, d):
-                scatter[c, a, b] = scatter[c, b, a] = stats[c, v] - w * mean[a] * mean[b]
-                v += 1
+    out = 0
+    for row in range(len(kept)):
+        if kept[row]:
+            w = stats[row, 0]
+            weight[out] = w
+            for a in range(d):
+                mean[a] = stats[row, 1 + a] / w
+                points[out, a] = anchor[row, a] + mean[a]
+            v = 1 + d
+            for a in range(d):
+                for b in range(a, d):
+                    moment = stats[row, v] - w * mean[a] * mean[b]
+                    scatter[out, a, b] = scatter[out, b, a] = moment
+                    v += 1
+            out += 1
 
 
 def sample_flags(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -18,12 +18,13 @@ alone.
 The cells the replay and the waiting evidence are drawn from are the regions a batch reaches:
 cells of the cluster radius of each kind (`cluster_radius` around hits, `free_cluster_radius`
 along rays), each holding FINE_CELLS_PER_RADIUS (COARSE_CELLS_PER_RADIUS) evidence cells along
-every axis. An entry's key is its region's, then its kind, then its cell within the region
-(REGION_BITS, one byte), so the entries of a region are one run of sorted keys, and the
-memory keeps each region's key once with how many entries it holds. Per entry, about 11 bytes
-in 3D: its kind and cell in the region (one byte), its share of its region's key and count,
-the weight seen (float32), the mean's place in its cell (a byte per axis, in 1/255 of the
-side: 0.1 mm in a 3 cm cell, 0.8 mm in a 20 cm one) and whether it formed part of a cluster.
+every axis. An entry's key (ehm.core.observations.memory_keys) is its region's, then its kind,
+then its cell within the region (REGION_BITS, one byte), so the entries of a region are one run
+of sorted keys, and the memory keeps each region's key once with how many entries it holds.
+Per entry, about 11 bytes in 3D: its kind and cell in the region (one byte), its share of its
+region's key and count, the weight seen (float32), the mean's place in its cell (a byte per
+axis, in 1/255 of the side: 0.1 mm in a 3 cm cell, 0.8 mm in a 20 cm one) and whether it
+formed part of a cluster.
 """
 
 from __future__ import annotations
@@ -35,8 +36,6 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.observations.evidence import (
-    COARSE_CELLS_PER_RADIUS,
-    FINE_CELLS_PER_RADIUS,
     FREE_ALONG_RAY,
     KIND_BITS,
     OCCUPIED,
@@ -44,64 +43,21 @@ from ehm.core.observations.evidence import (
     kinds_of,
     sample_flags,
 )
+from ehm.core.observations.memory_keys import (
+    REGION_BITS,
+    SUB_BITS,
+    cell_corners,
+    memory_keys,
+    region_ranges,
+)
 from ehm.core.observations.samples import TrainingSamples
-from ehm.core.search.hashing import unique_keys
-from ehm.errors import InputError
 
-# Bits of a key for the cell within its region (FINE_CELLS_PER_RADIUS ** 3 of them at most),
-# and for those and the kind.
-SUB_BITS = 3 * (FINE_CELLS_PER_RADIUS - 1).bit_length()
-REGION_BITS = KIND_BITS + SUB_BITS
-assert REGION_BITS <= 8, "an entry's kind and cell in its region are kept in one byte"
 # Steps of an entry's place along each side of its cell.
 OFFSET_STEPS = 255
 # Least weight an entry keeps: evidence retracted below it is dropped.
 MIN_WEIGHT = 0.01
 # Bits of an entry's flags.
 CLUSTERED, PASSED = 1, 2
-
-
-def memory_keys(points: np.ndarray, kinds: np.ndarray, sides: tuple[float, float]) -> np.ndarray:
-    """(n,) int64 key of the evidence cell of each of (n, d) points, metres, world frame, of
-    `kinds` (n,), in its region (see the module's docstring); `sides` (fine, coarse) metres."""
-    along_ray = kinds == FREE_ALONG_RAY
-    per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
-    side = np.where(along_ray, sides[1], sides[0])
-    cells = np.floor(points / side[:, None]).astype(np.int64)
-    regions = np.floor_divide(cells, per_region[:, None])
-    sub = np.zeros(len(points), dtype=np.int64)
-    for axis in range(points.shape[1]):
-        sub = sub * FINE_CELLS_PER_RADIUS + (cells[:, axis] - regions[:, axis] * per_region)
-    return _region_keys(regions, along_ray) | (kinds << SUB_BITS) | sub
-
-
-def region_ranges(
-    points: np.ndarray, along_ray: np.ndarray, sides: tuple[float, float]
-) -> tuple[np.ndarray, np.ndarray]:
-    """The key ranges [low, high) of the regions holding (n, d) points: of the regions along
-    rays where along_ray (n,) bool, else of the regions around hits; one per distinct region."""
-    per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
-    side = np.where(along_ray, sides[1], sides[0])
-    cells = np.floor(points / side[:, None]).astype(np.int64)
-    low = unique_keys(_region_keys(np.floor_divide(cells, per_region[:, None]), along_ray))
-    return low, low + (1 << REGION_BITS)
-
-
-def _region_keys(regions: np.ndarray, along_ray: np.ndarray) -> np.ndarray:
-    """(n,) int64: the integer `regions` (n, d), counted from the world origin, packed in
-    (62 - REGION_BITS) // d bits an axis, then the along_ray bit, then REGION_BITS zeros;
-    InputError for a region beyond their reach."""
-    bits = (63 - 1 - REGION_BITS) // regions.shape[1]
-    half = 1 << (bits - 1)
-    if len(regions) and not (regions.min() >= -half and regions.max() < half):
-        raise InputError(
-            "evidence lies beyond the reach of the memory's cells: set max_range "
-            "(ehm map --max-range) to cut rays longer than the sensor's"
-        )
-    keys = np.zeros(len(regions), dtype=np.int64)
-    for axis in range(regions.shape[1]):
-        keys = (keys << bits) | (regions[:, axis] + half)
-    return ((keys << 1) | along_ray) << REGION_BITS
 
 
 def _find(sorted_keys: np.ndarray, keys: np.ndarray) -> np.ndarray:
@@ -455,21 +411,7 @@ class EvidenceMemory:
 
     def _corners(self, keys: np.ndarray) -> np.ndarray:
         """(n, d) metres, world frame: the low corner of each key's evidence cell."""
-        kinds = (keys >> SUB_BITS) & (2**KIND_BITS - 1)
-        along_ray = kinds == FREE_ALONG_RAY
-        per_region = np.where(along_ray, COARSE_CELLS_PER_RADIUS, FINE_CELLS_PER_RADIUS)
-        side = self._sides(keys)
-        bits = (63 - 1 - REGION_BITS) // self.dim
-        half = 1 << (bits - 1)
-        sub = keys & (2**SUB_BITS - 1)
-        rest = keys >> (REGION_BITS + 1)
-        cells = np.empty((len(keys), self.dim))
-        for axis in range(self.dim - 1, -1, -1):
-            region = (rest & ((1 << bits) - 1)) - half
-            rest = rest >> bits
-            cells[:, axis] = region * per_region + sub % FINE_CELLS_PER_RADIUS
-            sub = sub // FINE_CELLS_PER_RADIUS
-        return cells * side[:, None]
+        return cell_corners(keys, self.dim, self.sides)
 
     def samples(self) -> TrainingSamples:
         """Every entry as a weighted sample at its mean (metres, world frame)."""

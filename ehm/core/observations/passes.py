@@ -23,7 +23,8 @@ import numpy as np
 
 from ehm.core.model.eigen import eigen_in_place
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
-from ehm.core.observations.memory import OFFSET_STEPS, REGION_BITS, SUB_BITS, EvidenceMemory
+from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
+from ehm.core.observations.memory_keys import REGION_BITS, SUB_BITS
 from ehm.core.observations.samples import ScanRays
 from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
