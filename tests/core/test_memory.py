@@ -53,6 +53,17 @@ def test_memory_keys_name_the_cell_and_kind_of_each_point(rng, dim):
     np.testing.assert_array_equal((keys >> SUB_BITS) & 3, kinds)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_memory_keys_agree_with_their_twin_on_the_sides_of_cells(rng, dim):
+    """Points a whole number of centimetres from the origin in cells of 3 cm and 20 cm: many
+    lie on a side, where the rounding of the division decides."""
+    points = rng.integers(-3000, 3000, (5000, dim)) * 0.01
+    kinds = rng.integers(0, 3, 5000)
+    for sides in ((0.03, 0.2), (0.12 / 4, 0.6 / 3)):
+        keys = memory_keys(points, kinds, sides)
+        np.testing.assert_array_equal(keys, memory_keys_reference(points, kinds, sides))
+
+
 def test_points_beyond_the_reach_of_memory_keys_are_refused():
     far = np.array([[0.0, 0.0, 1e15]])
     for keys in (memory_keys, memory_keys_reference):

@@ -66,11 +66,11 @@ def _memory_keys(points, kinds, fine_side, coarse_side):  # pragma: no cover - c
     for i in range(n):
         along_ray = kinds[i] == FREE_ALONG_RAY
         per_region = COARSE_CELLS_PER_RADIUS if along_ray else FINE_CELLS_PER_RADIUS
-        inverse_side = 1.0 / (coarse_side if along_ray else fine_side)
+        side = coarse_side if along_ray else fine_side
         key = np.int64(0)
         sub = np.int64(0)
         for a in range(d):
-            cell = np.int64(np.floor(points[i, a] * inverse_side))
+            cell = np.int64(np.floor(points[i, a] / side))
             region = cell // per_region
             if region < -half or region >= half:
                 inside = False
