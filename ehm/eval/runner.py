@@ -60,14 +60,20 @@ RECORD_KEYS = tuple(f.name for f in fields(EvalRecord))
 _warmed_up: set[tuple[str, int]] = set()
 
 
+# Rays of the scan a warm-up learns, and their length, metres: enough samples that the
+# evidence is gathered in parts and SGD steps two sides, as a LiDAR sweep's are.
+WARM_UP_RAYS = 12_000
+WARM_UP_RANGE = 6.0
+
+
 def warm_up(method: str, dim: int) -> None:
-    """Build and query `method` once on a tiny scan, untimed (compiles Numba kernels)."""
+    """Build and query `method` once on a small scan, untimed (compiles Numba kernels)."""
     if (method, dim) in _warmed_up:
         return
     rng = np.random.default_rng(0)
-    directions = rng.normal(size=(400, dim))
+    directions = rng.normal(size=(WARM_UP_RAYS, dim))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    scan = Scan(2.0 * directions, np.zeros(dim))
+    scan = Scan(WARM_UP_RANGE * directions, np.zeros(dim))
     mapper = make_mapper(method, DEFAULT_RESOLUTION, 0)
     mapper.build([scan])
     mapper.occupancy(directions)
