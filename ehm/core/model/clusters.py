@@ -7,6 +7,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ehm.config import MapConfig
+from ehm.core.model.eigen import symmetric_eigen
 from ehm.core.model.kernels import kernel_reach, kernel_transforms, planar_clusters
 
 
@@ -116,10 +117,12 @@ class ClusterSet:
         planar flags and kernel transforms."""
         if len(rows) == 0:
             return
-        self.planar[rows] = planar_clusters(self.covariances[rows], config.planar_ratio)
+        covariances = self.covariances[rows]
+        eigen = symmetric_eigen(covariances)  # once, for both
+        self.planar[rows] = planar_clusters(covariances, config.planar_ratio, eigen)
         self.planar_kernel[rows] = self.planar[rows] & config.planar_kernel
         self.transforms[rows] = kernel_transforms(
-            self.covariances[rows], config.length_scale, config.min_std, self.planar_kernel[rows]
+            covariances, config.length_scale, config.min_std, self.planar_kernel[rows], eigen
         )
 
 

@@ -115,18 +115,31 @@ def cluster_kernel_reference(projected: np.ndarray, planar: np.ndarray) -> np.nd
     return np.where(planar, inside_box.astype(np.float64), values)
 
 
-def floored_eigen(covariances: np.ndarray, min_std: float) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues (M, d), floored at min_std^2, and eigenvectors (M, d, d) as columns."""
-    eigenvalues, eigenvectors = symmetric_eigen(covariances)
+Eigen = tuple[np.ndarray, np.ndarray]
+"""An eigen decomposition of (M, d, d) covariances: eigenvalues (M, d) ascending and
+eigenvectors (M, d, d) as columns (ehm.core.model.eigen.symmetric_eigen)."""
+
+
+def floored_eigen(
+    covariances: np.ndarray, min_std: float, eigen: Eigen | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (M, d), floored at min_std^2, and eigenvectors (M, d, d) as columns; from
+    `eigen`, the covariances' decomposition, when it is known."""
+    eigenvalues, eigenvectors = symmetric_eigen(covariances) if eigen is None else eigen
     return np.maximum(eigenvalues, min_std**2), eigenvectors
 
 
 def kernel_transforms(
-    covariances: np.ndarray, length_scale: float, min_std: float, planar: np.ndarray | None = None
+    covariances: np.ndarray,
+    length_scale: float,
+    min_std: float,
+    planar: np.ndarray | None = None,
+    eigen: Eigen | None = None,
 ) -> np.ndarray:
     """T_m (M, d, d), 1/m, mapping offsets from the mean to the kernel's unit ball (k_SP) or
-    unit box (k_PS, rows where `planar`, (M,) bool; None: none)."""
-    eigenvalues, eigenvectors = floored_eigen(covariances, min_std)
+    unit box (k_PS, rows where `planar`, (M,) bool; None: none); `eigen`: the covariances'
+    decomposition, when it is known."""
+    eigenvalues, eigenvectors = floored_eigen(covariances, min_std, eigen)
     span = np.full(len(covariances), float(length_scale))
     if planar is not None:
         span[planar] = PLANAR_SPAN
@@ -134,12 +147,15 @@ def kernel_transforms(
     return scale[:, :, None] * np.swapaxes(eigenvectors, 1, 2)
 
 
-def planar_clusters(covariances: np.ndarray, ratio: float) -> np.ndarray:
+def planar_clusters(
+    covariances: np.ndarray, ratio: float, eigen: Eigen | None = None
+) -> np.ndarray:
     """(M,) bool: clusters whose smallest covariance eigenvalue is at most `ratio` times the
-    next smallest (unfloored), so their spread across one axis is small against the others."""
+    next smallest (unfloored), so their spread across one axis is small against the others;
+    `eigen`: the covariances' decomposition, when it is known."""
     if len(covariances) == 0:
         return np.zeros(0, dtype=bool)
-    eigenvalues, _ = symmetric_eigen(covariances)
+    eigenvalues, _ = symmetric_eigen(covariances) if eigen is None else eigen
     return eigenvalues[:, 0] <= ratio * eigenvalues[:, 1]
 
 
