@@ -296,7 +296,9 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         kept = [np.ones(table.used, dtype=bool) for table in tables]
         for later, table in enumerate(tables[1:], 1):
             for earlier in tables[:later]:
-                _fold_into(*earlier.arrays()[:4], table.key, table.stats, kept[later], table.used)
+                _fold_into(
+                    earlier.keys, earlier.index, earlier.stats, table.key, table.stats, kept[later]
+                )
         firsts = np.cumsum([0] + [int(rows.sum()) for rows in kept])
         n = firsts[-1]
         points, weight, scatter = np.empty((n, dim)), np.empty(n), np.empty((n, dim, dim))
@@ -312,13 +314,13 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
 
 @numba.njit(cache=True, nogil=True)
 def _fold_into(
-    keys, index, key, stats, other_key, other_stats, other_kept, n
+    keys, index, stats, other_key, other_stats, other_kept
 ):  # pragma: no cover - compiled
-    """Add the statistics of the first n cells of another table (other_key, other_stats) that
-    are still kept (other_kept (n,) bool) and that a table (its keys, index, key and stats
-    arrays, see _CellTable) holds too to its rows, and keep them no longer: the two measure
-    offsets from the same anchor."""
-    for r in range(n):
+    """Add the statistics of the cells of another table (other_key, other_stats, its first
+    len(other_kept) rows) that are still kept (other_kept bool) and that a table (its keys,
+    index and stats arrays, see _CellTable) holds too to its rows, and keep them no longer:
+    the two measure offsets from the same anchor."""
+    for r in range(len(other_kept)):
         if other_kept[r]:
             s = hash_slot(keys, other_key[r])
             if keys[s] != EMPTY_KEY:

@@ -129,7 +129,9 @@ def sample_sides(indptr, rows, cluster_side):  # pragma: no cover - compiled
     return side
 
 
-def sample_sides_reference(indptr: np.ndarray, rows: np.ndarray, cluster_side: np.ndarray):
+def sample_sides_reference(
+    indptr: np.ndarray, rows: np.ndarray, cluster_side: np.ndarray
+) -> np.ndarray:
     """Plain NumPy twin of `sample_sides`."""
     sample = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
     ones = np.bincount(sample, cluster_side[rows], len(indptr) - 1)
