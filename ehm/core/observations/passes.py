@@ -24,7 +24,7 @@ import numpy as np
 from ehm.core.model.eigen import eigen_in_place
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
-from ehm.core.observations.memory_keys import REGION_BITS, SUB_BITS
+from ehm.core.observations.memory_keys import SUB_BITS, region_bits
 from ehm.core.observations.samples import ScanRays
 from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
@@ -174,7 +174,7 @@ def region_normals(memory: EvidenceMemory) -> np.ndarray:
         memory.place,
         memory.weight,
         memory.sides[0],
-        (63 - 1 - REGION_BITS) // memory.dim,
+        region_bits(memory.dim),
         PLANAR_SPREAD,
         LINEAR_SPREAD,
     )
@@ -297,7 +297,7 @@ def occupied_passes(
         np.cos(np.radians(GRAZING_DEGREES)),
         memory.sides[0],
         reach,
-        (63 - 1 - REGION_BITS) // dim,
+        region_bits(dim),
     )
     n = len(rays)
     bounds = [0, n] if n < PARALLEL_MIN_RAYS else [0, n // 2, n]
