@@ -620,13 +620,16 @@ class HilbertMap:
         level: float = 0.5,
         return_gradient: bool = False,
         unknown_is_occupied: bool = False,
+        unknown_box: np.ndarray | None = None,
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
         frame) to the nearest point whose occupancy is at or above `level`: positive outside,
         negative inside; with return_gradient, also its (n, d) gradient (unit vectors away from
         the nearest obstacle; 0 beyond reach). Distances are kept up to
         config.distance_reach: farther points read that. Unknown space (no kernel reaches it)
-        is free unless unknown_is_occupied. Read from a signed distance field of surfels on
+        is free unless unknown_is_occupied; unknown_box, (2, d) metres [low, high] corners,
+        world frame, makes it an obstacle only inside that box (a planner's workspace; a
+        tile's learn box). Read from a signed distance field of surfels on
         cluster_radius voxels, put where point queries (mode 'exact') meet the level
         (ehm.core.queries.distance, ehm.grid.planner_support), made on the first call for a
         level and kept up to date as the map learns (each update's stage 'grids'; on large
@@ -637,8 +640,14 @@ class HilbertMap:
         threshold = log_odds_level(level)
         points, finite, query = self._query_points(points)
         distance = np.full(len(points), np.nan)
+        if unknown_box is not None:
+            unknown_box = np.asarray(unknown_box, dtype=np.float64)
+            if unknown_box.shape != (2, self.dim):
+                raise InputError(
+                    f"unknown_box must have shape (2, {self.dim}), got {unknown_box.shape}"
+                )
         found, gradient = self._planner.distances(
-            self.snapshot, query, threshold, bool(unknown_is_occupied), return_gradient
+            self.snapshot, query, threshold, bool(unknown_is_occupied), return_gradient, unknown_box
         )
         distance[finite] = found
         if not return_gradient:

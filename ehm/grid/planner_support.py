@@ -65,8 +65,9 @@ class PlannerSupport:
         self._cover: KernelCover | None = None
         self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
-        # Distance fields by (log-odds level, unknown space is an obstacle).
-        self._fields: dict[tuple[float, bool], DistanceField] = {}
+        # Distance fields by (log-odds level, unknown space is an obstacle, the box it is one
+        # in: its corners' coordinates, or None for everywhere).
+        self._fields: dict[tuple[float, bool, tuple[float, ...] | None], DistanceField] = {}
 
     def grid(self, take_snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
         """The log-odds at the grid's voxel centres (intercept included), made from the map's
@@ -125,19 +126,24 @@ class PlannerSupport:
         threshold: float,
         unknown_is_occupied: bool,
         with_gradient: bool,
+        unknown_box: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) signed distances, metres, from (n, d) float64 points, metres, world frame, to
         the surface where the map's log-odds (kernels from `take_snapshot()`) reach
         `threshold`, and with_gradient their (n, d) gradients (else (0, d)); the field is made
-        on the first call for a threshold and rule. InputError when the map's grid would be
-        too large to keep."""
+        on the first call for a threshold and rule. unknown_box: (2, d) metres, or None: with
+        unknown_is_occupied, unknown space is an obstacle only inside it (DistanceField).
+        InputError when the map's grid would be too large to keep."""
         self.grid(take_snapshot)
         if self._grid is None:
             raise InputError(
                 f"the map is too large for a distance field at {self.resolution:g} m voxels "
                 f"(over {RAY_GRID_MAX_BYTES / 2**20:.0f} MiB); tile it (ehm.tiles.TiledMap)"
             )
-        key = (threshold, unknown_is_occupied)
+        box = None
+        if unknown_box is not None and unknown_is_occupied:
+            box = tuple(np.asarray(unknown_box, dtype=np.float64).ravel())
+        key = (threshold, unknown_is_occupied, box)
         if key not in self._fields:
             self._fields[key] = self._new_field(*key)
         dim = self._grid.dim
@@ -146,9 +152,17 @@ class PlannerSupport:
         distance, gradient = field.distances(lifted, self._scores_3d(), with_gradient)
         return distance, gradient[:, :dim]
 
-    def _new_field(self, threshold: float, unknown_is_occupied: bool) -> DistanceField:
-        """A distance field of the grid as it stands."""
+    def _new_field(
+        self, threshold: float, unknown_is_occupied: bool, box: tuple[float, ...] | None
+    ) -> DistanceField:
+        """A distance field of the grid as it stands (box: the corners of the box unknown
+        space is an obstacle in, flattened, or None)."""
         lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
+        unknown_box = None
+        if box is not None:  # a 2D map's box reaches through its lattice's one voxel
+            corners = np.reshape(box, (2, -1))
+            height = np.array([[-np.inf], [np.inf]])
+            unknown_box = corners if corners.shape[1] == 3 else np.hstack([corners, height])
         field = DistanceField(
             lattice.origin,
             self.resolution,
@@ -156,6 +170,7 @@ class PlannerSupport:
             threshold,
             unknown_is_occupied,
             self.reach,
+            unknown_box,
         )
         field.update(self._scores_3d(), self._grid.intercept, self._lifted_log_odds, self._peaks())
         return field

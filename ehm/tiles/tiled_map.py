@@ -478,7 +478,8 @@ class TiledMap:
         lies within distance_reach of a point tells the distance to its own surface where it
         lies in the tile's core (where the tile weighs most in the blend): the nearest wins,
         and a point inside any tile's obstacle is inside (the deepest wins).
-        Unknown space is an obstacle, when asked, in the tile whose core holds the point.
+        Unknown space is an obstacle, when asked, where a tile that learned it does not know
+        it (within its learn box).
         Each tile keeps its field as it learns. NaN rows for points that are not finite."""
         points = self._checked_points(points)
         finite = np.all(np.isfinite(points), axis=1)
@@ -498,18 +499,19 @@ class TiledMap:
             if tile_map is None:
                 continue
             in_core = np.all(own[near] == key, axis=1)
-            groups = [(near[~in_core], False), (near[in_core], True)]
-            for chosen, rule in groups if unknown_is_occupied else [(near, False)]:
-                if len(chosen) == 0:
-                    continue
-                found, slope = tile_map.distance(points[chosen], level, True, rule)
-                # A tile tells only of the surface in its core, where its weight is highest.
-                surface = points[chosen] - found[:, None] * slope
-                core = self.tiling.core_box(key)
-                own_surface = np.all((surface >= core[0]) & (surface <= core[1]), axis=1)
-                wins = _nearer(found, distance[chosen]) & (own_surface | (np.abs(found) >= reach))
-                distance[chosen[wins]] = found[wins]
-                gradient[chosen[wins]] = slope[wins]
+            # Unknown space is the tile's to tell within its learn box only.
+            found, slope = tile_map.distance(
+                points[near], level, True, unknown_is_occupied, self.tiling.learn_box(key)
+            )
+            # A tile tells only of the surface in its core, where its weight is highest.
+            surface = points[near] - found[:, None] * slope
+            core = self.tiling.core_box(key)
+            own_surface = np.all((surface >= core[0]) & (surface <= core[1]), axis=1)
+            # Nothing within reach, or deep inside the tile whose core holds the point.
+            told = own_surface | (found >= reach) | ((found <= -reach) & in_core)
+            wins = _nearer(found, distance[near]) & told
+            distance[near[wins]] = found[wins]
+            gradient[near[wins]] = slope[wins]
         if unknown_is_occupied:  # points in the core of a tile that learned nothing: inside
             rows = np.flatnonzero(finite)
             keys = own[rows].astype(np.int64)

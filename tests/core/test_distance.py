@@ -38,8 +38,12 @@ def ball_log_odds(points, centre=(0.0, 0.0, 0.0), radius=0.45, slope=20.0):
 NO_PEAKS = np.zeros((0, 3))
 
 
-def field_of(scores, log_odds, unknown_is_occupied=False, reach=0.6, peaks=NO_PEAKS):
-    field = DistanceField(ORIGIN, RESOLUTION, scores.shape, 0.0, unknown_is_occupied, reach)
+def field_of(
+    scores, log_odds, unknown_is_occupied=False, reach=0.6, peaks=NO_PEAKS, unknown_box=None
+):
+    field = DistanceField(
+        ORIGIN, RESOLUTION, scores.shape, 0.0, unknown_is_occupied, reach, unknown_box
+    )
     field.update(scores, 0.0, log_odds, peaks)
     return field
 
@@ -131,6 +135,28 @@ def test_unknown_space_is_an_obstacle_only_when_asked():
     assert free_field.distances(point, scores, False)[0][0] == 0.6
     occupied_field = field_of(scores, lambda p: np.where(p[:, 2] < 0.0, -3.0, 0.0), True)
     assert occupied_field.distances(point, scores, False)[0][0] == pytest.approx(0.35, abs=1e-9)
+
+
+def test_unknown_space_is_an_obstacle_only_inside_the_box_asked():
+    """The upper half unknown, the box reaching 0.3 m into it: unknown space is an obstacle
+    from z = 0 to the box's top, and above the box, and beyond the grid, space is free."""
+    scores = np.full(SHAPE, -3.0)
+    scores[:, :, 10:] = 0.0
+    log_odds = lambda p: np.where(p[:, 2] < 0.0, -3.0, 0.0)  # noqa: E731
+    box = np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 0.3]])
+    field = field_of(scores, log_odds, True, unknown_box=box)
+    points = np.array([[0.05, 0.05, -0.35], [0.05, 0.05, 0.45], [0.05, 0.05, 5.0]])
+    found = field.distances(points, scores, False)[0]
+    assert found[0] == pytest.approx(0.35, abs=1e-9)  # below the unknown, as without a box
+    # Above the box: free, 0.15 m above its top, to half a voxel (unknown space reads the
+    # level itself, and a surfel on a step of the log-odds is placed to within half a voxel).
+    assert 0.15 - 0.05 <= found[1] <= 0.15 + 0.05 + 1e-9
+    assert found[2] == 0.6  # outside the grid and the box: free
+    everywhere = field_of(scores, log_odds, True, unknown_box=np.array([[-9.0] * 3, [9.0] * 3]))
+    np.testing.assert_array_equal(
+        everywhere.distances(points[:2], scores, False)[0],
+        field_of(scores, log_odds, True).distances(points[:2], scores, False)[0],
+    )
 
 
 def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):

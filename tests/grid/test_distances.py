@@ -139,6 +139,21 @@ def test_unknown_space_is_an_obstacle_only_when_asked():
     bounded = hilbert_map.distance(beside_the_origin, unknown_is_occupied=True)[0]
     assert free == reach
     assert 0.0 < bounded < 0.5
+    # Unknown space an obstacle only in a box ahead of the sensor (x > 1 m): behind it, and
+    # beside the origin, space is free; a box holding everything changes nothing.
+    ahead = np.array([[1.0, -20.0], [20.0, 20.0]])
+    boxed = hilbert_map.distance(
+        np.vstack([behind_the_wall, beside_the_origin]), unknown_is_occupied=True, unknown_box=ahead
+    )
+    assert boxed[0] == -reach and boxed[1] == reach
+    everything = np.array([[-50.0, -50.0], [50.0, 50.0]])
+    points = np.array([[7.0, 0.0], [0.0, -0.5], [2.0, 1.0]])
+    np.testing.assert_array_equal(
+        hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=everything),
+        hilbert_map.distance(points, unknown_is_occupied=True),
+    )
+    with pytest.raises(InputError, match=r"unknown_box must have shape \(2, 2\)"):
+        hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=np.zeros((2, 3)))
 
 
 def test_distance_rows_and_mistakes():

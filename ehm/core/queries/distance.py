@@ -43,7 +43,10 @@ class DistanceField:
     `threshold` (see the module). origin: (3,) metres, world frame, low corner of voxel
     (0, 0, 0); resolution: voxel side, metres; shape: voxels per axis; unknown_is_occupied:
     voxels no kernel reaches are obstacles too (else free); reach: metres, farthest distance
-    kept. Fed the grid's scores by `update`; `distances` answers."""
+    kept; unknown_box: (2, 3) metres, world frame, [low, high] corners, or None: with
+    unknown_is_occupied, only unknown voxels whose centres lie inside it are obstacles (a
+    tile's learn box: beyond it, what the tile does not know is another tile's to tell). Fed
+    the grid's scores by `update`; `distances` answers."""
 
     def __init__(
         self,
@@ -53,6 +56,7 @@ class DistanceField:
         threshold: float,
         unknown_is_occupied: bool,
         reach: float,
+        unknown_box: np.ndarray | None = None,
     ) -> None:
         self.origin = np.asarray(origin, dtype=np.float64)
         self.resolution = float(resolution)
@@ -60,6 +64,7 @@ class DistanceField:
         self.threshold = float(threshold)
         self.unknown_is_occupied = bool(unknown_is_occupied)
         self.reach = float(reach)
+        self.unknown_box = None if unknown_box is None else np.asarray(unknown_box, float)
         # Per voxel: the flat index of the voxel whose surfel is nearest its centre; -1: none.
         self.nearest = np.full(self.shape, -1, dtype=np.int32)
         self.surfels = Surfels.empty()
@@ -86,12 +91,19 @@ class DistanceField:
         if np.any(changed[1] <= changed[0]):
             return
         self.intercept = intercept
+        log_odds = self._boxed_log_odds(log_odds, intercept)
         low, high = _grown(changed, 1, shape)  # the voxels whose surfels may change
         seen_low, seen_high = _grown(changed, 2, shape)  # and their neighbours
         seen = tuple(slice(a, b) for a, b in zip(seen_low, seen_high, strict=True))
         corner = self.origin + seen_low * self.resolution
         levels = with_peaks(
-            scores[seen], intercept, self.threshold, peaks, log_odds, corner, self.resolution
+            self._boxed(scores[seen], corner, intercept),
+            intercept,
+            self.threshold,
+            peaks,
+            log_odds,
+            corner,
+            self.resolution,
         )
         local = box_surfels(
             levels,
@@ -144,6 +156,7 @@ class DistanceField:
         points = np.ascontiguousarray(points, dtype=np.float64)
         distance = np.empty(len(points))
         gradient = np.zeros((len(points) if with_gradient else 0, 3))
+        scores = self._boxed(scores, self.origin, self.intercept)
         _field_distances(
             points,
             self.origin,
@@ -161,7 +174,47 @@ class DistanceField:
             distance,
             gradient,
         )
+        if self.unknown_box is not None and self.unknown_is_occupied:  # beyond the grid
+            outside = np.any((points < self.unknown_box[0]) | (points > self.unknown_box[1]), 1)
+            distance[outside & (distance == -self.reach)] = self.reach
         return distance, gradient
+
+    def _boxed_log_odds(
+        self, log_odds: Callable[[np.ndarray], np.ndarray], intercept: float
+    ) -> Callable[[np.ndarray], np.ndarray]:
+        """`log_odds` read as `_boxed` reads scores: where no kernel reaches (the log-odds
+        are the `intercept`) outside unknown_box, known and free."""
+        if self.unknown_box is None or not self.unknown_is_occupied:
+            return log_odds
+        box, free = self.unknown_box, min(self.threshold, intercept) - 1.0
+
+        def boxed(points: np.ndarray) -> np.ndarray:
+            values = log_odds(points)
+            outside = np.any((points < box[0]) | (points > box[1]), axis=1)
+            unknown = np.abs(values - intercept) <= KNOWN_SCORE
+            return np.where(outside & unknown, free, values)
+
+        return boxed
+
+    def _boxed(self, scores: np.ndarray, corner: np.ndarray, intercept: float) -> np.ndarray:
+        """`scores` (a block of the grid's, its voxel (0, 0, 0) at `corner`, metres) with
+        the unknown voxels outside unknown_box, when unknown space is an obstacle, made
+        known and free: a copy, or `scores` itself when none changes."""
+        if self.unknown_box is None or not self.unknown_is_occupied:
+            return scores
+        centres = [
+            corner[a] + (np.arange(scores.shape[a]) + 0.5) * self.resolution for a in range(3)
+        ]
+        inside = [
+            (c >= self.unknown_box[0, a]) & (c <= self.unknown_box[1, a])
+            for a, c in enumerate(centres)
+        ]
+        outside = ~(inside[0][:, None, None] & inside[1][None, :, None] & inside[2][None, None, :])
+        unknown = np.abs(scores) <= KNOWN_SCORE
+        if not np.any(outside & unknown):
+            return scores
+        free = min(self.threshold - intercept, 0.0) - 1.0  # known, below the level
+        return np.where(outside & unknown, free, scores)
 
     @property
     def nbytes(self) -> int:
