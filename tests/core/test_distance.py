@@ -187,6 +187,44 @@ def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
     )
 
 
+def test_a_boxed_field_that_follows_equals_one_made_anew(rng):
+    """The ball, with space above z = 0.5 unknown and an obstacle only below z = 0.75: a second
+    ball arrives in a corner, and the followed field and the scores it keeps for the box
+    equal those of a field made anew."""
+    box = np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 0.75]])
+
+    def unknown_above(log_odds):
+        return lambda points: np.where(points[..., 2] >= 0.5, 0.0, log_odds(points))
+
+    first = unknown_above(ball_log_odds)
+    scores = first(centres())
+    field = field_of(scores, first, True, unknown_box=box)
+    second = dict(centre=np.array([0.6, 0.6, -0.6]), radius=0.25)
+
+    def both(points):
+        near = np.linalg.norm(points - second["centre"], axis=-1)
+        grown = np.maximum(ball_log_odds(points), ball_log_odds(points, **second))
+        return np.where(near < 0.4, grown, first(points))
+
+    new_scores = both(centres())
+    field.update(new_scores, 0.0, both, NO_PEAKS, np.array([[9, 9, 0], [20, 20, 11]]))
+    fresh = field_of(new_scores, both, True, unknown_box=box)
+    np.testing.assert_array_equal(field.surfels.keys, fresh.surfels.keys)
+    np.testing.assert_allclose(field.surfels.positions, fresh.surfels.positions, atol=1e-12)
+    points = rng.uniform(-1.2, 1.2, (3000, 3))
+    np.testing.assert_allclose(
+        field.distances(points, new_scores, False)[0],
+        fresh.distances(points, new_scores, False)[0],
+        atol=1e-12,
+    )
+    # The second ball's centre, 2.5 voxels deep: inside, by its voxel's (kept) score; beyond
+    # the box, in unknown space: free.
+    inside, above = field.distances(
+        np.array([[0.6, 0.6, -0.6], [0.05, 0.05, 0.95]]), new_scores, False
+    )[0]
+    assert inside == pytest.approx(-0.25, abs=0.02) and above > 0
+
+
 def thin_slab(points):
     """Log-odds of a slab 4 cm thick between the voxel centres at z = 0.05 and 0.15 m: +2
     for 0.08 <= z <= 0.12, -2 elsewhere (and 0, unknown, nowhere)."""

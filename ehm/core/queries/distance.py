@@ -65,6 +65,8 @@ class DistanceField:
         self.unknown_is_occupied = bool(unknown_is_occupied)
         self.reach = float(reach)
         self.unknown_box = None if unknown_box is None else np.asarray(unknown_box, float)
+        self._masks_unknown = self.unknown_box is not None and self.unknown_is_occupied
+        self._boxed_scores: np.ndarray | None = None
         # Per voxel: the flat index of the voxel whose surfel is nearest its centre; -1: none.
         self.nearest = np.full(self.shape, -1, dtype=np.int32)
         self.surfels = Surfels.empty()
@@ -96,8 +98,14 @@ class DistanceField:
         seen_low, seen_high = _grown(changed, 2, shape)  # and their neighbours
         seen = tuple(slice(a, b) for a, b in zip(seen_low, seen_high, strict=True))
         corner = self.origin + seen_low * self.resolution
+        block = scores[seen]
+        if self._masks_unknown:  # the scores as the box makes them, kept for `distances`
+            block = self._boxed(block, corner, intercept)
+            if self._boxed_scores is None:  # the first update sees every voxel
+                self._boxed_scores = np.empty_like(scores)
+            self._boxed_scores[seen] = block
         levels = with_peaks(
-            self._boxed(scores[seen], corner, intercept),
+            block,
             intercept,
             self.threshold,
             peaks,
@@ -151,12 +159,14 @@ class DistanceField:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) signed distances, metres, at (n, 3) float64 points, metres, world frame, and
         with_gradient their (n, 3) gradients (else (0, 3)); `scores` as last given to
-        `update`, for the side of points far from every surfel. Points outside the grid lie
-        beyond reach of every surfel: reach, or -reach where unknown space is an obstacle."""
+        `update`, for the side of points far from every surfel (with an unknown_box, the
+        field's own copy as the box makes them). Points outside the grid lie beyond reach of
+        every surfel: reach, or -reach where unknown space is an obstacle (inside the box)."""
         points = np.ascontiguousarray(points, dtype=np.float64)
         distance = np.empty(len(points))
         gradient = np.zeros((len(points) if with_gradient else 0, 3))
-        scores = self._boxed(scores, self.origin, self.intercept)
+        if self._masks_unknown:
+            scores = self._boxed_scores
         _field_distances(
             points,
             self.origin,
@@ -174,7 +184,7 @@ class DistanceField:
             distance,
             gradient,
         )
-        if self.unknown_box is not None and self.unknown_is_occupied:  # beyond the grid
+        if self._masks_unknown:  # beyond the grid
             outside = np.any((points < self.unknown_box[0]) | (points > self.unknown_box[1]), 1)
             distance[outside & (distance == -self.reach)] = self.reach
         return distance, gradient
@@ -184,7 +194,7 @@ class DistanceField:
     ) -> Callable[[np.ndarray], np.ndarray]:
         """`log_odds` read as `_boxed` reads scores: where no kernel reaches (the log-odds
         are the `intercept`) outside unknown_box, known and free."""
-        if self.unknown_box is None or not self.unknown_is_occupied:
+        if not self._masks_unknown:
             return log_odds
         box, free = self.unknown_box, min(self.threshold, intercept) - 1.0
 
@@ -200,7 +210,7 @@ class DistanceField:
         """`scores` (a block of the grid's, its voxel (0, 0, 0) at `corner`, metres) with
         the unknown voxels outside unknown_box, when unknown space is an obstacle, made
         known and free: a copy, or `scores` itself when none changes."""
-        if self.unknown_box is None or not self.unknown_is_occupied:
+        if not self._masks_unknown:
             return scores
         centres = [
             corner[a] + (np.arange(scores.shape[a]) + 0.5) * self.resolution for a in range(3)
@@ -219,7 +229,8 @@ class DistanceField:
     @property
     def nbytes(self) -> int:
         surfels = self.surfels
-        return self.nearest.nbytes + sum(a.nbytes for a in surfels)
+        boxed = 0 if self._boxed_scores is None else self._boxed_scores.nbytes
+        return self.nearest.nbytes + sum(a.nbytes for a in surfels) + boxed
 
 
 def _grown(box: np.ndarray, voxels: int, shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
