@@ -159,6 +159,18 @@ def test_unknown_space_is_an_obstacle_only_inside_the_box_asked():
     )
 
 
+def assert_same_fields(field, fresh, scores, points):
+    """A followed field and one made anew of `scores` hold the same surfels and tell the same
+    distances at (n, 3) points."""
+    np.testing.assert_array_equal(field.surfels.keys, fresh.surfels.keys)
+    np.testing.assert_allclose(field.surfels.positions, fresh.surfels.positions, atol=1e-12)
+    np.testing.assert_allclose(
+        field.distances(points, scores, False)[0],
+        fresh.distances(points, scores, False)[0],
+        atol=1e-12,
+    )
+
+
 def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
     scores = ball_log_odds(centres())
     field = field_of(scores, ball_log_odds)
@@ -177,14 +189,7 @@ def test_a_field_that_follows_a_changed_box_equals_one_made_anew(rng):
     )
     field.update(new_scores, 0.0, both, NO_PEAKS, box)
     fresh = field_of(new_scores, both)
-    np.testing.assert_array_equal(field.surfels.keys, fresh.surfels.keys)
-    np.testing.assert_allclose(field.surfels.positions, fresh.surfels.positions, atol=1e-12)
-    points = rng.uniform(-1.0, 1.0, (3000, 3))
-    np.testing.assert_allclose(
-        field.distances(points, new_scores, False)[0],
-        fresh.distances(points, new_scores, False)[0],
-        atol=1e-12,
-    )
+    assert_same_fields(field, fresh, new_scores, rng.uniform(-1.0, 1.0, (3000, 3)))
 
 
 def test_a_boxed_field_that_follows_equals_one_made_anew(rng):
@@ -209,14 +214,7 @@ def test_a_boxed_field_that_follows_equals_one_made_anew(rng):
     new_scores = both(centres())
     field.update(new_scores, 0.0, both, NO_PEAKS, np.array([[9, 9, 0], [20, 20, 11]]))
     fresh = field_of(new_scores, both, True, unknown_box=box)
-    np.testing.assert_array_equal(field.surfels.keys, fresh.surfels.keys)
-    np.testing.assert_allclose(field.surfels.positions, fresh.surfels.positions, atol=1e-12)
-    points = rng.uniform(-1.2, 1.2, (3000, 3))
-    np.testing.assert_allclose(
-        field.distances(points, new_scores, False)[0],
-        fresh.distances(points, new_scores, False)[0],
-        atol=1e-12,
-    )
+    assert_same_fields(field, fresh, new_scores, rng.uniform(-1.2, 1.2, (3000, 3)))
     # The second ball's centre, 2.5 voxels deep: inside, by its voxel's (kept) score; beyond
     # the box, in unknown space: free.
     inside, above = field.distances(

@@ -89,12 +89,15 @@ def test_samples_beyond_the_cells_reach_are_refused(rng):
 
 
 def test_evidence_gathered_in_parts_is_the_same_on_any_number_of_threads(rng, monkeypatch):
-    """Gathered in parts of its rays, a batch gives the cells one pass gives (a cell met by
-    several parts once), in the same order whatever the threads, so a map does not depend on
-    the machine."""
+    """Gathered in parts of its rays, a batch gives the cells of the samples it stands for (a
+    cell met by several parts once), in the same order whatever the threads, so a map does not
+    depend on the machine."""
     config = MapConfig(free_spacing=0.3)
     scans = [_scan(rng, 3000, 3)]
-    whole = _sorted(gather_evidence(scan_rays(scans, config), config, np.random.default_rng(3)))
+    rays = scan_rays(scans, config)
+    whole = _sorted(
+        evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(3)), config)
+    )
     monkeypatch.setattr(evidence, "PARALLEL_MIN_SAMPLES", 1000)
     monkeypatch.setattr(evidence, "GATHER_PARTS", 3)
     runs = []

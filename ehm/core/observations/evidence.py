@@ -23,6 +23,7 @@ half a radius lost 0.005-0.016 held-out F1 in one batch (BENCHMARKS.md).
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass
 from itertools import pairwise, repeat
 
@@ -106,9 +107,9 @@ class _CellTable:
         """(keys, index, key, stats, anchor, kind), as the compiled passes take them."""
         return self.keys, self.index, self.key, self.stats, self.anchor, self.kind
 
-    def grown(self, capacity: int = 0) -> _CellTable:
-        """The same cells in a table of at least twice the capacity, and of `capacity`."""
-        table = _CellTable.empty(max(2 * len(self.key), capacity), self.anchor.shape[1])
+    def grown(self) -> _CellTable:
+        """The same cells in a table of twice the capacity."""
+        table = _CellTable.empty(2 * len(self.key), self.anchor.shape[1])
         n = self.used
         for name in ("key", "stats", "anchor", "kind"):
             getattr(table, name)[:n] = getattr(self, name)[:n]
@@ -291,8 +292,10 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
     parts = GATHER_PARTS if total >= PARALLEL_MIN_SAMPLES else 1
     bounds = np.searchsorted(samples_to, total * np.arange(parts + 1) / parts)
     bounds[0], bounds[-1] = 0, len(rays)
-    with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
-        tables = list(pool.map(_gather_rays, repeat(arguments), bounds[:-1], bounds[1:]))
+    threads = min(parts, numba.get_num_threads())
+    with ThreadPoolExecutor(threads) if threads > 1 else nullcontext() as pool:
+        run = map if pool is None else pool.map  # one part: no thread to start
+        tables = list(run(_gather_rays, repeat(arguments), bounds[:-1], bounds[1:]))
         kept = [np.ones(table.used, dtype=bool) for table in tables]
         for later, table in enumerate(tables[1:], 1):
             for earlier in tables[:later]:
@@ -306,7 +309,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
             (points[first:last], weight[first:last], scatter[first:last])
             for first, last in pairwise(firsts)
         ]
-        list(pool.map(_cell_samples_of, tables, kept, outputs))
+        list(run(_cell_samples_of, tables, kept, outputs))
     kinds = [table.kind[: table.used][rows] for table, rows in zip(tables, kept, strict=True)]
     occupied, at_surface = sample_flags(np.concatenate(kinds))
     return TrainingSamples(points, occupied, at_surface, weight, scatter)

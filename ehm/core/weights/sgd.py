@@ -235,41 +235,37 @@ def sgd_rounds(
     docstring); bias_state: [bias, its accumulated squared gradient].
     """
     shift = np.zeros((2, 2))
+    data = (visits, indptr, rows, values, labels, sample_weights, weights, grad_sq)
     for r in range((len(starts) - 1) // 3):
         for side in numba.prange(2):
             bias = bias_state.copy()
-            for k in range(starts[3 * r + side], starts[3 * r + side + 1]):
-                _step(
-                    visits[k],
-                    indptr,
-                    rows,
-                    values,
-                    labels,
-                    sample_weights,
-                    weights,
-                    grad_sq,
-                    bias,
-                    learning_rate,
-                    l2,
-                )
+            _steps(starts[3 * r + side], starts[3 * r + side + 1], data, bias, learning_rate, l2)
             shift[side, 0] = bias[0] - bias_state[0]
             shift[side, 1] = bias[1] - bias_state[1]
         bias_state[0] += shift[0, 0] + shift[1, 0]
         bias_state[1] += shift[0, 1] + shift[1, 1]
-        for k in range(starts[3 * r + 2], starts[3 * r + 3]):
-            _step(
-                visits[k],
-                indptr,
-                rows,
-                values,
-                labels,
-                sample_weights,
-                weights,
-                grad_sq,
-                bias_state,
-                learning_rate,
-                l2,
-            )
+        _steps(starts[3 * r + 2], starts[3 * r + 3], data, bias_state, learning_rate, l2)
+
+
+@numba.njit(cache=True, inline="always")
+def _steps(first, last, data, bias, learning_rate, l2):  # pragma: no cover - compiled
+    """AdaGrad steps on the samples visits[first:last] (data: visits, then _step's arrays up
+    to grad_sq)."""
+    visits, indptr, rows, values, labels, sample_weights, weights, grad_sq = data
+    for k in range(first, last):
+        _step(
+            visits[k],
+            indptr,
+            rows,
+            values,
+            labels,
+            sample_weights,
+            weights,
+            grad_sq,
+            bias,
+            learning_rate,
+            l2,
+        )
 
 
 def sgd_rounds_reference(
