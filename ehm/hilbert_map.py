@@ -646,6 +646,11 @@ class HilbertMap:
                 raise InputError(
                     f"unknown_box must have shape (2, {self.dim}), got {unknown_box.shape}"
                 )
+            if np.isnan(unknown_box).any() or np.any(unknown_box[0] > unknown_box[1]):
+                raise InputError(
+                    "unknown_box must be [low corner, high corner] with low <= high and no NaN, "
+                    f"got {unknown_box.tolist()}"
+                )
         found, gradient = self._planner.distances(
             self.snapshot, query, threshold, bool(unknown_is_occupied), return_gradient, unknown_box
         )

@@ -154,6 +154,9 @@ def test_unknown_space_is_an_obstacle_only_when_asked():
     )
     with pytest.raises(InputError, match=r"unknown_box must have shape \(2, 2\)"):
         hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=np.zeros((2, 3)))
+    for bad in ([[1.0, 0.0], [0.0, 1.0]], [[np.nan, 0.0], [1.0, 1.0]]):
+        with pytest.raises(InputError, match="low <= high and no NaN"):
+            hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=np.array(bad))
 
 
 def test_distance_rows_and_mistakes():
