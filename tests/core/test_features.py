@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
+from ehm.core.model import features
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.features import (
     PointGroups,
@@ -55,7 +56,9 @@ def test_compressed_rows_match_reference(rng):
     assert not np.isin(-1, compiled.rows)
 
 
-def test_decision_values_match_reference(rng):
+@pytest.mark.parametrize("chunk", [65_536, 64])
+def test_decision_values_match_reference(rng, monkeypatch, chunk):
+    monkeypatch.setattr(features, "DECISION_CHUNK", chunk)  # one chunk, then eight
     problem = _random_problem(rng, 3)
     weights = rng.normal(size=len(problem[3]))
     inverse_precision = 1.0 / rng.uniform(1.0, 50.0, len(weights))

@@ -15,7 +15,14 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
-from ehm.core.model.kernels import cluster_kernel, cluster_kernel_reference, projected_radii
+from ehm.core.model.kernels import (
+    OUTSIDE,
+    cluster_kernel,
+    cluster_kernel_reference,
+    kernel_code,
+    kernels_of_codes,
+    projected_radii,
+)
 from ehm.core.search.cells import cell_keys
 from ehm.core.search.index import ClusterIndex
 
@@ -168,19 +175,38 @@ def kernel_at(points, i, cluster, means, transforms, planar):  # pragma: no cove
 
 
 @numba.njit(cache=True, parallel=True)
-def kernel_values(
+def _kernel_codes(
     points, group_of_point, group_neighbours, means, transforms, planar
 ):  # pragma: no cover - compiled
-    """(n, k) float64 kernel values of each point at its group's k clusters."""
+    """(n, k) float64 kernel codes (ehm.core.model.kernels.kernel_code) of each point at its
+    group's k clusters, OUTSIDE where there is none."""
     n = points.shape[0]
     k = group_neighbours.shape[1]
-    values = np.zeros((n, k))
+    codes = np.empty((n, k))
     for i in numba.prange(n):
         g = group_of_point[i]
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster >= 0:
-                values[i, j] = kernel_at(points, i, cluster, means, transforms, planar)
+                r2, r_max = projected_radii(points, i, cluster, means, transforms)
+                codes[i, j] = kernel_code(r2, r_max, planar[cluster])
+            else:
+                codes[i, j] = OUTSIDE
+    return codes
+
+
+def kernel_values(
+    points: np.ndarray,
+    group_of_point: np.ndarray,
+    group_neighbours: np.ndarray,
+    means: np.ndarray,
+    transforms: np.ndarray,
+    planar: np.ndarray,
+) -> np.ndarray:
+    """(n, k) float64 kernel values of each of `points` (n, d), metres, at its group's k
+    clusters group_neighbours (G, k) (0 where -1)."""
+    values = _kernel_codes(points, group_of_point, group_neighbours, means, transforms, planar)
+    kernels_of_codes(values.reshape(-1))
     return values
 
 
@@ -197,41 +223,81 @@ def add_to_sums(
 
 
 @numba.njit(cache=True, parallel=True)
-def decision_values(
-    points,
+def _weighted_sums(
+    values,
     group_of_point,
     group_neighbours,
-    means,
-    transforms,
-    planar,
     weights,
     bias,
     inverse_precision,
     with_variance,
+    scores,
+    variance_sums,
 ):  # pragma: no cover - compiled
-    """(n,) float64 w^T phi(x) + bias of each point, without storing the features, and, when
-    with_variance, (n, 2) float64 [sum_m phi_m^2 / lambda_m, sum_m phi_m] over its clusters,
-    from inverse_precision (M,) 1 / lambda_m (see ehm.core.weights.uncertainty); else (0, 2)."""
-    n = points.shape[0]
-    k = group_neighbours.shape[1]
-    scores = np.full(n, bias)
-    variance_sums = np.zeros((n if with_variance else 0, 2))
+    """Write bias + sum_j w phi and, when with_variance, the variance sums of each point
+    from its kernel values (n, k) into scores (n,) and variance_sums (n, 2) (see
+    decision_values)."""
+    n, k = values.shape
     for i in numba.prange(n):
         g = group_of_point[i]
+        scores[i] = bias
+        if with_variance:
+            variance_sums[i, 0] = 0.0
+            variance_sums[i, 1] = 0.0
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster >= 0:
-                value = kernel_at(points, i, cluster, means, transforms, planar)
                 add_to_sums(
                     scores,
                     variance_sums,
                     i,
                     cluster,
-                    value,
+                    values[i, j],
                     weights,
                     inverse_precision,
                     with_variance,
                 )
+
+
+# Points whose kernel values decision_values holds at once: 6 MB of them.
+DECISION_CHUNK = 65_536
+
+
+def decision_values(
+    points: np.ndarray,
+    group_of_point: np.ndarray,
+    group_neighbours: np.ndarray,
+    means: np.ndarray,
+    transforms: np.ndarray,
+    planar: np.ndarray,
+    weights: np.ndarray,
+    bias: float,
+    inverse_precision: np.ndarray,
+    with_variance: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) float64 w^T phi(x) + bias of each of `points` (n, d), metres, without keeping
+    the features, and, when with_variance, (n, 2) float64 [sum_m phi_m^2 / lambda_m, sum_m
+    phi_m] over its clusters, from inverse_precision (M,) 1 / lambda_m (see
+    ehm.core.weights.uncertainty); else (0, 2)."""
+    n = len(points)
+    scores = np.empty(n)
+    variance_sums = np.zeros((n if with_variance else 0, 2))
+    for first in range(0, n, DECISION_CHUNK):
+        chunk = slice(first, min(n, first + DECISION_CHUNK))
+        values = kernel_values(
+            points[chunk], group_of_point[chunk], group_neighbours, means, transforms, planar
+        )
+        _weighted_sums(
+            values,
+            group_of_point[chunk],
+            group_neighbours,
+            weights,
+            bias,
+            inverse_precision,
+            with_variance,
+            scores[chunk],
+            variance_sums[chunk],
+        )
     return scores, variance_sums
 
 

@@ -72,10 +72,8 @@ _SPARSE_KERNEL_COEFFICIENTS = _sparse_kernel_coefficients(SPARSE_KERNEL_DEGREE)
 @numba.njit(cache=True, inline="always")
 def sparse_kernel(r: float) -> float:  # pragma: no cover - compiled
     """k_SP(r) of Eq. 8 for one radius, as e^5 g(e), e = 1 - r (to 3e-15); exactly 0 for
-    r >= 1."""
-    if r >= 1.0:
-        return 0.0
-    e = 1.0 - r
+    r >= 1, without a branch, so loops of it run in vector registers."""
+    e = max(1.0 - r, 0.0)
     x = 2.0 * e - 1.0
     quotient = 0.0
     for coefficient in _SPARSE_KERNEL_COEFFICIENTS:
@@ -106,6 +104,41 @@ def cluster_kernel(r2: float, r_max: float, planar: bool) -> float:  # pragma: n
     if planar:
         return 1.0 if r_max < 1.0 else 0.0
     return sparse_kernel(np.sqrt(r2))
+
+
+# Kernel codes: the projected radii of many (point, cluster) pairs, written in one pass, that
+# kernels_of_codes turns into kernel values in another, where the polynomial of k_SP runs four
+# values at a time (a TUM frame's 1.7 million kernel values: 3 ms, against 20 within the pass
+# that projects). A code is |u|^2 for k_SP; for k_PS, INSIDE_BOX or OUTSIDE; OUTSIDE also
+# stands for no cluster.
+INSIDE_BOX = -1.0
+OUTSIDE = 1.0
+
+
+@numba.njit(cache=True, inline="always")
+def kernel_code(r2: float, r_max: float, planar: bool) -> float:  # pragma: no cover
+    """The code of a kernel from |u|^2 and max_a |u_a| of u = T_m (x - mu_m)."""
+    if planar:
+        return INSIDE_BOX if r_max < 1.0 else OUTSIDE
+    return r2
+
+
+@numba.njit(cache=True)
+def _kernels_of_codes_serial(codes):  # pragma: no cover - compiled
+    for t in range(codes.shape[0]):
+        code = codes[t]
+        value = sparse_kernel(np.sqrt(max(code, 0.0)))
+        codes[t] = 1.0 if code < 0.0 else value
+
+
+@numba.njit(cache=True, parallel=True)
+def kernels_of_codes(codes):  # pragma: no cover - compiled
+    """Turn kernel codes (n,) float64 (see kernel_code) into kernel values, in place."""
+    n = codes.shape[0]
+    parts = 8
+    step = (n + parts - 1) // parts
+    for part in numba.prange(parts):
+        _kernels_of_codes_serial(codes[part * step : min(n, (part + 1) * step)])
 
 
 def cluster_kernel_reference(projected: np.ndarray, planar: np.ndarray) -> np.ndarray:
