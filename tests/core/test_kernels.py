@@ -7,11 +7,13 @@ from ehm.core.model.kernels import (
     cluster_kernel,
     cluster_kernel_reference,
     cluster_normals,
+    covariance_square_roots,
     kernel_reach,
     kernel_transforms,
     planar_clusters,
     sparse_kernel,
     sparse_kernel_reference,
+    transform_square_roots,
 )
 
 
@@ -86,3 +88,15 @@ def test_planar_clusters_and_normals(rng):
     np.testing.assert_array_equal(planar_clusters(covariances, 0.1), [True, True, False, False])
     normals = cluster_normals(covariances[:2])
     np.testing.assert_allclose(np.abs(normals @ rotation[:, 2]), [1.0, 1.0])
+
+
+def test_square_roots_read_off_transforms_equal_the_decomposed_ones(rng):
+    for dim in (2, 3):
+        a = rng.normal(size=(200, dim, dim)) * rng.uniform(0.001, 0.3, (200, 1, 1))
+        covariances = a @ np.swapaxes(a, 1, 2)
+        planar = rng.random(200) < 0.5
+        transforms = kernel_transforms(covariances, 3.0, 0.02, planar)
+        roots = transform_square_roots(transforms, planar, 3.0)
+        np.testing.assert_allclose(roots, covariance_square_roots(covariances, 0.02), atol=1e-12)
+        floored = np.linalg.eigvalsh(covariances).min(axis=1) < 0.02**2
+        assert 0 < floored.sum() < 200  # some eigenvalues floored, some not

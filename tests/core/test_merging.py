@@ -14,6 +14,7 @@ from ehm.core.clustering.merging import (
     merge_pooled,
 )
 from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.eigen import symmetric_eigen
 from ehm.core.search.index import ClusterIndex
 from ehm.core.search.supports import SupportHash
 
@@ -45,6 +46,13 @@ def _candidates(clusters, new, search):
     kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
     table.update(np.arange(len(clusters)), *kernels, clusters.coarse)
     return MergeCandidates.covering(table.features(new.means, *kernels))
+
+
+def _match(clusters, new, search):
+    candidates = _candidates(clusters, new, search)
+    return match_new_clusters(
+        clusters, candidates, new, symmetric_eigen(new.covariances), MapConfig()
+    )
 
 
 SEARCHES = pytest.mark.parametrize("search", ["nearest", "support"])
@@ -96,7 +104,7 @@ def test_match_merges_only_within_one_standard_deviation(rng, search):
     means = np.array([[0.05, 0, 0], [1.0, 0, 0], [2.02, 0.01, 0]])
     coarse, occupied = np.zeros(3, bool), np.ones(3, bool)
     new = _new(means, covariances, coarse, occupied)
-    targets = match_new_clusters(clusters, _candidates(clusters, new, search), new, 1.0, 1e-3)
+    targets = _match(clusters, new, search)
     np.testing.assert_array_equal(targets, [0, -1, 1])
 
 
@@ -108,7 +116,7 @@ def test_match_merges_only_clusters_of_the_same_scale(rng, search):
     covariances = np.repeat(clusters.covariances[:1], 4, axis=0)
     means = np.array([[0.05, 0, 0], [0.05, 0, 0], [2.02, 0, 0], [2.02, 0, 0]])
     new = _new(means, covariances, np.array([False, True, False, True]), np.ones(4, bool))
-    targets = match_new_clusters(clusters, _candidates(clusters, new, search), new, 1.0, 1e-3)
+    targets = _match(clusters, new, search)
     np.testing.assert_array_equal(targets, [0, -1, -1, 1])
 
 
@@ -120,7 +128,7 @@ def test_match_merges_only_clusters_of_the_same_label(rng, search):
     covariances = np.repeat(clusters.covariances[:1], 2, axis=0)
     means = np.array([[0.08, 0, 0], [0.02, 0, 0]])
     new = _new(means, covariances, np.zeros(2, bool), np.array([True, False]))
-    targets = match_new_clusters(clusters, _candidates(clusters, new, search), new, 1.0, 1e-3)
+    targets = _match(clusters, new, search)
     np.testing.assert_array_equal(targets, [0, 1])
 
 

@@ -11,8 +11,9 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.clustering.grouping import NewClusters
 from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.eigen import symmetric_eigen
 from ehm.core.model.features import SparseFeatures
-from ehm.core.model.kernels import covariance_square_roots
+from ehm.core.model.kernels import Eigen, covariance_square_roots, transform_square_roots
 from ehm.core.search.index import ClusterIndex
 
 
@@ -58,7 +59,8 @@ def absorb_clusters(
     """Merge each new cluster into one of its `candidates` among `clusters` (the map's before
     this batch) or append it with weight 0 and the prior precision, with `config.merge_rule`;
     the kernels of every changed cluster are refreshed. In place."""
-    targets = match_new_clusters(clusters, candidates, new, config.merge_threshold, config.min_std)
+    new_eigen = symmetric_eigen(new.covariances)
+    targets = match_new_clusters(clusters, candidates, new, new_eigen, config)
     merging = targets >= 0
     if merging.any():
         merge = merge_pooled if config.merge_rule == "pooled" else merge_average
@@ -74,9 +76,10 @@ def absorb_clusters(
         added.occupied,
         config.prior_precision,
     )
-    changed = np.concatenate([np.unique(targets[merging]), np.arange(start, len(clusters))])
-    clusters.refresh(changed, config)
-    return Absorbed(changed, len(added), int(merging.sum()))
+    merged, appended = np.unique(targets[merging]), np.arange(start, len(clusters))
+    clusters.refresh(merged, config)
+    clusters.refresh(appended, config, tuple(part[~merging] for part in new_eigen))
+    return Absorbed(np.concatenate([merged, appended]), len(added), int(merging.sum()))
 
 
 def anisotropic_distances(
@@ -93,12 +96,13 @@ def match_new_clusters(
     clusters: ClusterSet,
     candidates: MergeCandidates,
     new: NewClusters,
-    threshold: float,
-    min_std: float,
+    new_eigen: Eigen,
+    config: MapConfig,
 ) -> np.ndarray:
     """For each new cluster, the map cluster it merges into: among its candidates of the same
     scale and label (occupied or free), the one at the smallest anisotropic distance (Eq. 14),
-    when that is below `threshold`; else -1 to add it. Returns (n,) int64."""
+    when that is below `config.merge_threshold`; else -1 to add it. new_eigen: the new
+    clusters' covariances decomposed. Returns (n,) int64."""
     targets = np.full(len(new), -1, dtype=np.int64)
     pair_new, pair_old = candidates.pair_new, candidates.pair_old
     alike = (clusters.occupied[pair_old] == new.occupied[pair_new]) & (
@@ -107,18 +111,22 @@ def match_new_clusters(
     pair_new, pair_old = pair_new[alike], pair_old[alike]
     if len(pair_new) == 0:
         return targets
-    # Each covariance's square root once, however many pairs it is in.
+    # Each covariance's square root once, however many pairs it is in; the map's from their
+    # kernel transforms.
     old_rows, old_of_pair = np.unique(pair_old, return_inverse=True)
+    old_roots = transform_square_roots(
+        clusters.transforms[old_rows], clusters.planar_kernel[old_rows], config.length_scale
+    )
     distances = anisotropic_distances(
         new.means[pair_new],
-        covariance_square_roots(new.covariances, min_std)[pair_new],
+        covariance_square_roots(new.covariances, config.min_std, new_eigen)[pair_new],
         clusters.means[pair_old],
-        covariance_square_roots(clusters.covariances[old_rows], min_std)[old_of_pair.ravel()],
+        old_roots[old_of_pair.ravel()],
     )
     # The closest candidate of each new cluster: the first of its pairs by distance.
     order = np.lexsort((distances, pair_new))
     first = order[np.r_[True, pair_new[order][1:] != pair_new[order][:-1]]]
-    close = first[distances[first] < threshold]
+    close = first[distances[first] < config.merge_threshold]
     targets[pair_new[close]] = pair_old[close]
     return targets
 

@@ -8,7 +8,12 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.model.eigen import symmetric_eigen
-from ehm.core.model.kernels import kernel_reach, kernel_transforms, planar_clusters
+from ehm.core.model.kernels import (
+    Eigen,
+    kernel_reach,
+    kernel_transforms,
+    planar_clusters,
+)
 
 
 @dataclass
@@ -112,13 +117,15 @@ class ClusterSet:
         """(M,) metres: how far from its mean each cluster's kernel is non-zero."""
         return kernel_reach(self.transforms, self.planar_kernel)
 
-    def refresh(self, rows: np.ndarray, config: MapConfig) -> None:
+    def refresh(self, rows: np.ndarray, config: MapConfig, eigen: Eigen | None = None) -> None:
         """Recompute what follows from the statistics of clusters `rows` after they changed:
-        planar flags and kernel transforms."""
+        planar flags and kernel transforms; `eigen`: their covariances decomposed, when it is
+        known."""
         if len(rows) == 0:
             return
         covariances = self.covariances[rows]
-        eigen = symmetric_eigen(covariances)  # once, for both
+        if eigen is None:
+            eigen = symmetric_eigen(covariances)  # once, for both
         self.planar[rows] = planar_clusters(covariances, config.planar_ratio, eigen)
         self.planar_kernel[rows] = self.planar[rows] & config.planar_kernel
         self.transforms[rows] = kernel_transforms(

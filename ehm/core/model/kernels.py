@@ -198,10 +198,26 @@ def cluster_normals(covariances: np.ndarray) -> np.ndarray:
     return symmetric_eigen(covariances)[1][:, :, 0]
 
 
-def covariance_square_roots(covariances: np.ndarray, min_std: float) -> np.ndarray:
-    """Symmetric square roots (M, d, d), metres, of the floored covariances."""
-    eigenvalues, eigenvectors = floored_eigen(covariances, min_std)
+def covariance_square_roots(
+    covariances: np.ndarray, min_std: float, eigen: Eigen | None = None
+) -> np.ndarray:
+    """Symmetric square roots (M, d, d), metres, of the floored covariances; `eigen`: their
+    decomposition, when it is known."""
+    eigenvalues, eigenvectors = floored_eigen(covariances, min_std, eigen)
     return np.einsum("mij,mj,mkj->mik", eigenvectors, np.sqrt(eigenvalues), eigenvectors)
+
+
+def transform_square_roots(
+    transforms: np.ndarray, planar: np.ndarray, length_scale: float
+) -> np.ndarray:
+    """The symmetric square roots (M, d, d), metres, of the floored covariances that kernel
+    transforms T_m (M, d, d) were made from (kernel_transforms with `length_scale`, k_PS where
+    `planar` (M,) bool), read off them without a decomposition: row a of T_m is v_a^T / (s
+    sqrt(lambda'_a)), so the root, sum_a sqrt(lambda'_a) v_a v_a^T, is sum_a row_a row_a^T /
+    (s |row_a|^3)."""
+    span = np.where(planar, PLANAR_SPAN, float(length_scale))
+    norms = np.linalg.norm(transforms, axis=2)
+    return np.einsum("mai,maj,ma->mij", transforms, transforms, 1.0 / (span[:, None] * norms**3))
 
 
 def kernel_reach(transforms: np.ndarray, planar: np.ndarray | None = None) -> np.ndarray:
