@@ -138,3 +138,20 @@ def test_a_learn_box_of_another_dimension_is_refused(rng):
     scan = _ray_scan(rng, 10)
     with pytest.raises(InputError, match="learn_box is a 2D box, the scan is 3D"):
         training_samples(scan, MapConfig(learn_box=(0, 0, 1, 1)), rng)
+
+
+def test_concatenated_samples_keep_each_parts_scatter_and_zeros_for_parts_without(rng):
+    def part(n, scatter):
+        points = rng.normal(size=(n, 3))
+        spread = rng.normal(size=(n, 3, 3)) if scatter else None
+        return TrainingSamples(points, rng.random(n) < 0.5, rng.random(n) < 0.5, None, spread)
+
+    with_scatter, without = part(5, True), part(3, False)
+    joined = with_scatter + without
+    np.testing.assert_array_equal(
+        joined.points, np.concatenate([with_scatter.points, without.points])
+    )
+    np.testing.assert_array_equal(joined.scatter[:5], with_scatter.scatter)
+    np.testing.assert_array_equal(joined.scatter[5:], np.zeros((3, 3, 3)))
+    assert (with_scatter + part(0, False)) is with_scatter  # nothing copied
+    assert len(part(0, True) + part(0, False)) == 0

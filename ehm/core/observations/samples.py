@@ -67,6 +67,11 @@ class TrainingSamples:
 
     @staticmethod
     def concatenate(parts: list[TrainingSamples]) -> TrainingSamples:
+        """The samples of `parts` one after the other; a lone part with samples is returned
+        as it is (a sweep's scatter is 19 MB)."""
+        filled = [part for part in parts if len(part)]
+        if len(filled) == 1:
+            return filled[0]
         return TrainingSamples(
             np.concatenate([p.points for p in parts]),
             np.concatenate([p.occupied for p in parts]),
