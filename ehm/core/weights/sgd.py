@@ -28,16 +28,12 @@ from ehm.core.model.features import SparseFeatures
 from ehm.core.model.logistic import sigmoid, sigmoid_scalar
 
 EPSILON = 1e-8
-SGD_ROUND = 4096
-"""Visits of one round of sgd_rounds: the sides step at once, then the border."""
-SGD_BLOCK = 1024
-"""Samples a pass visits together (see `blocked_order`): their features stay in cache. A pass
-over a street sweep's samples took 14 ms against 26 with blocks of 4,096 (a TUM frame's 20
-against 21). Visiting the first pass in the stored order, already shuffled, took 12 and 13
-ms but scored held-out F1 0.888 against 0.894 on the PCL room at 40 % (seeds 0-5)."""
+SGD_BLOCK = 4096
+"""Samples a pass visits together (see `blocked_order`): their features stay in cache. A
+round of sgd_rounds visits as many."""
 BORDER = 2
 """The side of a sample whose clusters lie on both sides of space (see `space_sides`)."""
-TWO_SIDED_MIN_SAMPLES = 8 * SGD_ROUND
+TWO_SIDED_MIN_SAMPLES = 8 * SGD_BLOCK
 """Fewer samples are stepped one after the other, all on the border: in a batch of few
 rounds, the border's samples would all come late in the pass (in a 2D scan of 400 rays
 learned after another, a wall read up to 26 cm in front of where it stands)."""
@@ -67,10 +63,10 @@ def train_weights(
 ) -> None:
     """`config.epochs` passes of SGD over samples with `features`, labels `occupied` (n,)
     bool and loss weights `sample_weights` (n,) float64, each in a fresh random order (Alg. 2
-    lines 26-28, see `blocked_order`: the samples must come shuffled). The two sides of
-    space run on two threads (see `space_sides`), batches of fewer than TWO_SIDED_MIN_SAMPLES
-    samples on one. Updates the clusters' weights and AdaGrad state and bias_state in
-    place."""
+    lines 26-28, see `blocked_order`: the samples must come shuffled), the two sides of space
+    on two threads (see `space_sides`); updates the clusters' weights and AdaGrad state and
+    bias_state in place. Batches of fewer than TWO_SIDED_MIN_SAMPLES samples run on one.
+    """
     labels = occupied.astype(np.float64)
     if len(labels) >= TWO_SIDED_MIN_SAMPLES:
         sides = space_sides(features, clusters.means)
@@ -146,7 +142,7 @@ def sample_sides_reference(
 
 
 @numba.njit(cache=True)
-def visiting_plan(order, sides, round_size=SGD_ROUND):  # pragma: no cover - compiled
+def visiting_plan(order, sides, round_size=SGD_BLOCK):  # pragma: no cover - compiled
     """The visits of one pass in `order` (n,) int64, round by round (`round_size` visits
     each), each round's side 0, side 1 and BORDER samples (`sides` (n,) int64) in their order:
     (visits (n,) int64, starts (3 rounds + 1,) int64 where each round's group of each side
@@ -168,7 +164,7 @@ def visiting_plan(order, sides, round_size=SGD_ROUND):  # pragma: no cover - com
 
 
 def visiting_plan_reference(
-    order: np.ndarray, sides: np.ndarray, round_size: int = SGD_ROUND
+    order: np.ndarray, sides: np.ndarray, round_size: int = SGD_BLOCK
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plain NumPy twin of `visiting_plan`."""
     n = len(order)
