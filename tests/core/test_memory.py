@@ -13,6 +13,8 @@ from ehm.core.observations.memory import (
     PASSED,
     EvidenceMemory,
     _find,
+    batch_entries,
+    batch_entries_reference,
     merge_entries,
     merge_entries_reference,
 )
@@ -149,6 +151,25 @@ def test_arrays_round_trip_and_kept_samples_load_as_evidence(rng):
     for name, array in memory.arrays().items():
         np.testing.assert_array_equal(getattr(again, name), array)
     assert memory.weight.sum() == pytest.approx(samples.weight.sum())
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_batchs_entries_agree_with_their_numpy_twin(rng, dim):
+    points = rng.uniform(-3.0, 3.0, (600, dim))
+    points = np.concatenate([points, points[:200] + 0.01])  # cells met more than once
+    kinds = rng.integers(0, 3, len(points))
+    keys = memory_keys(points, kinds, SIDES)
+    order = np.argsort(keys)
+    batch = (keys[order], order, rng.uniform(0.5, 4.0, len(points)), points)
+    clustered = rng.random(len(points)) < 0.3
+    got = batch_entries(*batch, clustered, *SIDES)
+    want = batch_entries_reference(*batch, clustered, *SIDES)
+    assert len(got[0]) < len(points)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[3], want[3])
+    for compiled, reference in zip(got[1:3], want[1:3], strict=True):
+        np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-9)
+    assert np.all((want[2] >= 0) & (want[2] <= OFFSET_STEPS * want[1][:, None] * (1 + 1e-12)))
 
 
 def test_merging_entries_agrees_with_its_numpy_twin(rng):

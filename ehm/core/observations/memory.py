@@ -46,7 +46,9 @@ from ehm.core.observations.evidence import (
 from ehm.core.observations.memory_keys import (
     REGION_BITS,
     SUB_BITS,
+    cell_corner,
     cell_corners,
+    cell_corners_reference,
     memory_keys,
     region_ranges,
 )
@@ -123,6 +125,64 @@ def merge_entries(
             out_flags[o] = (out_flags[o] & CLUSTERED) | (CLUSTERED if formed[j] else 0)
             j += 1
     return out_keys, out_weight, out_place, out_flags
+
+
+@numba.njit(cache=True)
+def batch_entries(
+    keys, order, weight, points, clustered, fine_side, coarse_side
+):  # pragma: no cover - compiled
+    """A batch's evidence per memory cell: keys (n,) sorted, the cell of each sample in
+    `order` (n,) int64 (rows of weight (n,), points (n, d) metres and clustered (n,) bool).
+    Returns the distinct keys (c,), the weight of each (c,), the sum of weight times place of
+    its samples (c, d) (in OFFSET_STEPS of the cell's side from its corner) and whether any of
+    them formed part of a cluster (c,) bool: merge_entries' new evidence."""
+    n, d = points.shape
+    cells = 0
+    for t in range(n):
+        if t == 0 or keys[t] != keys[t - 1]:
+            cells += 1
+    new_keys = np.empty(cells, dtype=np.int64)
+    new_weight = np.zeros(cells)
+    place_sums = np.zeros((cells, d))
+    formed = np.zeros(cells, dtype=np.bool_)
+    c = -1
+    for t in range(n):
+        if t == 0 or keys[t] != keys[t - 1]:
+            c += 1
+            new_keys[c] = keys[t]
+        i = order[t]
+        new_weight[c] += weight[i]
+        for a in range(d):
+            place_sums[c, a] += weight[i] * points[i, a]
+        formed[c] |= clustered[i]
+    corner = np.empty(d)
+    for c in range(cells):
+        steps = OFFSET_STEPS / cell_corner(new_keys[c], fine_side, coarse_side, corner)
+        for a in range(d):
+            place_sums[c, a] = (place_sums[c, a] - new_weight[c] * corner[a]) * steps
+    return new_keys, new_weight, place_sums, formed
+
+
+def batch_entries_reference(
+    keys: np.ndarray,
+    order: np.ndarray,
+    weight: np.ndarray,
+    points: np.ndarray,
+    clustered: np.ndarray,
+    fine_side: float,
+    coarse_side: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `batch_entries`."""
+    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+    new_keys = keys[starts]
+    weight = weight[order]
+    w = np.add.reduceat(weight, starts)
+    sums = np.add.reduceat(weight[:, None] * points[order], starts)
+    corners = cell_corners_reference(new_keys, points.shape[1], (fine_side, coarse_side))
+    along_ray = (new_keys >> SUB_BITS) & (2**KIND_BITS - 1) == FREE_ALONG_RAY
+    steps = OFFSET_STEPS / np.where(along_ray, coarse_side, fine_side)
+    formed = np.logical_or.reduceat(clustered[order], starts)
+    return new_keys, w, (sums - w[:, None] * corners) * steps[:, None], formed
 
 
 def merge_entries_reference(
@@ -307,16 +367,18 @@ class EvidenceMemory:
         samples = visit.samples
         if not self.enabled or len(samples) == 0:
             return
-        order = np.argsort(visit.keys, kind="stable")
-        keys = visit.keys[order]
-        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-        new_keys = keys[starts]
-        weight = samples.weight[order]
-        w = np.add.reduceat(weight, starts)
-        sums = np.add.reduceat(weight[:, None] * samples.points[order], starts)
-        steps = (OFFSET_STEPS / self._sides(new_keys))[:, None]
-        place_sums = (sums - w[:, None] * self._corners(new_keys)) * steps
-        formed = np.logical_or.reduceat(clustered[order], starts)
+        # A batch's samples lie one to a cell and kind (ehm.core.observations.evidence): their
+        # keys are distinct, and a sort that is not stable serves (9 ms for the sample scan's
+        # 261,000 against 22); where keys repeat, their sums do not depend on the order.
+        order = np.argsort(visit.keys)
+        new_keys, w, place_sums, formed = batch_entries(
+            visit.keys[order],
+            order,
+            samples.weight,
+            np.ascontiguousarray(samples.points),
+            clustered,
+            *self.sides,
+        )
         keys, self.weight, self.place, self.flags = merge_entries(
             visit.memory_keys,
             self.weight,

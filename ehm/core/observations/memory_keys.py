@@ -128,24 +128,31 @@ def cell_corners(keys: np.ndarray, dim: int, sides: tuple[float, float]) -> np.n
 
 @numba.njit(cache=True, nogil=True)
 def _cell_corners(keys, dim, fine_side, coarse_side):  # pragma: no cover - compiled
-    n = len(keys)
+    corners = np.empty((len(keys), dim))
+    for i in range(len(keys)):
+        cell_corner(keys[i], fine_side, coarse_side, corners[i])
+    return corners
+
+
+@numba.njit(cache=True, inline="always")
+def cell_corner(key, fine_side, coarse_side, corner):  # pragma: no cover - compiled
+    """Write the low corner of the evidence cell of `key` to `corner` (d,), metres, world
+    frame; returns the cell's side, metres."""
+    dim = len(corner)
     bits = (63 - 1 - REGION_BITS) // dim
     half = np.int64(1) << (bits - 1)
     mask = (np.int64(1) << bits) - 1
-    corners = np.empty((n, dim))
-    for i in range(n):
-        key = keys[i]
-        along_ray = (key >> SUB_BITS) & ((1 << KIND_BITS) - 1) == FREE_ALONG_RAY
-        per_region = COARSE_CELLS_PER_RADIUS if along_ray else FINE_CELLS_PER_RADIUS
-        side = coarse_side if along_ray else fine_side
-        sub = key & ((1 << SUB_BITS) - 1)
-        rest = key >> (REGION_BITS + 1)
-        for a in range(dim - 1, -1, -1):
-            region = (rest & mask) - half
-            rest >>= bits
-            corners[i, a] = (region * per_region + sub % FINE_CELLS_PER_RADIUS) * side
-            sub //= FINE_CELLS_PER_RADIUS
-    return corners
+    along_ray = (key >> SUB_BITS) & ((1 << KIND_BITS) - 1) == FREE_ALONG_RAY
+    per_region = COARSE_CELLS_PER_RADIUS if along_ray else FINE_CELLS_PER_RADIUS
+    side = coarse_side if along_ray else fine_side
+    sub = key & ((1 << SUB_BITS) - 1)
+    rest = key >> (REGION_BITS + 1)
+    for a in range(dim - 1, -1, -1):
+        region = (rest & mask) - half
+        rest >>= bits
+        corner[a] = (region * per_region + sub % FINE_CELLS_PER_RADIUS) * side
+        sub //= FINE_CELLS_PER_RADIUS
+    return side
 
 
 def cell_corners_reference(keys: np.ndarray, dim: int, sides: tuple[float, float]) -> np.ndarray:
