@@ -86,8 +86,8 @@ def _quick_means_kernel(
     cell_sizes,
     sorted_points,
     sorted_index,
-    weights,
-    point_scatter,
+    sorted_weights,
+    sorted_scatter,
     order,
     r_inner,
     r_outer,
@@ -98,12 +98,12 @@ def _quick_means_kernel(
 
     cells (n, d): each point's cell of side `cell` from the corner `low`, keyed by `strides`
     (strides[0] == 1); cell_keys: sorted, one per cell, with the start and size of the cell's
-    points in sorted_points (their coordinates, cell by cell) and sorted_index (their rows in
-    `points`); weights (n,) and point_scatter (n, d, d) (or (0, d, d) for none): each
-    point's weight and own scatter, by row. Points taken out of the pool leave their cell
-    (sizes and the sorted arrays change in place), so a seed reads only points still
-    available, one after the other in memory. Returns (seeds, owner, counts, sums, scatter),
-    sums and scatter about each seed, each point's weighing its weight.
+    points in sorted_points (their coordinates, cell by cell), sorted_index (their rows in
+    `points`), sorted_weights (their weights) and sorted_scatter (their own scatter; (0, d, d)
+    for none). Points taken out of the pool leave their cell (sizes and the sorted arrays
+    change in place), so a seed reads only points still available, one after the other in
+    memory. Returns (seeds, owner, counts, sums, scatter), sums and scatter about each seed,
+    each point's weighing its weight.
     """
     n, d = points.shape
     reach = CELLS_PER_RADIUS
@@ -112,7 +112,7 @@ def _quick_means_kernel(
     owner = np.full(n, -1, dtype=np.int64)
     seeds = np.empty(n, dtype=np.int64)
     counts = np.zeros(n)
-    with_scatter = point_scatter.shape[0] > 0
+    with_scatter = sorted_scatter.shape[0] > 0
     sums = np.empty((n, d))  # rows written as seeds are drawn: no pages touched for the rest
     scatter = np.empty((n, d, d))
     ri2 = r_inner * r_inner
@@ -158,8 +158,7 @@ def _quick_means_kernel(
                         if dist2 >= ro2:
                             m += 1
                             continue
-                        p = sorted_index[m]
-                        w = weights[p]
+                        w = sorted_weights[m]
                         counts[s] += w
                         for a in range(d):
                             sums[s, a] += w * diff[a]
@@ -168,8 +167,9 @@ def _quick_means_kernel(
                         if with_scatter:
                             for a in range(d):
                                 for b in range(d):
-                                    scatter[s, a, b] += point_scatter[p, a, b]
+                                    scatter[s, a, b] += sorted_scatter[m, a, b]
                         if dist2 < ri2:
+                            p = sorted_index[m]
                             available[p] = False
                             owner[p] = s
                             # Out of the cell: the cell's last point takes its place.
@@ -177,8 +177,11 @@ def _quick_means_kernel(
                             tail = cell_starts[slot] + cell_sizes[slot]
                             sorted_index[m] = sorted_index[tail]
                             sorted_index[tail] = p
+                            sorted_weights[m] = sorted_weights[tail]
                             for a in range(d):
                                 sorted_points[m, a] = sorted_points[tail, a]
+                            if with_scatter:
+                                sorted_scatter[m] = sorted_scatter[tail]
                         else:
                             m += 1
                 slot += 1
@@ -186,11 +189,14 @@ def _quick_means_kernel(
     return seeds[:s].copy(), owner, counts[:s].copy(), sums[:s].copy(), scatter[:s].copy()
 
 
-def _cell_hash(points: np.ndarray, cell: float) -> tuple[np.ndarray, ...]:
+def _cell_hash(
+    points: np.ndarray, weights: np.ndarray, scatter: np.ndarray, cell: float
+) -> tuple[np.ndarray, ...]:
     """Integer cells of side `cell` of (n, d) points, their linear keys (sorted, one per
-    cell), where each cell's points start and how many there are, and the points' coordinates
-    and rows cell by cell (the arguments of _quick_means_kernel from `cells` to
-    `sorted_index`), after the cells' lower corner (d,) metres."""
+    cell), where each cell's points start and how many there are, and the points'
+    coordinates, rows, weights (n,) and scatter ((n, d, d), or none) cell by cell (the
+    arguments of _quick_means_kernel from `cells` to `sorted_scatter`), after the cells' lower
+    corner (d,) metres."""
     hashed = cell_keys(points, cell)
     distinct, starts, sorted_index = group_by_key(hashed.keys)
     sizes = np.diff(starts, append=len(points))
@@ -203,6 +209,8 @@ def _cell_hash(points: np.ndarray, cell: float) -> tuple[np.ndarray, ...]:
         sizes,
         points[sorted_index],
         sorted_index,
+        weights[sorted_index],
+        np.take(scatter, sorted_index, axis=0) if len(scatter) else scatter,
     )
 
 
@@ -249,12 +257,10 @@ def quick_means_in_order(
     cell = r_outer / CELLS_PER_RADIUS
     weights = np.ones(len(points)) if weights is None else np.asarray(weights, np.float64)
     scatter = np.zeros((0, d, d)) if scatter is None else np.asarray(scatter, np.float64)
-    low, hashed = _cell_hash(points, cell)
+    low, hashed = _cell_hash(points, weights, scatter, cell)
     seeds, owner, counts, sums, scatter = _quick_means_kernel(
         points,
         *hashed,
-        weights,
-        scatter,
         np.asarray(order, dtype=np.int64),
         float(r_inner),
         float(r_outer),
