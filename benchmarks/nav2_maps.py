@@ -3,13 +3,15 @@
     python benchmarks/nav2_maps.py [--seeds 0,1,2] [--fractions 0.8,0.4]
 
 Each 2D data set (the Intel lab, a generated office floor) is split by held-out rays. EHM
-learns the training rays scan by scan at 0.05 m (`MapConfig.for_resolution`), is exported
-with `ehm.io.exports.write_map_server` and read back from the .pgm the way map_server reads
-it in trinary mode: a pixel p has occupancy (255 - p) / 255, occupied above 0.65, free below
-0.196, unknown between. OctoMap at 0.05 m gives each pixel the occupancy of its voxel,
-written to a pixel the same way (unknown voxels grey). Reported per method: the share of
-held-out free points (ray-observed free space) read free and read unknown, the share of
-held-out hits read occupied and read free, and held-out F1 at 0.5.
+learns the training rays scan by scan at 0.05 m (`MapConfig.for_resolution`), its navigation
+grid (`ehm.grid.navigation`) is exported with `ehm.io.exports.write_map_server` and read back
+from the .pgm the way map_server reads it in trinary mode: a pixel p has occupancy
+(255 - p) / 255, occupied above 0.65, free below 0.196, unknown between. OctoMap at 0.05 m
+gives each pixel the occupancy of its voxel, written to a pixel as round(255 (1 - p))
+(unknown voxels grey). Reported per method: the share of held-out free points (ray-observed
+free space) read free and read unknown, the share of held-out hits read occupied and read
+free, the share of unseen points read free (0.2-1 m behind training hits, along their rays,
+where no training ray passed: OctoMap's voxel there is unknown), and held-out F1 at 0.5.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from ehm.eval.datasets import DataMissingError, load_dataset
 from ehm.eval.datasets.simulated import corridor_2d
 from ehm.eval.metrics import f1_score
 from ehm.eval.protocol import HeldOutSplit, held_out_rays
+from ehm.grid.navigation import navigation_grid
 from ehm.io.exports import (
     MAP_SERVER_FREE,
     MAP_SERVER_OCCUPIED,
@@ -58,7 +61,7 @@ def ehm_reading(hilbert_map: ehm.HilbertMap, points: np.ndarray) -> np.ndarray:
     """The trinary reading of the map_server export of `hilbert_map` at `points` (n, 2);
     unknown outside the exported image."""
     bounds = aligned_bounds(hilbert_map.extent(), RESOLUTION)
-    grid = hilbert_map.grid(bounds, RESOLUTION)
+    grid = navigation_grid(hilbert_map, bounds, RESOLUTION)
     with tempfile.TemporaryDirectory() as folder:
         image_path = Path(folder) / "map.pgm"
         write_map_server(grid, image_path)
@@ -78,23 +81,41 @@ def octomap_reading(occupancy: np.ndarray) -> np.ndarray:
     return trinary(np.where(occupancy == 0.5, MAP_SERVER_UNKNOWN_PIXEL, pixels))
 
 
+def unseen_points(train: list[ehm.Scan], n: int = 20_000, seed: int = 0) -> np.ndarray:
+    """(m, 2) points 0.2-1 m behind random training hits along their rays where OctoMap,
+    built from the same scans, has no voxel: space no training ray passed."""
+    rng = np.random.default_rng(seed)
+    hits = np.concatenate([scan.points_world[scan.hit_mask] for scan in train])
+    origins = np.concatenate([np.broadcast_to(s.origin, (int(s.hit_mask.sum()), 2)) for s in train])
+    pick = rng.choice(len(hits), n)
+    directions = hits[pick] - origins[pick]
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    behind = hits[pick] + directions * rng.uniform(0.2, 1.0, n)[:, None]
+    octomap = OctoMapMapper(RESOLUTION)
+    octomap.build(train)
+    return behind[octomap.occupancy(behind) == 0.5]
+
+
 def measures(method: str, split: HeldOutSplit) -> list[float]:
     """For `method` learned from the split's training scans: free points read free and read
-    unknown, hits read occupied and read free (map_server's reading of its export), and
-    held-out F1 (its occupancy at 0.5)."""
+    unknown, hits read occupied and read free, unseen points read free (map_server's reading
+    of its export), and held-out F1 (its occupancy at 0.5)."""
+    unseen = unseen_points(split.train)
+    points = np.concatenate([split.points, unseen])
     if method == "ehm":
         config = ehm.MapConfig.for_resolution(RESOLUTION)
         hilbert_map = MappingPipeline(split.train, ehm.HilbertMap(config)).run().hilbert_map
         occupancy = hilbert_map.occupancy(split.points)
-        reading = ehm_reading(hilbert_map, split.points)
+        reading = ehm_reading(hilbert_map, points)
     else:
         octomap = OctoMapMapper(RESOLUTION)
         octomap.build(split.train)
         occupancy = octomap.occupancy(split.points)
-        reading = octomap_reading(occupancy)
-    free, hit = reading[~split.occupied], reading[split.occupied]
+        reading = octomap_reading(octomap.occupancy(points))
+    held_out, unseen_reading = reading[: len(split.points)], reading[len(split.points) :]
+    free, hit = held_out[~split.occupied], held_out[split.occupied]
     shares = [np.mean(free == 0), np.mean(free == -1), np.mean(hit == 1), np.mean(hit == 0)]
-    return [*shares, f1_score(split.occupied, occupancy > 0.5)]
+    return [*shares, np.mean(unseen_reading == 0), f1_score(split.occupied, occupancy > 0.5)]
 
 
 def main() -> None:
@@ -125,6 +146,7 @@ def main() -> None:
         "free read unknown",
         "hits read occupied",
         "hits read free",
+        "unseen read free",
         "held-out F1",
     ]
     print(markdown_table(header, rows, text_columns=3))

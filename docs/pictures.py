@@ -20,6 +20,7 @@ import ehm
 from ehm.eval.datasets import floor_plan_2d, virtual_room
 from ehm.eval.datasets.changing import changing_room
 from ehm.eval.datasets.simulated import CityDrive
+from ehm.grid.navigation import navigation_grid
 from ehm.io.exports import write_map_server
 from ehm.viz.pictures import (
     changes_picture,
@@ -47,7 +48,7 @@ def main() -> None:
     plan = ehm.HilbertMap().fit(floor_plan_2d().scans)
     grid_picture(plan.grid(resolution=0.05), IMAGES / "floor_plan.png", title="floor plan")
     with tempfile.TemporaryDirectory() as folder:
-        write_map_server(plan.grid(resolution=0.05), Path(folder) / "floor.pgm")
+        write_map_server(navigation_grid(plan, resolution=0.05), Path(folder) / "floor.pgm")
         nav2 = Image.open(Path(folder) / "floor.pgm")
         nav2.resize((4 * nav2.width, 4 * nav2.height), Image.NEAREST).save(
             IMAGES / "floor_nav2.png"

@@ -264,6 +264,7 @@ def test_export_writes_each_format(room_map_file, map_file, tmp_path):
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.pgm")])
     assert result.exit_code == 0, result.output
     assert (tmp_path / "plan.yaml").read_text().startswith("image: plan.pgm\n")
+    assert re.search(r"\d+ x \d+ cells of 0.05 m: free \d+%, occupied \d+%", result.output)
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.bt")])
     assert result.exit_code == 2 and "OctoMap trees are 3D" in result.stderr
     result = runner.invoke(app, ["export", str(room_map_file), "-o", str(tmp_path / "r.pgm")])

@@ -250,19 +250,36 @@ def export(
             hilbert_map, aligned, resolution, level, unknown_is_occupied, max_gib, output
         )
         return
+    if output.suffix == ".pgm":
+        _export_map_server(hilbert_map, aligned, resolution, max_gib, output)
+        return
     occupancy_grid = map_grid(hilbert_map, aligned, resolution, max_gib)
     if output.suffix in exports.OCTOMAP_SUFFIXES:
         known = exports.write_octomap(occupancy_grid, output)
         console.print(f"{occupancy_grid!r}: {known} known voxels\nwrote {output}")
-    elif output.suffix == ".pgm":
-        yaml_path = exports.write_map_server(occupancy_grid, output)
-        console.print(f"{occupancy_grid!r}\nwrote {output} and {yaml_path}")
     else:
         points = exports.occupied_voxels(occupancy_grid, level)
         if occupancy_grid.dim == 2:
             points = np.column_stack([points, np.zeros(len(points))])
         exports.write_point_cloud(points, output)
         console.print(f"{len(points)} occupied voxels\nwrote {output}")
+
+
+def _export_map_server(any_map, bounds, resolution: float, max_gib: float, output: Path) -> None:
+    """Write the map's navigation grid (ehm.grid.navigation) as a map_server map."""
+    from ehm.grid.navigation import FREE, OCCUPIED, navigation_grid
+    from ehm.io import exports
+
+    if any_map.dim != 2:
+        raise InputError("map_server maps are 2D; export a 3D map as .ot, .bt, .ply or .pcd")
+    grid = navigation_grid(any_map, bounds, resolution, grid_bytes(max_gib))
+    yaml_path = exports.write_map_server(grid, output)
+    shares = ", ".join(
+        f"{name} {(grid.states == state).mean():.0%}"
+        for name, state in (("free", FREE), ("occupied", OCCUPIED))
+    )
+    console.print(f"{' x '.join(map(str, grid.shape))} cells of {resolution} m: {shares}")
+    console.print(f"wrote {output} and {yaml_path}")
 
 
 def _export_distance(

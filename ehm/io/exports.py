@@ -1,8 +1,9 @@
 """A map's grid in the formats robotics tools read: OctoMap trees (.ot, .bt), ROS map_server
-images (.pgm with its .yaml) and point clouds of the occupied voxels (.ply, .pcd).
+images (.pgm with its .yaml, from a navigation grid, ehm.grid.navigation) and point clouds of
+the occupied voxels (.ply, .pcd).
 
 Voxels that no kernel reaches (log-odds exactly 0 before the intercept) are unknown: left out
-of OctoMap trees, grey in map_server images, never occupied.
+of OctoMap trees, never occupied.
 
     grid = hilbert_map.grid(aligned_bounds(hilbert_map.extent(), 0.1), 0.1)
     write_octomap(grid, "map.bt")
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ehm.errors import InputError, OutputError
+from ehm.grid.navigation import FREE, OCCUPIED, NavigationGrid
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.io.octomap_bindings import octomap_module
 
@@ -26,7 +28,7 @@ OCTOMAP_KEY_HALF = 2**15
 # below free_thresh free, between them unknown. map_saver's thresholds and unknown grey.
 MAP_SERVER_OCCUPIED = 0.65
 MAP_SERVER_FREE = 0.196
-MAP_SERVER_UNKNOWN_PIXEL = 205
+MAP_SERVER_OCCUPIED_PIXEL, MAP_SERVER_FREE_PIXEL, MAP_SERVER_UNKNOWN_PIXEL = 0, 254, 205
 
 
 def aligned_bounds(bounds: np.ndarray, resolution: float) -> np.ndarray:
@@ -88,18 +90,25 @@ def octree_of_grid(grid: OccupancyGrid):
     return tree
 
 
-def write_map_server(grid: OccupancyGrid, path: str | PathLike[str]) -> Path:
-    """Write a 2D grid as a ROS map_server map: `path` (.pgm, 8-bit, first row the top) with
-    pixel round(255 (1 - p)) for known cells and 205 for unknown ones, and beside it a .yaml
-    (image, resolution, origin, negate, thresholds; mode trinary), which nav2 and map_server
-    read. Returns the .yaml's path."""
+def write_map_server(grid: NavigationGrid, path: str | PathLike[str]) -> Path:
+    """Write a 2D navigation grid (ehm.grid.navigation) as a ROS map_server map: `path` (.pgm,
+    8-bit, first row the top) with the pixels map_saver writes, 0 for occupied cells, 254 for
+    free ones and 205 for unknown ones, and beside it a .yaml (image, resolution, origin,
+    negate, thresholds; mode trinary), which nav2 and map_server read. Returns the .yaml's
+    path."""
     path = Path(path)
+    if not isinstance(grid, NavigationGrid):
+        raise InputError(
+            "map_server maps are written from a navigation grid, each cell occupied, free or "
+            "unknown: ehm.grid.navigation.navigation_grid(map, bounds, resolution)"
+        )
     if grid.dim != 2:
         raise InputError("map_server maps are 2D; export a 3D map as .ot, .bt, .ply or .pcd")
     if path.suffix != ".pgm":
         raise OutputError(f"{path}: map_server images end in .pgm")
-    pixels = np.rint(255.0 * (1.0 - grid.probability)).astype(np.uint8)
-    pixels[grid.scores == 0.0] = MAP_SERVER_UNKNOWN_PIXEL
+    pixels = np.full(grid.shape, MAP_SERVER_UNKNOWN_PIXEL, dtype=np.uint8)
+    pixels[grid.states == OCCUPIED] = MAP_SERVER_OCCUPIED_PIXEL
+    pixels[grid.states == FREE] = MAP_SERVER_FREE_PIXEL
     image = pixels.T[::-1]  # rows from the top (largest y), columns along x
     height, width = image.shape
     with open(path, "wb") as stream:

@@ -6,7 +6,7 @@ import pytest
 from PIL import Image
 
 import ehm
-from ehm.grid.occupancy_grid import OccupancyGrid
+from ehm.grid.navigation import FREE, OCCUPIED, UNKNOWN, NavigationGrid, navigation_grid
 from ehm.io.exports import (
     aligned_bounds,
     occupied_voxels,
@@ -71,24 +71,29 @@ def test_bt_files_hold_the_occupied_voxels_and_no_others(room_grid, tmp_path):
 
 def test_map_server_maps_read_back_as_nav2_reads_them(plan, tmp_path):
     plan_map = ehm.HilbertMap().fit(plan.scans)
-    grid = plan_map.grid(aligned_bounds(plan_map.extent(), 0.1), 0.1)
+    grid = navigation_grid(plan_map, aligned_bounds(plan_map.extent(), 0.1), 0.1)
     yaml_path = write_map_server(grid, tmp_path / "plan.pgm")
     settings = dict(line.split(": ", 1) for line in yaml_path.read_text().splitlines())
     assert settings["image"] == "plan.pgm" and float(settings["resolution"]) == 0.1
+    assert settings["mode"] == "trinary"
     origin = [float(v) for v in settings["origin"].strip("[]").split(",")]
     np.testing.assert_allclose(origin, [*grid.origin, 0.0])
     image = np.asarray(Image.open(tmp_path / "plan.pgm"))
     assert image.shape == (grid.shape[1], grid.shape[0])
     occupancy = (255 - image.astype(float)) / 255  # map_server's reading, negate 0
+    read = np.where(
+        occupancy > float(settings["occupied_thresh"]),
+        OCCUPIED,
+        np.where(occupancy < float(settings["free_thresh"]), FREE, UNKNOWN),
+    )
     # Row r from the top is y index ny - 1 - r; column c is x index c.
-    expected = grid.probability.T[::-1]
-    known = grid.scores.T[::-1] != 0
-    np.testing.assert_allclose(occupancy[known], expected[known], atol=0.5 / 255 + 1e-12)
-    assert np.all(image[~known] == 205)
-    unknown = occupancy[~known]
-    assert np.all((unknown > float(settings["free_thresh"])) & (unknown < 0.65))
+    np.testing.assert_array_equal(read, grid.states.T[::-1])
+    assert {OCCUPIED, FREE, UNKNOWN} <= set(np.unique(read).tolist())
+    with pytest.raises(ehm.InputError, match="written from a navigation grid"):
+        write_map_server(plan_map.grid(resolution=0.1), tmp_path / "x.pgm")
+    solid = NavigationGrid(np.zeros(3), 0.1, np.zeros((2, 2, 2), dtype=np.int8))
     with pytest.raises(ehm.InputError, match="map_server maps are 2D"):
-        write_map_server(OccupancyGrid(np.zeros(3), 0.1, (2, 2, 2)), tmp_path / "x.pgm")
+        write_map_server(solid, tmp_path / "x.pgm")
 
 
 def test_occupied_voxels_as_point_clouds(room_grid, tmp_path):

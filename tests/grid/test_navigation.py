@@ -1,0 +1,102 @@
+"""Navigation grids: each cell occupied, free or unknown, from a grid twice as fine."""
+
+import numpy as np
+import pytest
+
+import ehm
+from ehm.grid.navigation import (
+    FREE,
+    KNOWN_VARIANCE_SHARE,
+    OCCUPIED,
+    UNKNOWN,
+    NavigationGrid,
+    navigation_grid,
+)
+from ehm.grid.occupancy_grid import OccupancyGrid
+from ehm.io.exports import aligned_bounds
+
+
+def test_cells_take_occupied_anywhere_free_where_known_else_unknown():
+    # Four cells of 2 x 2 voxels: log-odds and log-odds variance (prior precision 2: prior 0.5).
+    log_odds = np.full((4, 4), -3.0)
+    log_odds[0, 3] = 0.1  # above 0.5 in one voxel of cell (0, 1)
+    variance = np.full((4, 4), 0.1)
+    variance[2:, 2:] = [[0.5, 0.5], [0.5, 0.5]]  # the prior's: nothing observed
+    variance[2:, :2] = [[0.5, 0.5], [0.1, 0.5]]  # mean 0.4 = KNOWN_VARIANCE_SHARE of 0.5
+    fine = OccupancyGrid.of_log_odds(np.array([1.0, 2.0]), 0.05, log_odds, variance)
+    grid = NavigationGrid.of_fine_grid(fine, prior_precision=2.0)
+    assert KNOWN_VARIANCE_SHARE == 0.8
+    np.testing.assert_array_equal(grid.states, [[FREE, OCCUPIED], [FREE, UNKNOWN]])
+    assert grid.states.dtype == np.int8 and grid.resolution == 0.1
+    np.testing.assert_array_equal(grid.origin, [1.0, 2.0])
+
+
+def test_a_cell_no_kernel_reaches_is_unknown_however_certain():
+    fine = OccupancyGrid.of_log_odds(np.zeros(2), 0.05, np.zeros((2, 2)), np.zeros((2, 2)))
+    assert NavigationGrid.of_fine_grid(fine, 1.0).states.tolist() == [[UNKNOWN]]
+
+
+def test_fine_grids_without_std_or_of_odd_shape_are_refused():
+    with pytest.raises(ValueError, match="with its std"):
+        NavigationGrid.of_fine_grid(OccupancyGrid(np.zeros(2), 0.05, (4, 4)), 1.0)
+    odd = OccupancyGrid.of_log_odds(np.zeros(2), 0.05, np.ones((4, 3)), np.ones((4, 3)))
+    with pytest.raises(ValueError, match=r"shape \(4, 3\) does not split"):
+        NavigationGrid.of_fine_grid(odd, 1.0)
+
+
+@pytest.fixture(scope="module")
+def plan_navigation(plan):
+    plan_map = ehm.HilbertMap().fit(plan.scans)
+    bounds = aligned_bounds(plan_map.extent(), 0.05)
+    return plan_map, navigation_grid(plan_map, bounds, 0.05)
+
+
+def cell_states(grid, points):
+    cells = np.floor((points - grid.origin) / grid.resolution).astype(int)
+    return grid.states[tuple(cells.T)]
+
+
+def test_hit_cells_read_occupied_and_crossed_space_free(plan, plan_navigation):
+    plan_map, grid = plan_navigation
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in plan.scans])
+    assert np.mean(cell_states(grid, hits) == OCCUPIED) > 0.93  # 0.945
+    # The grid at the cells' centres, read by map_server's threshold, holds half as many.
+    centres = plan_map.grid(aligned_bounds(plan_map.extent(), 0.05), 0.05)
+    at_centres = centres.probability[tuple(np.floor((hits - centres.origin) / 0.05).astype(int).T)]
+    assert np.mean(at_centres > 0.65) < 0.5
+    # Points halfway along the rays that returned, 0.5 m or more from their hit.
+    crossed = []
+    for scan in plan.scans:
+        ends = scan.points_world[scan.hit_mask]
+        length = np.linalg.norm(ends - scan.origin, axis=1)
+        crossed.append((scan.origin + ends[length > 1.0]) / 2)
+    assert np.mean(cell_states(grid, np.concatenate(crossed)) == FREE) > 0.98  # 0.995
+    # The grid is the map's: every cell that reads occupied holds p >= 0.5 somewhere.
+    occupied = np.argwhere(grid.states == OCCUPIED)
+    centres = grid.origin + (occupied + 0.5) * grid.resolution
+    corners = centres[:, None, :] + 0.0125 * np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]])
+    assert np.all(plan_map.occupancy(corners.reshape(-1, 2)).reshape(-1, 4).max(axis=1) > 0.5)
+
+
+def test_space_far_from_every_ray_reads_unknown(plan, plan_navigation):
+    plan_map, _ = plan_navigation
+    far = np.array([[40.0, 40.0], [-40.0, 30.0]])
+    extent = plan_map.extent()
+    bounds = np.stack([np.minimum(extent[0], far.min(0)), np.maximum(extent[1], far.max(0))])
+    grid = navigation_grid(plan_map, aligned_bounds(bounds, 0.5), 0.5)
+    assert np.all(cell_states(grid, far) == UNKNOWN)
+
+
+def test_tiled_maps_give_navigation_grids_too(plan):
+    tiled = ehm.TiledMap(tile_size=4.0)
+    for scan in plan.scans:
+        tiled.integrate_scan(scan)
+    grid = navigation_grid(tiled, resolution=0.05)
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in plan.scans])
+    inside = np.all((hits > grid.origin) & (hits < grid.origin + 0.05 * np.array(grid.shape)), 1)
+    assert np.mean(cell_states(grid, hits[inside]) == OCCUPIED) > 0.9
+
+
+def test_an_empty_map_has_no_navigation_grid():
+    with pytest.raises(ehm.EmptyMapError, match="the map is empty"):
+        navigation_grid(ehm.HilbertMap())
