@@ -125,6 +125,7 @@ def kernel_code(r2: float, r_max: float, planar: bool) -> float:  # pragma: no c
 
 @numba.njit(cache=True)
 def _kernels_of_codes_serial(codes):  # pragma: no cover - compiled
+    """kernels_of_codes on one thread: a loop without branches, which LLVM vectorises."""
     for t in range(codes.shape[0]):
         code = codes[t]
         value = sparse_kernel(np.sqrt(max(code, 0.0)))
