@@ -100,3 +100,5 @@ def test_square_roots_read_off_transforms_equal_the_decomposed_ones(rng):
         np.testing.assert_allclose(roots, covariance_square_roots(covariances, 0.02), atol=1e-12)
         floored = np.linalg.eigvalsh(covariances).min(axis=1) < 0.02**2
         assert 0 < floored.sum() < 200  # some eigenvalues floored, some not
+        squares = roots[~floored] @ roots[~floored]
+        np.testing.assert_allclose(squares, covariances[~floored], atol=1e-12)

@@ -9,12 +9,14 @@ from ehm.core.clustering.merging import (
     MergeCandidates,
     absorb_clusters,
     anisotropic_distances,
+    anisotropic_distances_reference,
     match_new_clusters,
     merge_average,
     merge_pooled,
 )
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.eigen import symmetric_eigen
+from ehm.core.model.kernels import covariance_square_roots
 from ehm.core.search.index import ClusterIndex
 from ehm.core.search.supports import SupportHash
 
@@ -93,8 +95,25 @@ def test_anisotropic_distance_is_eq14():
     # Sigma_a = Sigma_b = diag(1, 4, 9): (sqrt + sqrt)^2 = diag(4, 16, 36).
     roots = np.diag([1.0, 2.0, 3.0])[None]
     offset = np.array([[2.0, 4.0, 0.0]])
-    distance = anisotropic_distances(offset, roots, np.zeros((1, 3)), roots)
+    rows = np.zeros(1, dtype=np.int64)
+    distance = anisotropic_distances(offset, roots, rows, np.zeros((1, 3)), roots, rows)
     np.testing.assert_allclose(distance, [np.sqrt(4 / 4 + 16 / 16)])
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_anisotropic_distances_agree_with_their_numpy_twin(rng, dim):
+    def side(n):
+        a = rng.normal(size=(n, dim, dim)) * 0.3
+        roots = covariance_square_roots(a @ np.swapaxes(a, 1, 2), 0.01)
+        return rng.uniform(-1.0, 1.0, (n, dim)), roots
+
+    means_a, roots_a = side(30)
+    means_b, roots_b = side(40)
+    rows_a, rows_b = rng.integers(0, 30, 500), rng.integers(0, 40, 500)
+    pairs = (means_a, roots_a, rows_a, means_b, roots_b, rows_b)
+    distances = anisotropic_distances(*pairs)
+    np.testing.assert_allclose(distances, anisotropic_distances_reference(*pairs), rtol=1e-10)
+    assert distances.min() < 1.0 < distances.max()
 
 
 @SEARCHES

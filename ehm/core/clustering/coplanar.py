@@ -75,9 +75,8 @@ def coplanar_pairs(
     involved = np.unique(np.concatenate([first, second]))
     roots = covariance_square_roots(clusters.covariances[involved], min_std)
     slot_first, slot_second = np.searchsorted(involved, first), np.searchsorted(involved, second)
-    distances = anisotropic_distances(
-        clusters.means[first], roots[slot_first], clusters.means[second], roots[slot_second]
-    )
+    means = clusters.means[involved]
+    distances = anisotropic_distances(means, roots, slot_first, means, roots, slot_second)
     close = distances < max_distance
     first, second, distances = first[close], second[close], distances[close]
     taken = np.zeros(len(clusters), dtype=bool)

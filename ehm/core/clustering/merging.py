@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ehm.config import MapConfig
@@ -83,12 +84,74 @@ def absorb_clusters(
 
 
 def anisotropic_distances(
-    means_a: np.ndarray, roots_a: np.ndarray, means_b: np.ndarray, roots_b: np.ndarray
+    means_a: np.ndarray,
+    roots_a: np.ndarray,
+    rows_a: np.ndarray,
+    means_b: np.ndarray,
+    roots_b: np.ndarray,
+    rows_b: np.ndarray,
 ) -> np.ndarray:
-    """Eq. 14 between rows of a and rows of b: sqrt(mu^T Sigma^-1 mu), Sigma = (sqrt(Sigma_a) +
-    sqrt(Sigma_b))^2, mu = mu_a - mu_b. Inputs (n, d) and (n, d, d); returns (n,)."""
-    offsets = means_a - means_b
-    solved = np.linalg.solve(roots_a + roots_b, offsets[..., None])[..., 0]
+    """Eq. 14 between the clusters rows_a (p,) int64 of a and rows_b (p,) of b, pair by pair:
+    sqrt(mu^T Sigma^-1 mu), Sigma = (sqrt(Sigma_a) + sqrt(Sigma_b))^2, mu = mu_a - mu_b, from
+    means (n, d) and symmetric covariance roots (n, d, d) of each side (2D or 3D). Returns
+    (p,) float64."""
+    return _anisotropic_distances(
+        means_a,
+        roots_a,
+        np.asarray(rows_a, np.int64),
+        means_b,
+        roots_b,
+        np.asarray(rows_b, np.int64),
+    )
+
+
+@numba.njit(cache=True, parallel=True)
+def _anisotropic_distances(means_a, roots_a, rows_a, means_b, roots_b, rows_b):  # pragma: no cover
+    n, d = len(rows_a), means_a.shape[1]
+    distances = np.empty(n)
+    for p in numba.prange(n):
+        i, j = rows_a[p], rows_b[p]
+        # |S^-1 mu| with S = root_a + root_b, symmetric: S^-1 = adj(S) / det(S).
+        s00 = roots_a[i, 0, 0] + roots_b[j, 0, 0]
+        s01 = roots_a[i, 0, 1] + roots_b[j, 0, 1]
+        s11 = roots_a[i, 1, 1] + roots_b[j, 1, 1]
+        m0 = means_a[i, 0] - means_b[j, 0]
+        m1 = means_a[i, 1] - means_b[j, 1]
+        if d == 2:
+            det = s00 * s11 - s01 * s01
+            x0 = (s11 * m0 - s01 * m1) / det
+            x1 = (s00 * m1 - s01 * m0) / det
+            distances[p] = np.sqrt(x0 * x0 + x1 * x1)
+            continue
+        s02 = roots_a[i, 0, 2] + roots_b[j, 0, 2]
+        s12 = roots_a[i, 1, 2] + roots_b[j, 1, 2]
+        s22 = roots_a[i, 2, 2] + roots_b[j, 2, 2]
+        m2 = means_a[i, 2] - means_b[j, 2]
+        c00 = s11 * s22 - s12 * s12
+        c01 = s02 * s12 - s01 * s22
+        c02 = s01 * s12 - s02 * s11
+        c11 = s00 * s22 - s02 * s02
+        c12 = s01 * s02 - s00 * s12
+        c22 = s00 * s11 - s01 * s01
+        det = s00 * c00 + s01 * c01 + s02 * c02
+        x0 = (c00 * m0 + c01 * m1 + c02 * m2) / det
+        x1 = (c01 * m0 + c11 * m1 + c12 * m2) / det
+        x2 = (c02 * m0 + c12 * m1 + c22 * m2) / det
+        distances[p] = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    return distances
+
+
+def anisotropic_distances_reference(
+    means_a: np.ndarray,
+    roots_a: np.ndarray,
+    rows_a: np.ndarray,
+    means_b: np.ndarray,
+    roots_b: np.ndarray,
+    rows_b: np.ndarray,
+) -> np.ndarray:
+    """Plain NumPy twin of `anisotropic_distances`."""
+    offsets = means_a[rows_a] - means_b[rows_b]
+    solved = np.linalg.solve(roots_a[rows_a] + roots_b[rows_b], offsets[..., None])[..., 0]
     return np.linalg.norm(solved, axis=-1)
 
 
@@ -118,10 +181,12 @@ def match_new_clusters(
         clusters.transforms[old_rows], clusters.planar_kernel[old_rows], config.length_scale
     )
     distances = anisotropic_distances(
-        new.means[pair_new],
-        covariance_square_roots(new.covariances, config.min_std, new_eigen)[pair_new],
-        clusters.means[pair_old],
-        old_roots[old_of_pair.ravel()],
+        new.means,
+        covariance_square_roots(new.covariances, config.min_std, new_eigen),
+        pair_new,
+        clusters.means[old_rows],
+        old_roots,
+        old_of_pair.ravel(),
     )
     # The closest candidate of each new cluster: the first of its pairs by distance.
     order = np.lexsort((distances, pair_new))

@@ -205,7 +205,8 @@ def covariance_square_roots(
     """Symmetric square roots (M, d, d), metres, of the floored covariances; `eigen`: their
     decomposition, when it is known."""
     eigenvalues, eigenvectors = floored_eigen(covariances, min_std, eigen)
-    return np.einsum("mij,mj,mkj->mik", eigenvectors, np.sqrt(eigenvalues), eigenvectors)
+    halves = eigenvectors * eigenvalues[:, None, :] ** 0.25  # V diag(lambda^1/4)
+    return np.matmul(halves, np.swapaxes(halves, 1, 2))
 
 
 def transform_square_roots(
@@ -218,7 +219,8 @@ def transform_square_roots(
     (s |row_a|^3)."""
     span = np.where(planar, PLANAR_SPAN, float(length_scale))
     norms = np.linalg.norm(transforms, axis=2)
-    return np.einsum("mai,maj,ma->mij", transforms, transforms, 1.0 / (span[:, None] * norms**3))
+    rows = transforms / np.sqrt(span[:, None] * norms**3)[:, :, None]
+    return np.matmul(np.swapaxes(rows, 1, 2), rows)
 
 
 def kernel_reach(transforms: np.ndarray, planar: np.ndarray | None = None) -> np.ndarray:
