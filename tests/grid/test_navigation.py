@@ -100,3 +100,15 @@ def test_tiled_maps_give_navigation_grids_too(plan):
 def test_an_empty_map_has_no_navigation_grid():
     with pytest.raises(ehm.EmptyMapError, match="the map is empty"):
         navigation_grid(ehm.HilbertMap())
+
+
+def test_a_3d_map_gives_voxels_occupied_where_it_was_hit(room, room_map):
+    bounds = aligned_bounds(np.array([[-2.0, -2.0, 0.0], [2.0, 2.0, 2.6]]), 0.05)
+    grid = navigation_grid(room_map, bounds, 0.05)
+    assert grid.dim == 3 and grid.resolution == 0.05
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in room.scans])
+    inside = np.all((hits > bounds[0] + 1e-9) & (hits < bounds[1] - 1e-9), axis=1)
+    # 0.886; p above 0.5 at the voxels' centres: 0.545.
+    assert np.mean(cell_states(grid, hits[inside]) == OCCUPIED) > 0.85
+    origin = room.scans[0].origin
+    assert cell_states(grid, origin[None])[0] == FREE  # the sensor stood in free space
