@@ -29,6 +29,7 @@ from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines import make_mapper
 from ehm.eval.datasets import (
     DataMissingError,
+    dense_room,
     load_dataset,
     outdoor_lidar,
     street,
@@ -46,6 +47,8 @@ SIMULATED = {
     "warehouse": warehouse,
     "street": street,
     "outdoor_lidar": outdoor_lidar,
+    "dense_room": dense_room,
+    "dense_room_noisy": lambda: dense_room(noise_std=0.01),
 }
 DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab", "octomap_scan")
 # Test points near surfaces: uniform in balls of this radius around training hits, metres.

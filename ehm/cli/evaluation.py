@@ -33,8 +33,8 @@ def eval_command(
     datasets: Annotated[
         str,
         typer.Option(
-            help="Comma-separated: virtual_room warehouse street octomap_scan "
-            "tum_fr2_pioneer_slam2 pcl_room intel_lab, or all."
+            help="Comma-separated: virtual_room warehouse street dense_room dense_room_noisy "
+            "octomap_scan tum_fr2_pioneer_slam2 pcl_room intel_lab, or all."
         ),
     ] = "virtual_room",
     fractions: Annotated[str, typer.Option(help="Train fractions of the rays.")] = "0.8,0.6,0.4",

@@ -4,6 +4,7 @@ from collections.abc import Callable
 
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
+from ehm.eval.datasets.depth_camera import dense_room
 from ehm.eval.datasets.real import REAL_DATASETS, DataMissingError
 from ehm.eval.datasets.scene import Scene
 from ehm.eval.datasets.simulated import (
@@ -19,6 +20,8 @@ DATASETS: dict[str, Callable[[], list[Scan]]] = {
     "virtual_room": lambda: virtual_room().scans,
     "warehouse": lambda: warehouse().scans,
     "street": lambda: street().scans,
+    "dense_room": lambda: dense_room().scans,
+    "dense_room_noisy": lambda: dense_room(noise_std=0.01).scans,
     **REAL_DATASETS,
 }
 """The evaluation's data sets by name, each a loader of its scans in order."""
@@ -37,6 +40,7 @@ __all__ = [
     "DataMissingError",
     "Scene",
     "SimulatedDataset",
+    "dense_room",
     "floor_plan_2d",
     "load_dataset",
     "outdoor_lidar",
