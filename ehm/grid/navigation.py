@@ -60,10 +60,9 @@ class NavigationGrid:
         return self.states.ndim
 
     @classmethod
-    def of_fine_grid(cls, fine: OccupancyGrid, prior_precision: float) -> NavigationGrid:
+    def of_fine_grid(cls, fine: OccupancyGrid) -> NavigationGrid:
         """The cells of SUBCELLS^d voxels each of `fine`, a grid made with its std whose shape
-        is a multiple of SUBCELLS along every axis; prior_precision: the map's
-        (MapConfig.prior_precision)."""
+        is a multiple of SUBCELLS along every axis."""
         if not fine.has_std:
             raise ValueError("a navigation grid is made from a grid with its std")
         shape = tuple(n // SUBCELLS for n in fine.shape)
@@ -76,8 +75,9 @@ class NavigationGrid:
         occupied = ((fine.probability > 0.5) & reached).reshape(split).any(axis=within)
         reached = reached.reshape(split).any(axis=within)
         sums = fine.variance_sums
-        variance = logit_variance(sums[0], sums[1], prior_precision)
-        known = variance.reshape(split).mean(axis=within) <= KNOWN_VARIANCE_SHARE / prior_precision
+        variance = logit_variance(sums[0], sums[1], fine.prior_precision)
+        prior_variance = 1.0 / fine.prior_precision
+        known = variance.reshape(split).mean(axis=within) <= KNOWN_VARIANCE_SHARE * prior_variance
         states = np.where(occupied, OCCUPIED, np.where(known & reached, FREE, UNKNOWN))
         return cls(fine.origin.copy(), fine.resolution * SUBCELLS, states.astype(np.int8))
 
@@ -101,4 +101,4 @@ def navigation_grid(
     origin, shape = grid_shape(bounds, resolution, dim, max_bytes, voxel_bytes)
     fine_bounds = np.stack([origin, origin + np.array(shape) * resolution])
     fine = any_map.grid(fine_bounds, resolution / SUBCELLS, max_bytes=max_bytes, std=True)
-    return NavigationGrid.of_fine_grid(fine, any_map.config.prior_precision)
+    return NavigationGrid.of_fine_grid(fine)

@@ -587,7 +587,9 @@ class TiledMap:
                 variance[part] += weight * logit_variance(
                     sums[0], sums[1], tile_grid.prior_precision
                 )
-        return OccupancyGrid.of_log_odds(origin, resolution, log_odds, variance)
+        return OccupancyGrid.of_log_odds(
+            origin, resolution, log_odds, variance, self.config.prior_precision
+        )
 
     # ------------------------------------------------------------ persistence
     def save(self, path: str | PathLike[str]) -> None:

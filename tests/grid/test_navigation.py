@@ -23,8 +23,8 @@ def test_cells_take_occupied_anywhere_free_where_known_else_unknown():
     variance = np.full((4, 4), 0.1)
     variance[2:, 2:] = [[0.5, 0.5], [0.5, 0.5]]  # the prior's: nothing observed
     variance[2:, :2] = [[0.5, 0.5], [0.1, 0.5]]  # mean 0.4 = KNOWN_VARIANCE_SHARE of 0.5
-    fine = OccupancyGrid.of_log_odds(np.array([1.0, 2.0]), 0.05, log_odds, variance)
-    grid = NavigationGrid.of_fine_grid(fine, prior_precision=2.0)
+    fine = OccupancyGrid.of_log_odds(np.array([1.0, 2.0]), 0.05, log_odds, variance, 2.0)
+    grid = NavigationGrid.of_fine_grid(fine)
     assert KNOWN_VARIANCE_SHARE == 0.8
     np.testing.assert_array_equal(grid.states, [[FREE, OCCUPIED], [FREE, UNKNOWN]])
     assert grid.states.dtype == np.int8 and grid.resolution == 0.1
@@ -33,15 +33,15 @@ def test_cells_take_occupied_anywhere_free_where_known_else_unknown():
 
 def test_a_cell_no_kernel_reaches_is_unknown_however_certain():
     fine = OccupancyGrid.of_log_odds(np.zeros(2), 0.05, np.zeros((2, 2)), np.zeros((2, 2)))
-    assert NavigationGrid.of_fine_grid(fine, 1.0).states.tolist() == [[UNKNOWN]]
+    assert NavigationGrid.of_fine_grid(fine).states.tolist() == [[UNKNOWN]]
 
 
 def test_fine_grids_without_std_or_of_odd_shape_are_refused():
     with pytest.raises(ValueError, match="with its std"):
-        NavigationGrid.of_fine_grid(OccupancyGrid(np.zeros(2), 0.05, (4, 4)), 1.0)
+        NavigationGrid.of_fine_grid(OccupancyGrid(np.zeros(2), 0.05, (4, 4)))
     odd = OccupancyGrid.of_log_odds(np.zeros(2), 0.05, np.ones((4, 3)), np.ones((4, 3)))
     with pytest.raises(ValueError, match=r"shape \(4, 3\) does not split"):
-        NavigationGrid.of_fine_grid(odd, 1.0)
+        NavigationGrid.of_fine_grid(odd)
 
 
 @pytest.fixture(scope="module")

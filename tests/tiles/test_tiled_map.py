@@ -90,9 +90,11 @@ def test_queries_take_the_same_checks_as_a_hilbert_map(tiled_room):
 def test_the_grid_blends_tiles_as_point_queries_do(room):
     """With every kernel not zero at a point as its features, a tile's grid and its point
     queries are one model (see the grid's tests), and so are the blended ones."""
-    tiled = TiledMap(TILE, OVERLAP, features="support").integrate_scan(room.scans[0])
+    settings = {"features": "support", "prior_precision": 2.0}
+    tiled = TiledMap(TILE, OVERLAP, **settings).integrate_scan(room.scans[0])
     bounds = np.array([[-3.0, -2.0, 0.2], [3.0, 2.0, 2.2]])
     grid = tiled.grid(bounds, resolution=0.1, std=True)
+    assert grid.prior_precision == 2.0  # the tiles', as a HilbertMap's grid keeps its own
     p, std = tiled.occupancy(grid.centers(), return_std=True)
     np.testing.assert_allclose(grid.probability.ravel(), p, rtol=0, atol=1e-9)
     np.testing.assert_allclose(grid.std.ravel(), std, rtol=0, atol=1e-9)
