@@ -23,6 +23,7 @@ probabilities at the cell centres gave 78-82 % free and 52-73 % of the hits occu
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -39,6 +40,19 @@ KNOWN_VARIANCE_SHARE = 0.8
 prior's, 1 / prior_precision. On the two data sets above (seed 0, 80 %), 0.8 read 97 % and 95 %
 of the free points free and 3.0 % and 1.4 % of the unseen points free; 0.7: 96 %, 94 %, 1.9 %,
 0.7 %; 0.5: 93 %, 90 %, 1.0 %, 0.3 %."""
+
+
+class GriddedMap(Protocol):
+    """What navigation_grid asks of a map: HilbertMap and TiledMap answer it."""
+
+    @property
+    def dim(self) -> int | None: ...
+
+    def extent(self) -> np.ndarray: ...
+
+    def grid(
+        self, bounds: np.ndarray | None, resolution: float, *, max_bytes: int, std: bool
+    ) -> OccupancyGrid: ...
 
 
 @dataclass(frozen=True)
@@ -83,7 +97,7 @@ class NavigationGrid:
 
 
 def navigation_grid(
-    any_map,
+    any_map: GriddedMap,
     bounds: np.ndarray | None = None,
     resolution: float = 0.05,
     max_bytes: int = DEFAULT_MAX_BYTES,
