@@ -270,7 +270,7 @@ def _export_map_server(any_map, bounds, resolution: float, max_gib: float, outpu
     from ehm.grid.navigation import FREE, OCCUPIED, navigation_grid
     from ehm.io import exports
 
-    if any_map.dim != 2:
+    if any_map.dim not in (None, 2):  # an empty map is refused by navigation_grid
         raise InputError("map_server maps are 2D; export a 3D map as .ot, .bt, .ply or .pcd")
     grid = navigation_grid(any_map, bounds, resolution, grid_bytes(max_gib))
     yaml_path = exports.write_map_server(grid, output)

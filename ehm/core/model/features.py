@@ -234,16 +234,13 @@ def _weighted_sums(
     scores,
     variance_sums,
 ):  # pragma: no cover - compiled
-    """Write bias + sum_j w phi and, when with_variance, the variance sums of each point
-    from its kernel values (n, k) into scores (n,) and variance_sums (n, 2) (see
-    decision_values)."""
+    """Write bias + sum_j w phi of each point from its kernel values (n, k) into scores
+    (n,) and, when with_variance, add its variance sums to variance_sums (n, 2), zeros
+    before (see decision_values)."""
     n, k = values.shape
     for i in numba.prange(n):
         g = group_of_point[i]
         scores[i] = bias
-        if with_variance:
-            variance_sums[i, 0] = 0.0
-            variance_sums[i, 1] = 0.0
         for j in range(k):
             cluster = group_neighbours[g, j]
             if cluster >= 0:

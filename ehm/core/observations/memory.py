@@ -36,7 +36,6 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.observations.evidence import (
-    FREE_ALONG_RAY,
     KIND_BITS,
     OCCUPIED,
     cell_sides,
@@ -49,6 +48,7 @@ from ehm.core.observations.memory_keys import (
     cell_corner,
     cell_corners,
     cell_corners_reference,
+    key_sides,
     memory_keys,
     region_ranges,
 )
@@ -179,8 +179,7 @@ def batch_entries_reference(
     w = np.add.reduceat(weight, starts)
     sums = np.add.reduceat(weight[:, None] * points[order], starts)
     corners = cell_corners_reference(new_keys, points.shape[1], (fine_side, coarse_side))
-    along_ray = (new_keys >> SUB_BITS) & (2**KIND_BITS - 1) == FREE_ALONG_RAY
-    steps = OFFSET_STEPS / np.where(along_ray, coarse_side, fine_side)
+    steps = OFFSET_STEPS / key_sides(new_keys, (fine_side, coarse_side))
     formed = np.logical_or.reduceat(clustered[order], starts)
     return new_keys, w, (sums - w[:, None] * corners) * steps[:, None], formed
 
@@ -463,13 +462,8 @@ class EvidenceMemory:
 
     def _means(self, entries: np.ndarray, keys: np.ndarray) -> np.ndarray:
         """(e, d) float64 metres, world frame: the means of `entries` (e,) with `keys` (e,)."""
-        offset = self.place[entries] * (self._sides(keys) / OFFSET_STEPS)[:, None]
+        offset = self.place[entries] * (key_sides(keys, self.sides) / OFFSET_STEPS)[:, None]
         return self._corners(keys) + offset
-
-    def _sides(self, keys: np.ndarray) -> np.ndarray:
-        """(n,) metres, the side of each key's evidence cell."""
-        along_ray = (keys >> SUB_BITS) & (2**KIND_BITS - 1) == FREE_ALONG_RAY
-        return np.where(along_ray, self.sides[1], self.sides[0])
 
     def _corners(self, keys: np.ndarray) -> np.ndarray:
         """(n, d) metres, world frame: the low corner of each key's evidence cell."""

@@ -120,6 +120,13 @@ def _region_keys(regions: np.ndarray, along_ray: np.ndarray) -> np.ndarray:
     return ((keys << 1) | along_ray) << REGION_BITS
 
 
+def key_sides(keys: np.ndarray, sides: tuple[float, float]) -> np.ndarray:
+    """(n,) metres: the side of the evidence cell of each of `keys` (n,) int64; `sides`
+    (fine, coarse) metres."""
+    along_ray = (keys >> SUB_BITS) & (2**KIND_BITS - 1) == FREE_ALONG_RAY
+    return np.where(along_ray, sides[1], sides[0])
+
+
 def cell_corners(keys: np.ndarray, dim: int, sides: tuple[float, float]) -> np.ndarray:
     """(n, dim) metres, world frame: the low corner of the evidence cell of each of `keys`
     (n,) int64; `sides` (fine, coarse) metres."""
