@@ -106,7 +106,12 @@ class MapConfig:
     surfaces (a 16-ring warehouse: held-out F1 0.647 against 0.672 scan by scan); on dense
     ones it scores higher (TUM 0.973 against 0.966)."""
     length_scale: float = 3.0
-    """Kernel support in standard deviations of the cluster (r = 1 at this many sigmas)."""
+    """Kernel support in standard deviations of the cluster (r = 1 at this many sigmas), for
+    the kernels of free clusters."""
+    occupied_length_scale: float = 3.0
+    """The same for the kernels of occupied clusters. Wider occupied kernels move the map's
+    0.5 level out in front of surfaces: held-out hits read occupied more often, and points
+    within a few centimetres in front of a surface too (BENCHMARKS.md)."""
     min_std: float = 0.02
     """Floor on each cluster's standard deviation along any axis, metres."""
     neighbours: int = 8
@@ -252,6 +257,7 @@ class MapConfig:
             "cluster_radius",
             "free_cluster_radius",
             "length_scale",
+            "occupied_length_scale",
             "min_std",
             "learning_rate",
             "merge_threshold",

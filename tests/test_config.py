@@ -26,6 +26,7 @@ def test_overrides_and_validation():
         ("planar_ratio", 0.0, "planar_ratio must be a positive number"),
         ("coplanar_angle", 90.0, "coplanar_angle must be below 90 degrees"),
         ("coplanar_distance", -1.0, "coplanar_distance must be a positive number"),
+        ("occupied_length_scale", 0.0, "occupied_length_scale must be a positive number"),
         ("anisotropic_candidates", 0, "anisotropic_candidates must be an integer >= 1"),
         ("anchor_layers", 0, "anchor_layers must be an integer >= 1"),
         ("anchor_radius_factor", 1.0, "anchor_radius_factor must be above 1"),

@@ -95,8 +95,9 @@ def test_square_roots_read_off_transforms_equal_the_decomposed_ones(rng):
         a = rng.normal(size=(200, dim, dim)) * rng.uniform(0.001, 0.3, (200, 1, 1))
         covariances = a @ np.swapaxes(a, 1, 2)
         planar = rng.random(200) < 0.5
-        transforms = kernel_transforms(covariances, 3.0, 0.02, planar)
-        roots = transform_square_roots(transforms, planar, 3.0)
+        spans = rng.choice([3.0, 4.5], 200)  # one per kernel, as occupied and free differ
+        transforms = kernel_transforms(covariances, spans, 0.02, planar)
+        roots = transform_square_roots(transforms, planar, spans)
         np.testing.assert_allclose(roots, covariance_square_roots(covariances, 0.02), atol=1e-12)
         floored = np.linalg.eigvalsh(covariances).min(axis=1) < 0.02**2
         assert 0 < floored.sum() < 200  # some eigenvalues floored, some not

@@ -178,7 +178,9 @@ def match_new_clusters(
     # kernel transforms.
     old_rows, old_of_pair = np.unique(pair_old, return_inverse=True)
     old_roots = transform_square_roots(
-        clusters.transforms[old_rows], clusters.planar_kernel[old_rows], config.length_scale
+        clusters.transforms[old_rows],
+        clusters.planar_kernel[old_rows],
+        clusters.length_scales(old_rows, config),
     )
     distances = anisotropic_distances(
         new.means,

@@ -129,8 +129,17 @@ class ClusterSet:
         self.planar[rows] = planar_clusters(covariances, config.planar_ratio, eigen)
         self.planar_kernel[rows] = self.planar[rows] & config.planar_kernel
         self.transforms[rows] = kernel_transforms(
-            covariances, config.length_scale, config.min_std, self.planar_kernel[rows], eigen
+            covariances,
+            self.length_scales(rows, config),
+            config.min_std,
+            self.planar_kernel[rows],
+            eigen,
         )
+
+    def length_scales(self, rows: np.ndarray, config: MapConfig) -> np.ndarray:
+        """(k,) the standard deviations the k_SP kernels of clusters `rows` span:
+        config.occupied_length_scale for occupied clusters, config.length_scale for free."""
+        return np.where(self.occupied[rows], config.occupied_length_scale, config.length_scale)
 
 
 @dataclass(frozen=True)

@@ -165,16 +165,17 @@ def floored_eigen(
 
 def kernel_transforms(
     covariances: np.ndarray,
-    length_scale: float,
+    length_scale: float | np.ndarray,
     min_std: float,
     planar: np.ndarray | None = None,
     eigen: Eigen | None = None,
 ) -> np.ndarray:
-    """T_m (M, d, d), 1/m, mapping offsets from the mean to the kernel's unit ball (k_SP) or
-    unit box (k_PS, rows where `planar`, (M,) bool; None: none); `eigen`: the covariances'
-    decomposition, when it is known."""
+    """T_m (M, d, d), 1/m, mapping offsets from the mean to the kernel's unit ball (k_SP,
+    `length_scale` standard deviations out: one for all or (M,) one each) or unit box (k_PS,
+    rows where `planar`, (M,) bool; None: none); `eigen`: the covariances' decomposition, when
+    it is known."""
     eigenvalues, eigenvectors = floored_eigen(covariances, min_std, eigen)
-    span = np.full(len(covariances), float(length_scale))
+    span = np.broadcast_to(np.asarray(length_scale, dtype=np.float64), len(covariances)).copy()
     if planar is not None:
         span[planar] = PLANAR_SPAN
     scale = 1.0 / (span[:, None] * np.sqrt(eigenvalues))
@@ -210,14 +211,14 @@ def covariance_square_roots(
 
 
 def transform_square_roots(
-    transforms: np.ndarray, planar: np.ndarray, length_scale: float
+    transforms: np.ndarray, planar: np.ndarray, length_scale: float | np.ndarray
 ) -> np.ndarray:
     """The symmetric square roots (M, d, d), metres, of the floored covariances that kernel
-    transforms T_m (M, d, d) were made from (kernel_transforms with `length_scale`, k_PS where
-    `planar` (M,) bool), read off them without a decomposition: row a of T_m is v_a^T / (s
-    sqrt(lambda'_a)), so the root, sum_a sqrt(lambda'_a) v_a v_a^T, is sum_a row_a row_a^T /
-    (s |row_a|^3)."""
-    span = np.where(planar, PLANAR_SPAN, float(length_scale))
+    transforms T_m (M, d, d) were made from (kernel_transforms with `length_scale`, one or
+    (M,), k_PS where `planar` (M,) bool), read off them without a decomposition: row a of T_m
+    is v_a^T / (s sqrt(lambda'_a)), so the root, sum_a sqrt(lambda'_a) v_a v_a^T, is
+    sum_a row_a row_a^T / (s |row_a|^3)."""
+    span = np.where(planar, PLANAR_SPAN, length_scale)
     norms = np.linalg.norm(transforms, axis=2)
     rows = transforms / np.sqrt(span[:, None] * norms**3)[:, :, None]
     return np.matmul(np.swapaxes(rows, 1, 2), rows)
