@@ -39,9 +39,10 @@ def test_appended_clusters_start_at_weight_zero_and_get_their_kernels_on_refresh
 
 def test_occupied_kernels_span_their_own_length_scale():
     clusters = three_clusters()  # the first occupied (std 0.2 m in-plane), the others free
-    clusters.refresh(np.arange(3), MapConfig(occupied_length_scale=4.5))
-    np.testing.assert_allclose(clusters.reach(), [4.5 * 0.2, 3.0 * 0.1, 3.0 * 0.3])
-    np.testing.assert_array_equal(clusters.length_scales(np.array([2, 0]), MapConfig()), 3.0)
+    config = MapConfig(length_scale=2.5, occupied_length_scale=4.5)
+    clusters.refresh(np.arange(3), config)
+    np.testing.assert_allclose(clusters.reach(), [4.5 * 0.2, 2.5 * 0.1, 2.5 * 0.3])
+    np.testing.assert_array_equal(clusters.length_scales(np.array([2, 0]), config), [2.5, 4.5])
 
 
 def test_removal_fills_holes_with_the_last_rows():
