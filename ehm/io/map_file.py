@@ -67,7 +67,9 @@ SENSOR_PATH = "sensor_path"
 # Version 16 keeps time: the latest time stamp learned, when each cluster and each region of the
 # past evidence last had evidence, and the time of each scan waiting for its batch (for
 # MapConfig.forget_after); older files load with none.
-FORMAT_VERSION = 16
+# Version 17 maps may give occupied clusters kernels of their own span
+# (MapConfig.occupied_length_scale); older files made them as wide as free ones, and load so.
+FORMAT_VERSION = 17
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -123,7 +125,7 @@ def map_bytes(state: MapState) -> bytes:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 16); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 17); MapFileError
     names what is wrong otherwise."""
     return map_state_of_bytes(read_bytes(path), path)
 
@@ -214,6 +216,9 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         arrays["precision"] = np.full(len(arrays["weights"]), MapConfig().prior_precision)
     if version < 16:
         arrays["seen"] = np.full(len(arrays["weights"]), np.nan)
+    if version < 17:
+        length_scale = settings.get("length_scale", MapConfig().length_scale)
+        settings = {**settings, "occupied_length_scale": length_scale}
     config = MapConfig.from_dict(settings)
     if kept is not None:
         memory = EvidenceMemory.of_samples(dim, config, *kept)

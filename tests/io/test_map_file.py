@@ -127,7 +127,8 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
     They answer as when they were written (to rounding), hold no sensor path, and a map built
     now from the same scans with the same settings (no memory of past evidence then, the
-    nearest clusters' features, each scan learned as it came) classifies nearly every point
+    nearest clusters' features, each scan learned as it came, occupied kernels as wide as free
+    ones) classifies nearly every point
     the same, though evidence is now learned per cell and SGD visits it in another order
     (measured: 0.06 apart on average in the room)."""
     recorded = np.load(DATA / "answers_v3.npz")
@@ -149,14 +150,14 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
-    before_format_9 = {"batch_rays": 0}
+    settings_then = {"batch_rays": 0, "occupied_length_scale": 3.0}  # formats 9 and 17
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
             features="nearest",
             neighbours=6,
             anchor_layers=2,
             keep_evidence=False,
-            **before_format_9,
+            **settings_then,
         )
         scans = floor_plan_2d(seed=0).scans
     else:
@@ -166,7 +167,7 @@ def rebuild_v3_map(name: str) -> ehm.HilbertMap:
             merge_coplanar=True,
             anisotropic_search=True,
             keep_evidence=False,
-            **before_format_9,
+            **settings_then,
         )
         (scan,) = virtual_room(seed=0, rings=16, azimuths=240).scans
         scans = [scan.subset(np.arange(len(scan)) % 2 == part) for part in (0, 1)]
@@ -195,7 +196,8 @@ class _OldSettings:
     """Settings as a map file of format 12 held them: a sample memory of 8 per cell."""
 
     def __init__(self, config):
-        self.settings = {k: v for k, v in config.to_dict().items() if k != "keep_evidence"}
+        new = ("keep_evidence", "occupied_length_scale")
+        self.settings = {k: v for k, v in config.to_dict().items() if k not in new}
         self.settings.update(memory_per_cell=8, samples_per_cell=0)
 
     def to_dict(self):
@@ -239,7 +241,9 @@ def test_maps_of_format_12_load_their_kept_samples_as_evidence(small_map, tmp_pa
     (tmp_path / "old.ehm").write_bytes(map_file.map_bytes(old))
     monkeypatch.undo()
     loaded = ehm.load(tmp_path / "old.ehm")
-    assert loaded.config.keep_evidence and loaded.config == small_map.config
+    # Occupied kernels as wide as free ones, as every map of format 12 made them.
+    then = small_map.config.replace(occupied_length_scale=small_map.config.length_scale)
+    assert loaded.config.keep_evidence and loaded.config == then
     evidence = loaded.memory_.samples()
     assert evidence.weight.sum() == pytest.approx(14.0)
     assert sorted(evidence.weight.tolist()) == pytest.approx([2.0, 4.0, 4.0, 4.0])
