@@ -128,9 +128,8 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     They answer as when they were written (to rounding), hold no sensor path, and a map built
     now from the same scans with the same settings (no memory of past evidence then, the
     nearest clusters' features, each scan learned as it came, occupied kernels as wide as free
-    ones) classifies nearly every point
-    the same, though evidence is now learned per cell and SGD visits it in another order
-    (measured: 0.06 apart on average in the room)."""
+    ones) classifies nearly every point the same, though evidence is now learned per cell and
+    SGD visits it in another order (measured: 0.06 apart on average in the room)."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
