@@ -142,3 +142,38 @@ def test_region_normals_agree_with_their_numpy_twin(rng, dim):
     # Each normal up to its sign.
     signs = np.sign(np.sum(compiled[planar] * reference[planar], axis=1))
     np.testing.assert_allclose(compiled[planar] * signs[:, None], reference[planar], atol=1e-7)
+
+
+def test_rays_to_the_floor_behind_pass_what_stood_on_it(monkeypatch):
+    """Entries 11 cm above a floor (the lowest of a cart that left) lie within the solid band
+    of rays that hit the floor 14 cm beyond them; as the batch's hits there lie on a plane the
+    entries are 11 cm off, those rays pass them (and do not once the gap exceeds that)."""
+    y = np.array([0.025, 0.075, 0.125, 0.175])
+    memory = memory_of(
+        np.column_stack([np.full(4, 1.0), y, np.full(4, 0.12)]), np.full(4, OCCUPIED)
+    )
+    through = np.column_stack([np.full(4, 1.0), y, np.full(4, 0.12)])
+    origins = np.column_stack([np.zeros(4), y, np.full(4, 1.5)])
+    directions = (through - origins) / np.linalg.norm(through - origins, axis=1)[:, None]
+    floor = origins + directions * ((origins[:, 2:] - 0.01) / -directions[:, 2:])
+    gx, gy = np.meshgrid(np.linspace(1.02, 1.18, 3), np.linspace(0.02, 0.18, 3))
+    around = np.column_stack([gx.ravel(), gy.ravel(), np.full(9, 0.01)])
+    ends = np.vstack([floor, around])
+    starts = np.vstack([origins, np.tile([0.0, 0.1, 1.5], (9, 1))])
+    rays = rays_of(starts, ends, np.ones(13, dtype=bool), 0.05)
+    entries, counts = occupied_passes(memory, rays, 0.03, 0.15)
+    np.testing.assert_array_equal(entries, np.arange(4))
+    want, want_counts = occupied_passes_reference(memory, rays, 0.03, 0.15)
+    np.testing.assert_array_equal(entries, want)
+    np.testing.assert_array_equal(counts, want_counts)
+    monkeypatch.setattr(passes_module, "OFF_PLANE_CELLS", 2.5)  # a gap of 12.5 cm
+    assert len(occupied_passes(memory, rays, 0.03, 0.15)[0]) == 0
+    assert len(occupied_passes_reference(memory, rays, 0.03, 0.15)[0]) == 0
+
+
+def test_hits_on_a_plane_have_its_normal_and_scattered_ones_none(rng):
+    floor = np.column_stack([rng.uniform(0.01, 0.19, (20, 2)), np.full(20, 0.05)])
+    scattered = rng.uniform(1.01, 1.19, (20, 3))
+    normals = passes_module.hit_plane_normals(np.vstack([floor, scattered]), 0.2)
+    np.testing.assert_allclose(np.abs(normals[:20]), np.tile([0.0, 0.0, 1.0], (20, 1)), atol=1e-9)
+    assert np.isnan(normals[20:]).all()
