@@ -8,9 +8,9 @@ metres of the entry's mean: noise and rays that end on the surface they graze do
 Within that band, a ray whose hit lies on a plane of the batch's own hits (the floor behind a
 cart that left) passes the entries that lie off the plane: the cart's lowest centimetres,
 which rays to the floor behind it reach only within the band. Nor does a ray that runs along
-the surface: where a region's occupied entries lie on a plane,
-a ray at more than GRAZING_DEGREES to its normal passes none of them (on TUM's depth frames,
-the rays that passed walls still there met them at 75-84 degrees, and ended 3-7 cm beyond).
+the surface: where a region's occupied entries lie on a plane, a ray at more than
+GRAZING_DEGREES to its normal passes none of them (on TUM's depth frames, the rays that passed
+walls still there met them at 75-84 degrees, and ended 3-7 cm beyond).
 Each ray walks the regions it crosses (a 3D DDA on the grid of regions,
 ehm.core.search.grid_walk) and looks each up in a table of the memory's regions around hits;
 only the regions that hold entries cost more than the lookup.
@@ -29,6 +29,7 @@ from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
 from ehm.core.observations.memory_keys import SUB_BITS, region_bits
 from ehm.core.observations.samples import ScanRays
+from ehm.core.search.cells import packed_cell_keys
 from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 
@@ -37,8 +38,8 @@ from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 PASS_REACH_CELLS = 1.0
 # Within the band behind which a hit's surface is taken to be solid, a ray passes the entries
 # farther than this from the plane of its batch's hits around its hit, in fine evidence cells.
-# On the changing room (seed 0, pass_retraction 0.5; BENCHMARKS.md) ghosts six scans through
-# 0.041 against 0.087 without it, held-out F1 on TUM and the Intel lab 0.001 lower.
+# On the changing room (pass_retraction 0.5, three seeds; BENCHMARKS.md) ghosts six scans
+# through 0.048 against 0.084 without it; held-out F1 on TUM and the Intel lab 0.001 lower.
 OFF_PLANE_CELLS = 1.5
 # The batch's hits in a region lie on a plane when there are at least PLANE_HITS of them and
 # their least spread is at most HIT_PLANAR_SPREAD of the next (and not on a line).
@@ -117,28 +118,29 @@ def hit_plane_normals(hit_points: np.ndarray, side: float) -> np.ndarray:
     batch's hits in its cell of `side` metres lie on (PLANE_HITS, HIT_PLANAR_SPREAD), NaN where
     they lie on none."""
     n, d = hit_points.shape
-    if n == 0:
-        return np.zeros((0, d))
-    _, cell, counts = np.unique(
-        np.floor(hit_points / side).astype(np.int64),
-        axis=0,
-        return_inverse=True,
-        return_counts=True,
+    normals = np.full((n, d), np.nan)
+    keys = packed_cell_keys(
+        hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0, "the hits are too far"
     )
-    cell = cell.ravel()
-    means = np.stack([np.bincount(cell, p, len(counts)) for p in hit_points.T], axis=1)
-    offsets = hit_points - (means / counts[:, None])[cell]
-    scatter = np.empty((len(counts), d, d))
+    _, cell, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    rows = np.flatnonzero(counts[cell] >= PLANE_HITS)  # hits of cells with enough of them
+    if len(rows) == 0:
+        return normals
+    _, cell = np.unique(cell[rows], return_inverse=True)
+    points = hit_points[rows]
+    size = cell.max() + 1
+    means = np.stack([np.bincount(cell, p, size) for p in points.T], axis=1)
+    offsets = points - (means / np.bincount(cell, minlength=size)[:, None])[cell]
+    scatter = np.empty((size, d, d))
     for a in range(d):
         for b in range(d):
-            scatter[:, a, b] = np.bincount(cell, offsets[:, a] * offsets[:, b], len(counts))
+            scatter[:, a, b] = np.bincount(cell, offsets[:, a] * offsets[:, b], size)
     spread, axes = np.linalg.eigh(scatter)
-    flat = (
-        (counts >= PLANE_HITS)
-        & (spread[:, 0] <= HIT_PLANAR_SPREAD * spread[:, 1])
-        & (spread[:, 1] > LINEAR_SPREAD * spread[:, -1])
+    flat = (spread[:, 0] <= HIT_PLANAR_SPREAD * spread[:, 1]) & (
+        spread[:, 1] > LINEAR_SPREAD * spread[:, -1]
     )
-    return np.where(flat[:, None], axes[:, :, 0], np.nan)[cell]
+    normals[rows] = np.where(flat[:, None], axes[:, :, 0], np.nan)[cell]
+    return normals
 
 
 def _solid_band(
