@@ -401,7 +401,7 @@ def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -
     kind = kinds_of(samples)
     fine, coarse = cell_sides(config)
     side = np.where(samples.at_surface, fine, coarse)
-    keys = packed_cell_keys(samples.points, side, kind, KIND_BITS, "")
+    keys = packed_cell_keys(samples.points, side, kind, KIND_BITS)
     _, cell, weight = np.unique(keys, return_inverse=True, return_counts=True)
     cell = cell.ravel()
     dim = samples.points.shape[1]

@@ -119,28 +119,37 @@ def hit_plane_normals(hit_points: np.ndarray, side: float) -> np.ndarray:
     they lie on none."""
     n, d = hit_points.shape
     normals = np.full((n, d), np.nan)
-    keys = packed_cell_keys(
-        hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0, "the hits are too far"
-    )
+    keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
     _, cell, counts = np.unique(keys, return_inverse=True, return_counts=True)
     rows = np.flatnonzero(counts[cell] >= PLANE_HITS)  # hits of cells with enough of them
     if len(rows) == 0:
         return normals
     _, cell = np.unique(cell[rows], return_inverse=True)
-    points = hit_points[rows]
-    size = cell.max() + 1
-    means = np.stack([np.bincount(cell, p, size) for p in points.T], axis=1)
-    offsets = points - (means / np.bincount(cell, minlength=size)[:, None])[cell]
+    found = _group_plane_normals(hit_points[rows], cell, np.ones(len(rows)), HIT_PLANAR_SPREAD)
+    normals[rows] = found[cell]
+    return normals
+
+
+def _group_plane_normals(
+    points: np.ndarray, group: np.ndarray, weight: np.ndarray, planar_spread: float
+) -> np.ndarray:
+    """(G, d): the unit normal of the plane the (n, d) points of each group (group (n,) int64,
+    0 .. G - 1, each met) lie on, weighted by weight (n,): their least spread at most
+    `planar_spread` of the next, and that more than LINEAR_SPREAD of the largest (not a line,
+    as a post's points are); NaN where they lie on none."""
+    d, size = points.shape[1], group.max() + 1
+    total = np.bincount(group, weight, size)
+    means = np.stack([np.bincount(group, weight * p, size) for p in points.T], axis=1)
+    offsets = points - (means / total[:, None])[group]
     scatter = np.empty((size, d, d))
     for a in range(d):
         for b in range(d):
-            scatter[:, a, b] = np.bincount(cell, offsets[:, a] * offsets[:, b], size)
+            scatter[:, a, b] = np.bincount(group, weight * offsets[:, a] * offsets[:, b], size)
     spread, axes = np.linalg.eigh(scatter)
-    flat = (spread[:, 0] <= HIT_PLANAR_SPREAD * spread[:, 1]) & (
+    flat = (spread[:, 0] <= planar_spread * spread[:, 1]) & (
         spread[:, 1] > LINEAR_SPREAD * spread[:, -1]
     )
-    normals[rows] = np.where(flat[:, None], axes[:, :, 0], np.nan)[cell]
-    return normals
+    return np.where(flat[:, None], axes[:, :, 0], np.nan)
 
 
 def _solid_band(
@@ -319,19 +328,7 @@ def region_normals_reference(memory: EvidenceMemory) -> np.ndarray:
     occupied = occupied[np.isin(region[occupied], rows)]
     slot = np.searchsorted(rows, region[occupied])
     points, weight = memory.points_at(occupied), memory.weight[occupied].astype(np.float64)
-    total = np.bincount(slot, weight, len(rows))
-    means = np.stack([np.bincount(slot, weight * p, len(rows)) for p in points.T], axis=1)
-    means /= total[:, None]
-    offsets = points - means[slot]
-    scatter = np.einsum("n,ni,nj->nij", weight, offsets, offsets)
-    spread, axes = np.linalg.eigh(
-        np.add.reduceat(scatter, np.r_[0, np.flatnonzero(np.diff(slot)) + 1])
-    )
-    # Spread least across a plane, and along it in every direction (not a line, as posts are).
-    planar = (spread[:, 0] <= PLANAR_SPREAD * spread[:, 1]) & (
-        spread[:, 1] > LINEAR_SPREAD * spread[:, -1]
-    )
-    normals[rows[planar]] = axes[planar, :, 0]
+    normals[rows] = _group_plane_normals(points, slot, weight, PLANAR_SPREAD)
     return normals
 
 

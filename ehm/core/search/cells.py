@@ -63,13 +63,13 @@ def _cells_and_keys(points, low, cell, strides):  # pragma: no cover - compiled
 
 
 def packed_cell_keys(
-    points: np.ndarray, side: np.ndarray, kind: np.ndarray, kind_bits: int, remedy: str
+    points: np.ndarray, side: np.ndarray, kind: np.ndarray, kind_bits: int
 ) -> np.ndarray:
     """(n,) int64 key of the cell of side side[i] metres that holds each of (n, d) points,
     metres, world frame, with kind[i] (0 .. 2**kind_bits - 1) in its lowest bits: the cell's
     integer coordinates from the world origin take (63 - kind_bits) // d bits per axis.
 
-    InputError when a point lies beyond the cells' reach; `remedy` ends the message."""
+    InputError when a point lies beyond the cells' reach."""
     bits = (63 - kind_bits) // points.shape[1]
     cells = np.floor(points / side[:, None])
     half = 2.0 ** (bits - 1)
@@ -79,7 +79,7 @@ def packed_cell_keys(
         raise InputError(
             f"a training sample lies {far:.0f} m from the world origin, beyond the "
             f"{half * side.min():.0f} m that cells of {side.min():g} m reach: set max_range "
-            f"(ehm map --max-range) to cut rays longer than the sensor's, or {remedy}"
+            "(ehm map --max-range) to cut rays longer than the sensor's"
         )
     keys = np.zeros(len(points), dtype=np.int64)
     for axis in range(points.shape[1]):
