@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from ehm.core.search.supports import SupportHash, support_boxes, support_features_reference
+from ehm.config import MapConfig
+from ehm.core.search.supports import (
+    SupportHash,
+    _candidate_counts,
+    support_boxes,
+    support_features_reference,
+)
 
 
 def _listed(clusters, sides=(0.3, 1.0)):
@@ -132,3 +138,33 @@ def test_kernels_beyond_the_cells_of_the_hash_are_refused(random_clusters, rng):
     clusters.means[2] = [1e6, 0.0, 0.0]
     with pytest.raises(ValueError, match="beyond the cells"):
         _listed(clusters)
+
+
+def test_points_on_sub_cell_boundaries_find_every_kernel(rng, random_clusters):
+    """Points on the faces and corners of sub-cells (sides 0.3 / 4 and 1.0 / 4 m), negative
+    coordinates among them, find exactly the kernels the brute-force reference finds."""
+    clusters = random_clusters(rng)
+    clusters.means[:] -= 3.0
+    clusters.refresh(np.arange(len(clusters)), MapConfig(planar_kernel=True, planar_ratio=0.3))
+    table = _listed(clusters)
+    steps = rng.integers(-48, 48, (4000, 3)).astype(np.float64)
+    points = np.vstack([steps * 0.075, steps * 0.25, steps * 0.075 + [0.0, 1e-12, -1e-12]])
+    args = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    _assert_same_features(table.features(points, *args), support_features_reference(points, *args))
+
+
+def test_sub_cell_masks_leave_out_most_kernels_of_a_cell(rng, random_clusters):
+    clusters = random_clusters(rng, n=2000)
+    table = _listed(clusters)
+    points = rng.uniform(0, 6, (3000, 3))
+    arguments = table._arguments()
+    listed = _candidate_counts(points, arguments)
+    every_sub_cell = np.full_like(arguments[4], ~np.uint64(0))
+    in_cells = _candidate_counts(points, (*arguments[:4], every_sub_cell, *arguments[5:]))
+    nonzero = np.diff(
+        support_features_reference(
+            points, clusters.means, clusters.transforms, clusters.planar_kernel
+        ).indptr
+    )
+    assert np.all(listed >= nonzero) and np.all(listed <= in_cells)
+    assert listed.sum() < 0.5 * in_cells.sum()

@@ -14,6 +14,11 @@ a few cells and a cell lists a few dozen kernels. One table holds both scales; a
 packs its integer coordinates (20 bits per axis in 3D, 31 in 2D, from -2^19 and -2^30) and the
 scale.
 
+A cell's block is long where surfaces crowd (146 kernels listed for 11 not zero at a point
+of a TUM frame's map), so each entry also holds a mask of the sub-cells of its cell that the
+kernel's box overlaps (64 in all): a point evaluates only the kernels whose
+mask holds its own sub-cell (43 of the 146 there).
+
 The table is updated in place, in time proportional to the kernels that change: each cell owns
 a block of a shared pool of kernel rows, sorted, with room to spare; a kernel is removed from
 its cells' blocks and inserted into them in order, and a full block moves to the end of the
@@ -26,7 +31,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ehm.core.model.features import SparseFeatures, add_to_sums, kernel_at
+from ehm.core.model.features import SparseFeatures, kernel_at
 from ehm.core.model.kernels import cluster_kernel_reference
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot
 from ehm.errors import InputError
@@ -37,6 +42,9 @@ from ehm.errors import InputError
 # are not zero, in 2.4 MB; 33 in 7.4 MB with cells half as large.
 CELL_FACTORS = (4.0, 2.0)
 _MIN_BLOCK = 4
+# Sub-cells of each cell: 2^SUBCELL_BITS in all (64: 4 per axis in 3D, 8 in 2D), one bit each of
+# a uint64 mask.
+SUBCELL_BITS = 6
 
 
 def axis_bits(dim: int) -> int:
@@ -54,16 +62,49 @@ def _pack(cell, bits, coarse):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _cell_of(points, i, side, bits, coarse):  # pragma: no cover - compiled
-    """Key of the cell of side `side` and scale `coarse` that holds point i (coordinates
-    beyond the keys' range clamped to it)."""
+def _cell_of(points, i, sub_side, divisions, bits, coarse):  # pragma: no cover - compiled
+    """Key of the cell of scale `coarse` that holds point i, its sides `divisions` sub-cells
+    of `sub_side` (coordinates beyond the keys' range clamped to it), and the bit of the
+    point's sub-cell in the masks of the cell's entries."""
     half = np.int64(1) << (bits - 1)
     limit = float(half - 1)
     key = np.int64(0)
+    bit = np.int64(0)
+    stride = np.int64(1)
     for a in range(points.shape[1]):
-        c = np.int64(min(max(np.floor(points[i, a] / side), -limit), limit))
+        sub = min(max(np.floor(points[i, a] / sub_side), -limit * divisions), limit * divisions)
+        c = np.int64(np.floor(sub / divisions))
+        bit += stride * min(max(np.int64(sub) - c * divisions, 0), divisions - 1)
+        stride *= divisions
         key = (key << bits) | (c + half)
-    return (key << 1) | np.int64(coarse)
+    return (key << 1) | np.int64(coarse), np.uint64(1) << np.uint64(bit)
+
+
+@numba.njit(cache=True, inline="always")
+def _sub_cell_mask(m, cell, sub_lo, sub_hi, divisions):  # pragma: no cover - compiled
+    """Mask of the sub-cells of `cell` (integer coordinates) that kernel m's box, sub-cells
+    sub_lo[m] .. sub_hi[m] (inclusive), overlaps."""
+    d = cell.shape[0]
+    first = np.empty(d, dtype=np.int64)
+    extent = np.empty(d, dtype=np.int64)
+    n = 1
+    for a in range(d):
+        low = max(sub_lo[m, a] - cell[a] * divisions, 0)
+        high = min(sub_hi[m, a] - cell[a] * divisions, divisions - 1)
+        first[a] = low
+        extent[a] = high - low + 1
+        n *= extent[a]
+    mask = np.uint64(0)
+    for c in range(n):
+        bit = np.int64(0)
+        stride = np.int64(1)
+        rest = c
+        for a in range(d):
+            bit += stride * (first[a] + rest % extent[a])
+            rest //= extent[a]
+            stride *= divisions
+        mask |= np.uint64(1) << np.uint64(bit)
+    return mask
 
 
 @numba.njit(cache=True, inline="always")
@@ -86,10 +127,25 @@ def _n_cells(m, lo, hi):  # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def _insert(
-    table_keys, starts, counts, capacities, pool, used, kernels, lo, hi, coarse, bits
+    table_keys,
+    starts,
+    counts,
+    capacities,
+    pool,
+    masks,
+    used,
+    kernels,
+    lo,
+    hi,
+    sub_lo,
+    sub_hi,
+    divisions,
+    coarse,
+    bits,
 ):  # pragma: no cover - compiled
     """List `kernels` in every cell from lo[m] to hi[m] (inclusive, per axis) of scale
-    coarse[m]. used: [pool entries in use up to the end, table slots taken]. Stops before a
+    coarse[m], each entry with the mask of the sub-cells sub_lo[m] .. sub_hi[m] it overlaps
+    there. used: [pool entries in use up to the end, table slots taken]. Stops before a
     kernel that would leave the table more than half full or overrun the pool, and returns how
     many kernels it listed."""
     cell = np.empty(lo.shape[1], dtype=np.int64)
@@ -120,6 +176,7 @@ def _insert(
             elif counts[s] == capacities[s]:
                 grown = 2 * capacities[s]
                 pool[used[0] : used[0] + counts[s]] = pool[starts[s] : starts[s] + counts[s]]
+                masks[used[0] : used[0] + counts[s]] = masks[starts[s] : starts[s] + counts[s]]
                 starts[s] = used[0]
                 capacities[s] = grown
                 used[0] += grown
@@ -129,15 +186,17 @@ def _insert(
             j = starts[s] + counts[s]
             while j > starts[s] and pool[j - 1] > m:
                 pool[j] = pool[j - 1]
+                masks[j] = masks[j - 1]
                 j -= 1
             pool[j] = m
+            masks[j] = _sub_cell_mask(m, cell, sub_lo, sub_hi, divisions)
             counts[s] += 1
     return len(kernels)
 
 
 @numba.njit(cache=True)
 def _remove(
-    table_keys, starts, counts, pool, kernels, lo, hi, coarse, bits
+    table_keys, starts, counts, pool, masks, kernels, lo, hi, coarse, bits
 ):  # pragma: no cover - compiled
     """Take `kernels` out of the cells they were listed in (lo, hi, coarse as when listed)."""
     cell = np.empty(lo.shape[1], dtype=np.int64)
@@ -149,6 +208,7 @@ def _remove(
                 if pool[j] == m:
                     for k in range(j, end - 1):
                         pool[k] = pool[k + 1]
+                        masks[k] = masks[k + 1]
                     counts[s] -= 1
                     break
 
@@ -181,11 +241,11 @@ def _place_cells(
 
 @numba.njit(cache=True)
 def _rebuild(
-    table_keys, counts, starts, pool, new_size, pending, lo, hi, coarse, bits
+    table_keys, counts, starts, pool, masks, new_size, pending, lo, hi, coarse, bits
 ):  # pragma: no cover - compiled
     """A table and a compact pool holding every entry of the old ones, with room in each
     cell's block for the entries of `pending` kernels (still to be listed) and a quarter more:
-    (keys, starts, counts, capacities, pool, pool entries in use, slots taken). new_size:
+    (keys, starts, counts, capacities, pool, masks, pool entries in use, slots taken). new_size:
     slots enough for every old cell and every pending entry."""
     # Distinct cells first, in a table large enough for every entry: the new table holds four
     # times as many slots as there are cells, so it can take as many again before a rebuild.
@@ -216,47 +276,52 @@ def _rebuild(
             new_starts[t] = end
             end += capacities[t]
     new_pool = np.empty(end + end // 4, dtype=np.int32)
+    new_masks = np.empty(len(new_pool), dtype=np.uint64)
     for s in range(len(table_keys)):
         if table_keys[s] != EMPTY_KEY and counts[s] > 0:
             t = hash_slot(keys, table_keys[s])
-            new_pool[new_starts[t] : new_starts[t] + counts[s]] = pool[
-                starts[s] : starts[s] + counts[s]
-            ]
+            old = slice(starts[s], starts[s] + counts[s])
+            new = slice(new_starts[t], new_starts[t] + counts[s])
+            new_pool[new] = pool[old]
+            new_masks[new] = masks[old]
             new_counts[t] = counts[s]
-    return keys, new_starts, new_counts, capacities, new_pool, end, taken
+    return keys, new_starts, new_counts, capacities, new_pool, new_masks, end, taken
 
 
 @numba.njit(cache=True, inline="always")
-def _block(points, i, scale, table_keys, starts, counts, sides, bits):  # pragma: no cover
+def _block(points, i, scale, table):  # pragma: no cover - compiled
     """(first, last + 1) positions in the pool of the kernels listed in point i's cell of
-    `scale` (0 fine, 1 coarse); empty where the cell lists none."""
-    s = hash_slot(table_keys, _cell_of(points, i, sides[scale], bits, scale))
-    if table_keys[s] == EMPTY_KEY:
-        return 0, 0
-    return starts[s], starts[s] + counts[s]
+    `scale` (0 fine, 1 coarse), empty where the cell lists none, and the bit of the point's
+    sub-cell in their masks. table: SupportHash._arguments()."""
+    keys, starts, counts, _, _, sub_sides, divisions, bits = table
+    key, bit = _cell_of(points, i, sub_sides[scale], divisions, bits, scale)
+    s = hash_slot(keys, key)
+    if keys[s] == EMPTY_KEY:
+        return 0, 0, bit
+    return starts[s], starts[s] + counts[s], bit
 
 
 @numba.njit(cache=True, parallel=True)
-def _candidate_counts(
-    points, table_keys, starts, counts, sides, bits
-):  # pragma: no cover - compiled
-    """(n,) int64 kernels listed in the cells (both scales) of each point: a bound on its
+def _candidate_counts(points, table):  # pragma: no cover - compiled
+    """(n,) int64 kernels listed in the sub-cells (both scales) of each point: a bound on its
     features."""
+    masks = table[4]
     n = points.shape[0]
     found = np.zeros(n, dtype=np.int64)
     for i in numba.prange(n):
         for scale in range(2):
-            first, end = _block(points, i, scale, table_keys, starts, counts, sides, bits)
-            found[i] += end - first
+            first, end, bit = _block(points, i, scale, table)
+            for j in range(first, end):
+                if masks[j] & bit:
+                    found[i] += 1
     return found
 
 
 @numba.njit(cache=True, parallel=True)
-def _fill_features(
-    points, bound, table_keys, starts, counts, pool, sides, bits, means, transforms, planar
-):  # pragma: no cover - compiled
+def _fill_features(points, bound, table, means, transforms, planar):  # pragma: no cover
     """Kernel rows and values at each point, written from bound[i] on; returns (rows, values,
     nnz (n,) int64 per point)."""
+    pool, masks = table[3], table[4]
     n = points.shape[0]
     rows = np.empty(bound[n], dtype=np.int64)
     values = np.empty(bound[n])
@@ -264,14 +329,15 @@ def _fill_features(
     for i in numba.prange(n):
         out = bound[i]
         for scale in range(2):
-            first, end = _block(points, i, scale, table_keys, starts, counts, sides, bits)
+            first, end, bit = _block(points, i, scale, table)
             for j in range(first, end):
-                m = pool[j]
-                value = kernel_at(points, i, m, means, transforms, planar)
-                if value != 0.0:
-                    rows[out] = m
-                    values[out] = value
-                    out += 1
+                if masks[j] & bit:
+                    m = pool[j]
+                    value = kernel_at(points, i, m, means, transforms, planar)
+                    if value != 0.0:
+                        rows[out] = m
+                        values[out] = value
+                        out += 1
         nnz[i] = out - bound[i]
     return rows, values, nnz
 
@@ -292,12 +358,7 @@ def _compact(bound, indptr, rows, values):  # pragma: no cover - compiled
 @numba.njit(cache=True, parallel=True)
 def support_decision_values(
     points,
-    table_keys,
-    starts,
-    counts,
-    pool,
-    sides,
-    bits,
+    table,
     means,
     transforms,
     planar,
@@ -307,27 +368,31 @@ def support_decision_values(
     with_variance,
 ):  # pragma: no cover - compiled
     """(n,) float64 bias + sum_m w_m phi_m(x) over every kernel at each point, and, when
-    with_variance, (n, 2) [sum_m phi_m^2 / lambda_m, sum_m phi_m] (else (0, 2))."""
+    with_variance, (n, 2) [sum_m phi_m^2 / lambda_m, sum_m phi_m] (else (0, 2)). table:
+    SupportHash._arguments()."""
+    pool, masks = table[3], table[4]
     n = points.shape[0]
-    scores = np.full(n, bias)
+    scores = np.empty(n)
     variance_sums = np.zeros((n if with_variance else 0, 2))
     for i in numba.prange(n):
+        score = bias
+        squares = 0.0
+        total = 0.0
         for scale in range(2):
-            first, end = _block(points, i, scale, table_keys, starts, counts, sides, bits)
+            first, end, bit = _block(points, i, scale, table)
             for j in range(first, end):
-                m = pool[j]
-                value = kernel_at(points, i, m, means, transforms, planar)
-                if value != 0.0:
-                    add_to_sums(
-                        scores,
-                        variance_sums,
-                        i,
-                        m,
-                        value,
-                        weights,
-                        inverse_precision,
-                        with_variance,
-                    )
+                if masks[j] & bit:
+                    m = pool[j]
+                    value = kernel_at(points, i, m, means, transforms, planar)
+                    if value != 0.0:
+                        score += weights[m] * value
+                        if with_variance:
+                            squares += value * value * inverse_precision[m]
+                            total += value
+        scores[i] = score
+        if with_variance:
+            variance_sums[i, 0] = squares
+            variance_sums[i, 1] = total
     return scores, variance_sums
 
 
@@ -353,12 +418,17 @@ class SupportHash:
     def __init__(self, dim: int, sides: tuple[float, float]) -> None:
         self.dim = dim
         self.sides = np.array(sides, dtype=np.float64)
+        self.divisions = 2 ** (SUBCELL_BITS // dim)
         self.bits = axis_bits(dim)
         self._used = np.zeros(2, dtype=np.int64)  # pool entries to the end, table slots taken
         self._table = self._empty_table(64)
         self._pool = np.zeros(256, dtype=np.int32)
+        self._masks = np.zeros(256, dtype=np.uint64)
+        # Each kernel's box in cells and in sub-cells, [lo, hi] per axis.
         self._lo = np.zeros((0, dim), dtype=np.int32)
         self._hi = np.zeros((0, dim), dtype=np.int32)
+        self._sub_lo = np.zeros((0, dim), dtype=np.int32)
+        self._sub_hi = np.zeros((0, dim), dtype=np.int32)
         self._coarse = np.zeros(0, dtype=np.int64)
         self._listed = np.zeros(0, dtype=bool)
 
@@ -380,7 +450,17 @@ class SupportHash:
 
     @property
     def nbytes(self) -> int:
-        arrays = [*self._table, self._pool, self._lo, self._hi, self._coarse, self._listed]
+        arrays = [
+            *self._table,
+            self._pool,
+            self._masks,
+            self._lo,
+            self._hi,
+            self._sub_lo,
+            self._sub_hi,
+            self._coarse,
+            self._listed,
+        ]
         return int(sum(a.nbytes for a in arrays))
 
     # -------------------------------------------------------------- updates
@@ -400,11 +480,21 @@ class SupportHash:
         listed = rows[self._listed[rows]]
         keys, starts, counts, _ = self._table
         _remove(
-            keys, starts, counts, self._pool, listed, self._lo, self._hi, self._coarse, self.bits
+            keys,
+            starts,
+            counts,
+            self._pool,
+            self._masks,
+            listed,
+            self._lo,
+            self._hi,
+            self._coarse,
+            self.bits,
         )
         low, high = support_boxes(means[rows], transforms[rows], planar[rows])
-        side = self.sides[coarse[rows].astype(np.int64)][:, None]
-        lo, hi = np.floor(low / side), np.floor(high / side)
+        sub_side = self._sub_sides[coarse[rows].astype(np.int64)][:, None]
+        sub_lo, sub_hi = np.floor(low / sub_side), np.floor(high / sub_side)
+        lo, hi = np.floor(sub_lo / self.divisions), np.floor(sub_hi / self.divisions)
         limit = 2.0 ** (self.bits - 1)
         if len(rows) and not (lo.min() >= -limit and hi.max() < limit):
             raise InputError(
@@ -412,6 +502,7 @@ class SupportHash:
                 "origin, beyond the cells of the support hash"
             )
         self._lo[rows], self._hi[rows] = lo, hi
+        self._sub_lo[rows], self._sub_hi[rows] = sub_lo, sub_hi
         self._coarse[rows] = coarse[rows]
         self._listed[rows] = True
         pending = rows
@@ -419,10 +510,14 @@ class SupportHash:
             done = _insert(
                 *self._table,
                 self._pool,
+                self._masks,
                 self._used,
                 pending,
                 self._lo,
                 self._hi,
+                self._sub_lo,
+                self._sub_hi,
+                self.divisions,
                 self._coarse,
                 self.bits,
             )
@@ -435,7 +530,7 @@ class SupportHash:
         if n <= old:
             return
         size = max(n, 2 * old, 64)
-        for name in ("_lo", "_hi", "_coarse", "_listed"):
+        for name in ("_lo", "_hi", "_sub_lo", "_sub_hi", "_coarse", "_listed"):
             array = getattr(self, name)
             grown = np.zeros((size, *array.shape[1:]), dtype=array.dtype)
             grown[:old] = array
@@ -449,11 +544,12 @@ class SupportHash:
         size = len(keys)
         while 2 * (self._used[1] + cells) > size:
             size *= 2
-        *table, pool, end, taken = _rebuild(
+        *table, pool, masks, end, taken = _rebuild(
             keys,
             counts,
             starts,
             self._pool,
+            self._masks,
             size,
             pending,
             self._lo,
@@ -461,25 +557,39 @@ class SupportHash:
             self._coarse,
             self.bits,
         )
-        self._table, self._pool = tuple(table), pool
+        self._table, self._pool, self._masks = tuple(table), pool, masks
         self._used[:] = end, taken
 
     # -------------------------------------------------------------- queries
+    @property
+    def _sub_sides(self) -> np.ndarray:
+        """(2,) metres: the side of a sub-cell of each scale."""
+        return self.sides / self.divisions
+
     def _arguments(self) -> tuple:
+        """What the compiled queries read: (keys, starts, counts, pool, masks, sub-cell sides,
+        sub-cells per axis, bits per axis of a key)."""
         keys, starts, counts, _ = self._table
-        return keys, starts, counts, self._pool, self.sides, self.bits
+        return (
+            keys,
+            starts,
+            counts,
+            self._pool,
+            self._masks,
+            self._sub_sides,
+            self.divisions,
+            self.bits,
+        )
 
     def features(
         self, points: np.ndarray, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
     ) -> SparseFeatures:
         """Every kernel not zero at each of (n, d) points, metres, as the points' features."""
         points = np.ascontiguousarray(points, dtype=np.float64)
-        keys, starts, counts, pool, sides, bits = self._arguments()
+        table = self._arguments()
         bound = np.zeros(len(points) + 1, dtype=np.int64)
-        np.cumsum(_candidate_counts(points, keys, starts, counts, sides, bits), out=bound[1:])
-        rows, values, nnz = _fill_features(
-            points, bound, keys, starts, counts, pool, sides, bits, means, transforms, planar
-        )
+        np.cumsum(_candidate_counts(points, table), out=bound[1:])
+        rows, values, nnz = _fill_features(points, bound, table, means, transforms, planar)
         indptr = np.zeros(len(points) + 1, dtype=np.int64)
         np.cumsum(nnz, out=indptr[1:])
         packed_rows, packed_values = _compact(bound, indptr, rows, values)
@@ -501,7 +611,7 @@ class SupportHash:
         points = np.ascontiguousarray(points, dtype=np.float64)
         return support_decision_values(
             points,
-            *self._arguments(),
+            self._arguments(),
             means,
             transforms,
             planar,
