@@ -21,7 +21,6 @@ from ehm.core.model.kernels import (
     kernel_code,
     kernels_of_codes,
     projected_radii,
-    sparse_kernel,
 )
 from ehm.core.search.cells import cell_keys
 from ehm.core.search.index import ClusterIndex
@@ -166,23 +165,6 @@ def training_features(
         clusters.planar_kernel,
     )
     return SparseFeatures.of_groups(groups.group_of_point, neighbours, values)
-
-
-@numba.njit(cache=True, inline="always")
-def kernel_at(points, i, cluster, means, transforms, planar):  # pragma: no cover - compiled
-    """Kernel value of `cluster` at point i, as cluster_kernel gives it; 0 as soon as one
-    axis of u = T_m (x_i - mu_m) reaches 1, past both kernels' support. The first row of T_m
-    is the one of the smallest spread, so most points outside are known after one row."""
-    d = points.shape[1]
-    r2 = 0.0
-    for a in range(d):
-        u = 0.0
-        for b in range(d):
-            u += transforms[cluster, a, b] * (points[i, b] - means[cluster, b])
-        if abs(u) >= 1.0:
-            return 0.0
-        r2 += u * u
-    return 1.0 if planar[cluster] else sparse_kernel(np.sqrt(r2))
 
 
 @numba.njit(cache=True, parallel=True)
