@@ -15,9 +15,9 @@ packs its integer coordinates (20 bits per axis in 3D, 31 in 2D, from -2^19 and 
 scale.
 
 A cell's block is long where surfaces crowd (146 kernels listed for 11 not zero at a point
-of a TUM frame's map), so each entry also holds a mask of the sub-cells of its cell that the
-kernel's box overlaps (64 in all): a point evaluates only the kernels whose
-mask holds its own sub-cell (43 of the 146 there).
+of a TUM sequence's map), so each entry also holds a mask of the sub-cells of its cell that
+the kernel's box overlaps (64 in all): a point evaluates only the kernels whose mask holds its
+own sub-cell (42 of the 146 there).
 
 The table is updated in place, in time proportional to the kernels that change: each cell owns
 a block of a shared pool of kernel rows, sorted, with room to spare; a kernel is removed from
