@@ -1,7 +1,7 @@
 """A planner in the loop: learn a scan, then cast rays and ask points and their distances, with
 EHM and OctoMap on the same scans and queries, in one process.
 
-    python benchmarks/planner_loop.py [--rays 5000] [--points 10000]
+    python benchmarks/planner_loop.py [--rays 5000] [--points 10000] [--features support]
 
 For each data set (TUM, the warehouse, the street; each at its own resolution, EHM through
 `MapConfig.for_resolution`), scan by scan:
@@ -60,9 +60,11 @@ def rays_of(scan: ehm.Scan, n: int, rng: np.random.Generator):
     return np.broadcast_to(scan.origin, directions.shape).copy(), directions
 
 
-def loop(name: str, scans: list[ehm.Scan], n_rays: int, n_points: int) -> list[list[str]]:
+def loop(
+    name: str, scans: list[ehm.Scan], n_rays: int, n_points: int, features: str
+) -> list[list[str]]:
     resolution = RESOLUTIONS.get(name, RESOLUTION)
-    hilbert_map = ehm.HilbertMap(ehm.MapConfig.for_resolution(resolution))
+    hilbert_map = ehm.HilbertMap(ehm.MapConfig.for_resolution(resolution, features=features))
     octomap = OctoMapMapper(resolution)
     octomap.build([])
     rng = np.random.default_rng(0)
@@ -101,9 +103,12 @@ def main() -> None:
     parser.add_argument("--rays", type=int, default=5000)
     parser.add_argument("--points", type=int, default=10_000)
     parser.add_argument("--datasets", default=",".join(DATA_SETS))
+    parser.add_argument("--features", choices=("nearest", "support"), default="nearest")
     args = parser.parse_args()
-    print(heading("A planner in the loop", f"{args.rays:,} rays, {args.points:,} points a scan"))
-    warm = ehm.HilbertMap().integrate_scan(warehouse().scans[0])  # compiles every kernel
+    detail = f"{args.rays:,} rays, {args.points:,} points a scan, features '{args.features}'"
+    print(heading("A planner in the loop", detail))
+    # Compiles every kernel.
+    warm = ehm.HilbertMap(features=args.features).integrate_scan(warehouse().scans[0])
     warm.raycast(np.zeros((1, 3)), np.array([[1.0, 0.0, 0.0]]), 5.0)
     warm.distance(np.zeros((1, 3)), return_gradient=True)
     rows = []
@@ -113,7 +118,7 @@ def main() -> None:
         except DataMissingError as missing:
             print(f"skipped {name}: {missing}")
             continue
-        rows += loop(name, scans, args.rays, args.points)
+        rows += loop(name, scans, args.rays, args.points, args.features)
     header = [
         "scan",
         "EHM learns, s",
