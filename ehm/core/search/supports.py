@@ -113,20 +113,23 @@ def _sub_cell_mask(m, cell, sub_lo, sub_hi, divisions):  # pragma: no cover - co
 
 
 @numba.njit(cache=True, inline="always")
-def _cell_key(m, c, lo, hi, bits, coarse, cell):  # pragma: no cover - compiled
-    """Key of cell c (0 .. cells - 1) of the box of cells lo[m] .. hi[m] (inclusive)."""
-    for a in range(lo.shape[1]):
-        extent = hi[m, a] - lo[m, a] + 1
-        cell[a] = lo[m, a] + c % extent
+def _cell_key(m, c, sub_lo, sub_hi, divisions, bits, coarse, cell):  # pragma: no cover
+    """Key of cell c (0 .. cells - 1) of the box of cells that holds kernel m's sub-cells
+    sub_lo[m] .. sub_hi[m] (inclusive)."""
+    for a in range(sub_lo.shape[1]):
+        low = sub_lo[m, a] // divisions
+        extent = sub_hi[m, a] // divisions - low + 1
+        cell[a] = low + c % extent
         c //= extent
     return _pack(cell, bits, coarse[m])
 
 
 @numba.njit(cache=True, inline="always")
-def _n_cells(m, lo, hi):  # pragma: no cover - compiled
+def _n_cells(m, sub_lo, sub_hi, divisions):  # pragma: no cover - compiled
+    """Cells that hold kernel m's sub-cells sub_lo[m] .. sub_hi[m]."""
     n = 1
-    for a in range(lo.shape[1]):
-        n *= hi[m, a] - lo[m, a] + 1
+    for a in range(sub_lo.shape[1]):
+        n *= sub_hi[m, a] // divisions - sub_lo[m, a] // divisions + 1
     return n
 
 
@@ -140,27 +143,26 @@ def _insert(
     masks,
     used,
     kernels,
-    lo,
-    hi,
     sub_lo,
     sub_hi,
     divisions,
     coarse,
     bits,
 ):  # pragma: no cover - compiled
-    """List `kernels` in every cell from lo[m] to hi[m] (inclusive, per axis) of scale
-    coarse[m], each entry with the mask of the sub-cells sub_lo[m] .. sub_hi[m] it overlaps
-    there. used: [pool entries in use up to the end, table slots taken]. Stops before a
+    """List `kernels` in every cell of scale coarse[m] that holds one of the sub-cells
+    sub_lo[m] .. sub_hi[m] (inclusive, per axis), each entry with the mask of those sub-cells
+    in it. used: [pool entries in use up to the end, table slots taken]. Stops before a
     kernel that would leave the table more than half full or overrun the pool, and returns how
     many kernels it listed."""
-    cell = np.empty(lo.shape[1], dtype=np.int64)
+    cell = np.empty(sub_lo.shape[1], dtype=np.int64)
     for done in range(len(kernels)):
         m = kernels[done]
-        n_cells = _n_cells(m, lo, hi)
+        n_cells = _n_cells(m, sub_lo, sub_hi, divisions)
         need = 0
         new_cells = 0
         for c in range(n_cells):
-            s = hash_slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
+            key = _cell_key(m, c, sub_lo, sub_hi, divisions, bits, coarse, cell)
+            s = hash_slot(table_keys, key)
             if table_keys[s] == EMPTY_KEY:
                 need += _MIN_BLOCK
                 new_cells += 1
@@ -169,7 +171,7 @@ def _insert(
         if used[0] + need > len(pool) or 2 * (used[1] + new_cells) > len(table_keys):
             return done
         for c in range(n_cells):
-            key = _cell_key(m, c, lo, hi, bits, coarse, cell)
+            key = _cell_key(m, c, sub_lo, sub_hi, divisions, bits, coarse, cell)
             s = hash_slot(table_keys, key)
             if table_keys[s] == EMPTY_KEY:
                 table_keys[s] = key
@@ -201,13 +203,15 @@ def _insert(
 
 @numba.njit(cache=True)
 def _remove(
-    table_keys, starts, counts, pool, masks, kernels, lo, hi, coarse, bits
+    table_keys, starts, counts, pool, masks, kernels, sub_lo, sub_hi, divisions, coarse, bits
 ):  # pragma: no cover - compiled
-    """Take `kernels` out of the cells they were listed in (lo, hi, coarse as when listed)."""
-    cell = np.empty(lo.shape[1], dtype=np.int64)
+    """Take `kernels` out of the cells they were listed in (sub_lo, sub_hi, coarse as when
+    listed)."""
+    cell = np.empty(sub_lo.shape[1], dtype=np.int64)
     for m in kernels:
-        for c in range(_n_cells(m, lo, hi)):
-            s = hash_slot(table_keys, _cell_key(m, c, lo, hi, bits, coarse, cell))
+        for c in range(_n_cells(m, sub_lo, sub_hi, divisions)):
+            key = _cell_key(m, c, sub_lo, sub_hi, divisions, bits, coarse, cell)
+            s = hash_slot(table_keys, key)
             end = starts[s] + counts[s]
             for j in range(starts[s], end):
                 if pool[j] == m:
@@ -220,7 +224,7 @@ def _remove(
 
 @numba.njit(cache=True)
 def _place_cells(
-    keys, sizes, table_keys, counts, pending, lo, hi, coarse, bits
+    keys, sizes, table_keys, counts, pending, sub_lo, sub_hi, divisions, coarse, bits
 ):  # pragma: no cover - compiled
     """Put in the empty table `keys` every cell of the old table that lists kernels and every
     cell of `pending` kernels; sizes (len(keys),) int64 gains the entries each slot will hold.
@@ -232,10 +236,10 @@ def _place_cells(
             keys[t] = table_keys[s]
             sizes[t] = counts[s]
             taken += 1
-    cell = np.empty(lo.shape[1], dtype=np.int64)
+    cell = np.empty(sub_lo.shape[1], dtype=np.int64)
     for m in pending:
-        for c in range(_n_cells(m, lo, hi)):
-            key = _cell_key(m, c, lo, hi, bits, coarse, cell)
+        for c in range(_n_cells(m, sub_lo, sub_hi, divisions)):
+            key = _cell_key(m, c, sub_lo, sub_hi, divisions, bits, coarse, cell)
             t = hash_slot(keys, key)
             if keys[t] == EMPTY_KEY:
                 keys[t] = key
@@ -246,7 +250,18 @@ def _place_cells(
 
 @numba.njit(cache=True)
 def _rebuild(
-    table_keys, counts, starts, pool, masks, new_size, pending, lo, hi, coarse, bits
+    table_keys,
+    counts,
+    starts,
+    pool,
+    masks,
+    new_size,
+    pending,
+    sub_lo,
+    sub_hi,
+    divisions,
+    coarse,
+    bits,
 ):  # pragma: no cover - compiled
     """A table and a compact pool holding every entry of the old ones, with room in each
     cell's block for the entries of `pending` kernels (still to be listed) and a quarter more:
@@ -261,8 +276,9 @@ def _rebuild(
         table_keys,
         counts,
         pending,
-        lo,
-        hi,
+        sub_lo,
+        sub_hi,
+        divisions,
         coarse,
         bits,
     )
@@ -273,7 +289,9 @@ def _rebuild(
     new_starts = np.zeros(new_size, dtype=np.int64)
     new_counts = np.zeros(new_size, dtype=np.int64)
     capacities = np.zeros(new_size, dtype=np.int64)
-    taken = _place_cells(keys, capacities, table_keys, counts, pending, lo, hi, coarse, bits)
+    taken = _place_cells(
+        keys, capacities, table_keys, counts, pending, sub_lo, sub_hi, divisions, coarse, bits
+    )
     end = 0
     for t in range(new_size):
         if keys[t] != EMPTY_KEY:
@@ -439,9 +457,7 @@ class SupportHash:
         self._table = self._empty_table(64)
         self._pool = np.zeros(256, dtype=np.int32)
         self._masks = np.zeros(256, dtype=np.uint64)
-        # Each kernel's box in cells and in sub-cells, [lo, hi] per axis.
-        self._lo = np.zeros((0, dim), dtype=np.int32)
-        self._hi = np.zeros((0, dim), dtype=np.int32)
+        # Each kernel's box in sub-cells, [lo, hi] per axis; its cells are these over divisions.
         self._sub_lo = np.zeros((0, dim), dtype=np.int32)
         self._sub_hi = np.zeros((0, dim), dtype=np.int32)
         self._coarse = np.zeros(0, dtype=np.int64)
@@ -469,8 +485,6 @@ class SupportHash:
             *self._table,
             self._pool,
             self._masks,
-            self._lo,
-            self._hi,
             self._sub_lo,
             self._sub_hi,
             self._coarse,
@@ -501,22 +515,23 @@ class SupportHash:
             self._pool,
             self._masks,
             listed,
-            self._lo,
-            self._hi,
+            self._sub_lo,
+            self._sub_hi,
+            self.divisions,
             self._coarse,
             self.bits,
         )
         low, high = support_boxes(means[rows], transforms[rows], planar[rows])
         sub_side = self._sub_sides[coarse[rows].astype(np.int64)][:, None]
         sub_lo, sub_hi = np.floor(low / sub_side), np.floor(high / sub_side)
-        lo, hi = np.floor(sub_lo / self.divisions), np.floor(sub_hi / self.divisions)
-        limit = 2.0 ** (self.bits - 1)
-        if len(rows) and not (lo.min() >= -limit and hi.max() < limit):
+        # Within the keys' cells, and within the int32 the sub-cells are kept in.
+        limit = min(2.0 ** (self.bits - 1) * self.divisions, 2.0**31 - self.divisions)
+        if len(rows) and not (sub_lo.min() >= -limit and sub_hi.max() < limit):
+            reach = limit * self._sub_sides[0]
             raise InputError(
-                f"a kernel reaches more than {limit * self.sides[0]:.0f} m from the world "
-                "origin, beyond the cells of the support hash"
+                f"a kernel reaches more than {reach:.0f} m from the world origin, beyond the "
+                "cells of the support hash"
             )
-        self._lo[rows], self._hi[rows] = lo, hi
         self._sub_lo[rows], self._sub_hi[rows] = sub_lo, sub_hi
         self._coarse[rows] = coarse[rows]
         self._listed[rows] = True
@@ -528,8 +543,6 @@ class SupportHash:
                 self._masks,
                 self._used,
                 pending,
-                self._lo,
-                self._hi,
                 self._sub_lo,
                 self._sub_hi,
                 self.divisions,
@@ -545,7 +558,7 @@ class SupportHash:
         if n <= old:
             return
         size = max(n, 2 * old, 64)
-        for name in ("_lo", "_hi", "_sub_lo", "_sub_hi", "_coarse", "_listed"):
+        for name in ("_sub_lo", "_sub_hi", "_coarse", "_listed"):
             array = getattr(self, name)
             grown = np.zeros((size, *array.shape[1:]), dtype=array.dtype)
             grown[:old] = array
@@ -554,7 +567,8 @@ class SupportHash:
     def _make_room(self, pending: np.ndarray) -> None:
         """Rebuild the table (at most half full once `pending` kernels are listed) and a
         compact pool whose blocks have room for the pending kernels' entries."""
-        cells = int(np.prod(self._hi[pending] - self._lo[pending] + 1, axis=1).sum())
+        lo, hi = self._sub_lo[pending] // self.divisions, self._sub_hi[pending] // self.divisions
+        cells = int(np.prod(hi - lo + 1, axis=1).sum())
         keys, starts, counts, _ = self._table
         size = len(keys)
         while 2 * (self._used[1] + cells) > size:
@@ -567,8 +581,9 @@ class SupportHash:
             self._masks,
             size,
             pending,
-            self._lo,
-            self._hi,
+            self._sub_lo,
+            self._sub_hi,
+            self.divisions,
             self._coarse,
             self.bits,
         )
