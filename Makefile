@@ -40,6 +40,7 @@ bench: $(BIN)/ehm
 	$(BIN)/python benchmarks/soak.py
 	$(BIN)/python benchmarks/raycast.py
 	$(BIN)/python benchmarks/distance.py
+	$(BIN)/python benchmarks/point_queries.py
 	$(BIN)/python benchmarks/planner_loop.py
 	$(BIN)/python benchmarks/bag_stream.py
 	$(BIN)/python benchmarks/viewer.py
