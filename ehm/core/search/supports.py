@@ -31,7 +31,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ehm.core.model.features import SparseFeatures
+from ehm.core.model.features import SparseFeatures, add_to_sums
 from ehm.core.model.kernels import (
     cluster_kernel_reference,
     kernel_code,
@@ -77,9 +77,11 @@ def _cell_of(points, i, sub_side, divisions, bits, coarse):  # pragma: no cover 
     bit = np.int64(0)
     stride = np.int64(1)
     for a in range(points.shape[1]):
-        sub = min(max(np.floor(points[i, a] / sub_side), -limit * divisions), limit * divisions)
-        c = np.int64(np.floor(sub / divisions))
-        bit += stride * min(max(np.int64(sub) - c * divisions, 0), divisions - 1)
+        sub = np.int64(
+            min(max(np.floor(points[i, a] / sub_side), -limit * divisions), limit * divisions)
+        )
+        c = sub // divisions
+        bit += stride * (sub - c * divisions)
         stride *= divisions
         key = (key << bits) | (c + half)
     return (key << 1) | np.int64(coarse), np.uint64(1) << np.uint64(bit)
@@ -406,22 +408,22 @@ def _weighted_sums(
     bound, rows, values, weights, bias, inverse_precision, with_variance, scores, variance_sums
 ):  # pragma: no cover - compiled
     """Write bias + sum_m w_m phi_m of each point, from its kernel values at rows (point i's
-    from bound[i] on), into scores (n,), and when with_variance its [sum_m phi_m^2 /
-    lambda_m, sum_m phi_m] into variance_sums (n, 2)."""
+    from bound[i] on), into scores (n,), and when with_variance add its [sum_m phi_m^2 /
+    lambda_m, sum_m phi_m] to variance_sums (n, 2), zeros before."""
     n = len(bound) - 1
     for i in numba.prange(n):
-        score = bias
-        squares = 0.0
-        total = 0.0
+        scores[i] = bias
         for t in range(bound[i], bound[i + 1]):
-            score += weights[rows[t]] * values[t]
-            if with_variance:
-                squares += values[t] * values[t] * inverse_precision[rows[t]]
-                total += values[t]
-        scores[i] = score
-        if with_variance:
-            variance_sums[i, 0] = squares
-            variance_sums[i, 1] = total
+            add_to_sums(
+                scores,
+                variance_sums,
+                i,
+                rows[t],
+                values[t],
+                weights,
+                inverse_precision,
+                with_variance,
+            )
 
 
 # Points whose candidate kernels are held at once: 65,536 points of a TUM frame's map, 42
@@ -631,7 +633,8 @@ class SupportHash:
     ) -> SparseFeatures:
         """Every kernel not zero at each of (n, d) points, metres, as the points' features."""
         points = np.ascontiguousarray(points, dtype=np.float64)
-        counts, rows, values = [np.zeros(0, dtype=np.int64)], [], []
+        counts, rows = [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.int64)]
+        values = [np.zeros(0)]
         for first in range(0, len(points), CHUNK):
             chunk = points[first : first + CHUNK]
             bound, candidates, found = self._kernel_values(chunk, means, transforms, planar)
@@ -644,8 +647,6 @@ class SupportHash:
             values.append(packed_values)
         indptr = np.zeros(len(points) + 1, dtype=np.int64)
         np.cumsum(np.concatenate(counts), out=indptr[1:])
-        if len(points) == 0:
-            return SparseFeatures(indptr, np.zeros(0, dtype=np.int64), np.zeros(0))
         return SparseFeatures(indptr, np.concatenate(rows), np.concatenate(values))
 
     def decision_values(
