@@ -64,7 +64,7 @@ def main() -> None:
     )
 
     scenes = changing_room()
-    before, after = ehm.HilbertMap(), ehm.HilbertMap(pass_retraction=0.5)
+    before, after = ehm.HilbertMap(), ehm.HilbertMap()
     for i, scan in enumerate(scenes.scans):
         if i <= 4:
             before.integrate_scan(scan)

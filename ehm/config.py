@@ -190,15 +190,15 @@ class MapConfig:
     """Weight of the past evidence replayed with each batch, per unit of the batch's own: from
     the cells around hits as much as the batch has there (times the ratio), the rest from the
     cells along rays, each cell in proportion to the weight it has seen."""
-    pass_retraction: float = 0.0
+    pass_retraction: float = 0.5
     """Share of the occupied evidence in a memory cell that each ray passing through it takes
-    back, once rays of two batches have passed it with no new hit in the cell between
+    back, once rays of two batches have passed it with no new hit near it between
     (ehm.core.observations.passes): a thing that moved away is forgotten within a few scans,
     and the occupied clusters that stood on that evidence forget it in the same measure
-    (ehm.core.weights.forgetting). 0, the default, keeps all evidence: the map never forgets.
-    0.5 follows a changing room (a cart that left: 9 % of its surface read occupied three
-    scans after, against OctoMap's 69 %) and costs held-out F1 where rays pass close to noisy
-    surfaces seen from other poses (TUM 0.961 against 0.968; BENCHMARKS.md)."""
+    (ehm.core.weights.forgetting). On a changing room, a cart that left reads occupied on 6 %
+    of its surface three scans after rays began to pass through it (OctoMap: 69 %), and held-out
+    F1 of static data sets stays within 0.001 of keeping everything (BENCHMARKS.md). 0 keeps
+    all evidence: the map never forgets."""
     forget_after: float | None = None
     """Seconds a place may go unseen before what the map learned there starts to fade back to
     unknown (0.5, with the prior's std): from then on its weights, and the past evidence kept

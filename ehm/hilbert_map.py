@@ -35,7 +35,7 @@ from ehm.core.model.features import (
 from ehm.core.model.logistic import sigmoid
 from ehm.core.observations.evidence import gather_evidence
 from ehm.core.observations.memory import EvidenceMemory, Visit
-from ehm.core.observations.passes import PASS_REACH_CELLS, occupied_passes
+from ehm.core.observations.passes import PASS_REACH_CELLS, hit_again, occupied_passes
 from ehm.core.observations.samples import ScanRays, TrainingSamples, scan_rays
 from ehm.core.queries.gradient import logit_gradients
 from ehm.core.queries.raycast import (
@@ -461,19 +461,18 @@ class HilbertMap:
 
     def _retract(self, rays: ScanRays, visit: Visit) -> int:
         """Take back the memory's occupied evidence that `rays` pass through, where the
-        visit's samples bring no new hit to its cell, and let the occupied clusters it stood
+        visit's samples bring no new hit to its cell and no hit of `rays` lands near it
+        (ehm.core.observations.passes), and let the occupied clusters it stood
         behind forget it in the same measure (ehm.core.weights.forgetting); returns how many
         clusters forgot anything."""
         memory, clusters, cfg = self._memory(), self._learned("search it"), self.config
         if cfg.pass_retraction == 0 or len(memory) == 0:
             return 0
-        entries, passes = occupied_passes(
-            memory, rays, PASS_REACH_CELLS * memory.sides[0], cfg.occupied_depth
-        )
+        reach = PASS_REACH_CELLS * memory.sides[0]
+        entries, passes = occupied_passes(memory, rays, reach, cfg.occupied_depth)
         hit = visit.entries[visit.samples.occupied]
-        retraction = memory.retract(
-            entries, passes, cfg.pass_retraction, np.isin(entries, hit[hit >= 0])
-        )
+        standing = np.isin(entries, hit[hit >= 0]) | hit_again(memory, entries, rays, reach)
+        retraction = memory.retract(entries, passes, cfg.pass_retraction, standing)
         if len(retraction.entries) == 0:
             return 0
         near = memory.occupied_near(retraction.entries)
