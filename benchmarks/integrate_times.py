@@ -27,7 +27,7 @@ import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
 from ehm.eval.datasets import DataMissingError, load_dataset, street
 
-STAGES = ("samples", "clustering", "length_scales", "features", "sgd", "memory")
+STAGES = ("samples", "clustering", "forgetting", "length_scales", "features", "sgd", "memory")
 
 
 @dataclass(frozen=True)

@@ -177,3 +177,53 @@ def test_hits_on_a_plane_have_its_normal_and_scattered_ones_none(rng):
     normals = passes_module.hit_plane_normals(np.vstack([floor, scattered]), 0.2)
     np.testing.assert_allclose(np.abs(normals[:20]), np.tile([0.0, 0.0, 1.0], (20, 1)), atol=1e-9)
     assert np.isnan(normals[20:]).all()
+
+
+@pytest.mark.parametrize("distance, passed", [(1.0, True), (3.0, False)])
+def test_the_solid_band_deepens_with_range(distance, passed):
+    """An entry 40 cm in front of a lone hit (no plane around it): at 1 m the band is 15 cm
+    and 0.04 m per square metre of the ray's 1.4 m (23 cm), short of the entry, which is
+    passed; at 3 m it is 61 cm deep and covers it."""
+    memory = memory_of(np.array([[distance, 0.0, 0.0]]), np.array([OCCUPIED]))
+    rays = rays_of(np.zeros((1, 3)), np.array([[distance + 0.4, 0.0, 0.0]]), np.array([True]), 0.05)
+    entries, _ = occupied_passes(memory, rays, 0.03, 0.15)
+    assert (len(entries) == 1) == passed
+    np.testing.assert_array_equal(entries, occupied_passes_reference(memory, rays, 0.03, 0.15)[0])
+
+
+@pytest.mark.parametrize(
+    "range_m, kept", [(10.0, [True, True, False]), (2.0, [True, False, False])]
+)
+def test_a_batch_hit_near_an_entry_keeps_it(range_m, kept):
+    """Entries 2, 15 and 25 cm beside a new hit: within reach (3 cm) the first is kept; at
+    10 m the registration slack (2 % of the range, 20 cm) keeps the second too, at 2 m (4 cm)
+    it does not."""
+    beside = np.array([0.02, 0.15, 0.25])
+    points = np.column_stack([np.full(3, range_m), beside, np.zeros(3)])
+    memory = memory_of(points, np.full(3, OCCUPIED))
+    rays = rays_of(np.zeros((1, 3)), np.array([[range_m, 0.0, 0.0]]), np.array([True]), 0.05)
+    near = passes_module.hit_again(memory, np.arange(3), rays, 0.03)
+    np.testing.assert_array_equal(near, kept)
+    # A batch without hits keeps nothing.
+    rays.hits[:] = False
+    assert not passes_module.hit_again(memory, np.arange(3), rays, 0.03).any()
+
+
+def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
+    """A wall (x = 1 m) hit along two LiDAR rings 9 cm apart: each 10 cm cell holds one ring,
+    a line, and the 20 cm cell around both finds the wall's plane. A wall hit densely with
+    1.5 cm of range noise is no plane in its 10 cm cells (least spread 0.27 of the next), and
+    is not given the plane its 20 cm cell would find (0.07)."""
+    y = np.arange(0.005, 0.2, 0.01)
+    rings = np.column_stack([np.ones(40), np.tile(y, 2), np.repeat([0.02, 0.11], 20)])
+    noisy = np.column_stack(
+        [
+            1.05 + np.clip(rng.normal(0.0, 0.015, 800), -0.045, 0.045),
+            rng.uniform(0.0, 0.2, (800, 2)) + [0.0, 0.2],
+        ]
+    )
+    normals = passes_module.hit_plane_normals(np.vstack([rings, noisy]), 0.1)
+    np.testing.assert_allclose(np.abs(normals[:40]), np.tile([1.0, 0.0, 0.0], (40, 1)), atol=1e-9)
+    assert np.isnan(normals[40:]).all()
+    wide = passes_module.hit_plane_normals(noisy, 0.2)
+    np.testing.assert_allclose(np.abs(wide[:, 0]), 1.0, atol=0.01)
