@@ -219,7 +219,7 @@ def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
     noisy = np.column_stack(
         [
             1.05 + np.clip(rng.normal(0.0, 0.015, 800), -0.045, 0.045),
-            rng.uniform(0.0, 0.2, (800, 2)) + [0.0, 0.2],
+            rng.uniform(0.0, 0.2, (800, 2)) + np.array([0.0, 0.2]),
         ]
     )
     normals = passes_module.hit_plane_normals(np.vstack([rings, noisy]), 0.1)

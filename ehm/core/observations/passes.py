@@ -6,9 +6,10 @@ free_end: up to `surface_margin` before its hit) and short of its hit by more th
 surface is taken to be solid, it goes through the entry's region and comes within `reach`
 metres of the entry's mean: noise and rays that end on the surface they graze do not pass it.
 The band is `occupied_depth` deep and grows with the square of the ray's length, as a depth
-camera's range noise does (BAND_GROWTH). Within that band, a ray whose hit lies on a plane of the batch's own hits (the floor behind a
-cart that left) passes the entries that lie off the plane: the cart's lowest centimetres,
-which rays to the floor behind it reach only within the band. Nor does a ray that runs along
+camera's range noise does (BAND_GROWTH). Within that band, a ray whose hit lies on a plane of
+the batch's own hits (the floor behind a cart that left) passes the entries that lie off the
+plane: the cart's lowest centimetres, which rays to the floor behind it reach only within the
+band. Nor does a ray that runs along
 the surface: where a region's occupied entries lie on a plane, a ray at more than
 GRAZING_DEGREES to its normal passes none of them (on TUM's depth frames, the rays that passed
 walls still there met them at 75-84 degrees, and ended 3-7 cm beyond).
