@@ -227,3 +227,26 @@ def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
     assert np.isnan(normals[40:]).all()
     wide = passes_module.hit_plane_normals(noisy, 0.2)
     np.testing.assert_allclose(np.abs(wide[:, 0]), 1.0, atol=0.01)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cell_planes_agree_with_their_numpy_twin(rng, dim):
+    # Patches of planes (lines in 2D) with a little noise, lines, and scattered hits.
+    centres = rng.uniform(-2.0, 2.0, (80, dim))
+    normals = rng.normal(size=(80, dim))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    spread = rng.normal(size=(80, 30, dim)) * 0.05
+    spread -= np.einsum("pnd,pd->pn", spread, normals)[..., None] * normals[:, None, :]
+    patches = centres[:, None, :] + spread + rng.normal(size=(80, 30, 1)) * 0.002 * normals[:, None]
+    line = np.outer(np.linspace(0.0, 0.1, 12), np.ones(dim)) + 3.0
+    points = np.concatenate([patches.reshape(-1, dim), line, rng.uniform(-2.0, 2.0, (400, dim))])
+    compiled = passes_module._cell_planes(points, 0.2)
+    reference = passes_module.cell_planes_reference(points, 0.2)
+    np.testing.assert_array_equal(compiled[1], reference[1])
+    np.testing.assert_array_equal(np.isnan(compiled[0]), np.isnan(reference[0]))
+    planar = ~np.isnan(reference[0][:, 0])
+    assert planar.sum() > 100 and compiled[1].sum() > 300
+    signs = np.sign(np.sum(compiled[0][planar] * reference[0][planar], axis=1))
+    np.testing.assert_allclose(
+        compiled[0][planar] * signs[:, None], reference[0][planar], atol=1e-7
+    )

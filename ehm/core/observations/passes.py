@@ -147,6 +147,56 @@ def _cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.nd
     (n, d; NaN: none) and whether they are too few or on a line for one (n,) bool."""
     n = len(hit_points)
     keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
+    order = np.argsort(keys)
+    ordered = keys[order]
+    starts = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1], [True]]))
+    cell = np.empty(n, dtype=np.int64)
+    cell[order] = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
+    normals, sparse = _cell_planes_kernel(
+        hit_points, order, starts, PLANE_HITS, HIT_PLANAR_SPREAD, LINEAR_SPREAD
+    )
+    return normals[cell], sparse[cell]
+
+
+@numba.njit(cache=True, parallel=True)
+def _cell_planes_kernel(
+    points, order, starts, min_hits, planar, linear
+):  # pragma: no cover - compiled
+    """The plane of each group of points (n, d), group g the rows order[starts[g]:starts[g +
+    1]]: its unit normal (G, d) where the group holds at least `min_hits` points whose least
+    spread is at most `planar` of the next (NaN elsewhere), and whether it holds fewer or
+    lies on a line, its middle spread at most `linear` of the largest (G,) bool."""
+    groups, d = len(starts) - 1, points.shape[1]
+    normals = np.full((groups, d), np.nan)
+    sparse = np.zeros(groups, dtype=np.bool_)
+    for g in numba.prange(groups):
+        first, last = starts[g], starts[g + 1]
+        mean = np.zeros(d)
+        for i in range(first, last):
+            for a in range(d):
+                mean[a] += points[order[i], a]
+        mean /= last - first
+        scatter = np.zeros((d, d))
+        for i in range(first, last):
+            for a in range(d):
+                for b in range(d):
+                    scatter[a, b] += (points[order[i], a] - mean[a]) * (
+                        points[order[i], b] - mean[b]
+                    )
+        spread, axes = np.empty(d), np.zeros((d, d))
+        eigen_in_place(scatter, spread, axes)
+        if last - first < min_hits or spread[1] <= linear * spread[d - 1]:
+            sparse[g] = True
+        elif spread[0] <= planar * spread[1]:
+            for a in range(d):
+                normals[g, a] = axes[a, 0]
+    return normals, sparse
+
+
+def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `_cell_planes`."""
+    n = len(hit_points)
+    keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
     _, cell, counts = np.unique(keys, return_inverse=True, return_counts=True)
     spread, axes = _group_spreads(hit_points, cell, np.ones(n))
     sparse = (counts < PLANE_HITS) | _on_a_line(spread)
@@ -439,7 +489,10 @@ def hit_again(
     hit_points = origins + rays.directions[hits] * rays.lengths[hits, None]
     points = memory.points_at(entries)
     farthest = REGISTRATION_SLACK * rays.lengths.max() + reach  # entries lie on the rays
-    distance, nearest = cKDTree(hit_points).query(points, distance_upper_bound=farthest)
+    tree = cKDTree(hit_points, balanced_tree=False, compact_nodes=False)  # faster to build
+    distance, nearest = tree.query(
+        points, distance_upper_bound=farthest, workers=numba.get_num_threads()
+    )
     found = np.flatnonzero(np.isfinite(distance))
     ranges = np.linalg.norm(points[found] - origins[nearest[found]], axis=1)
     near = np.zeros(len(entries), dtype=bool)
