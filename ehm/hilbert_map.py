@@ -462,9 +462,9 @@ class HilbertMap:
     def _retract(self, rays: ScanRays, visit: Visit) -> int:
         """Take back the memory's occupied evidence that `rays` pass through, where the
         visit's samples bring no new hit to its cell and no hit of `rays` lands near it
-        (ehm.core.observations.passes), and let the occupied clusters it stood
-        behind forget it in the same measure (ehm.core.weights.forgetting); returns how many
-        clusters forgot anything."""
+        (ehm.core.observations.passes), and let the occupied clusters it stood behind forget
+        it in the same measure (ehm.core.weights.forgetting); returns how many clusters forgot
+        anything."""
         memory, clusters, cfg = self._memory(), self._learned("search it"), self.config
         if cfg.pass_retraction == 0 or len(memory) == 0:
             return 0

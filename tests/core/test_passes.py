@@ -240,7 +240,7 @@ def test_cell_planes_agree_with_their_numpy_twin(rng, dim):
     patches = centres[:, None, :] + spread + rng.normal(size=(80, 30, 1)) * 0.002 * normals[:, None]
     line = np.outer(np.linspace(0.0, 0.1, 12), np.ones(dim)) + 3.0
     points = np.concatenate([patches.reshape(-1, dim), line, rng.uniform(-2.0, 2.0, (400, dim))])
-    compiled = passes_module._cell_planes(points, 0.2)
+    compiled = passes_module.cell_planes(points, 0.2)
     reference = passes_module.cell_planes_reference(points, 0.2)
     np.testing.assert_array_equal(compiled[1], reference[1])
     np.testing.assert_array_equal(np.isnan(compiled[0]), np.isnan(reference[0]))

@@ -9,14 +9,13 @@ The band is `occupied_depth` deep and grows with the square of the ray's length,
 camera's range noise does (BAND_GROWTH). Within that band, a ray whose hit lies on a plane of
 the batch's own hits (the floor behind a cart that left) passes the entries that lie off the
 plane: the cart's lowest centimetres, which rays to the floor behind it reach only within the
-band. Nor does a ray that runs along
-the surface: where a region's occupied entries lie on a plane, a ray at more than
-GRAZING_DEGREES to its normal passes none of them (on TUM's depth frames, the rays that passed
-walls still there met them at 75-84 degrees, and ended 3-7 cm beyond).
-An entry the batch hits again stays (`standing_entries`): one in whose cell a new hit lands, or
-near whose mean one does, within the lateral shift a small error in the sensor's orientation
-gives at that hit's range (REGISTRATION_SLACK): a surface seen from a pose a degree off stands
-beside where it stood, and the rays past its edge go through its old place.
+band. Nor does a ray that runs along the surface: where a region's occupied entries lie on a
+plane, a ray at more than GRAZING_DEGREES to its normal passes none of them (on TUM's depth
+frames, the rays that passed walls still there met them at 75-84 degrees, and ended 3-7 cm
+beyond). An entry the batch hits again stays: one in whose cell a new hit lands, or near whose
+mean one does (`hit_again`), within the lateral shift a small error in the sensor's
+orientation gives at its range (REGISTRATION_SLACK): a surface seen from a pose a degree off
+stands beside where it stood, and the rays past its edge go through its old place.
 Each ray walks the regions it crosses (a 3D DDA on the grid of regions,
 ehm.core.search.grid_walk) and looks each up in a table of the memory's regions around hits;
 only the regions that hold entries cost more than the lookup.
@@ -65,8 +64,8 @@ LINEAR_SPREAD = 0.1
 # The solid band in front of a hit grows by this many metres per square metre of the ray's
 # length: at 2 m it is `occupied_depth` and 16 cm deep, at 5 m a metre more. Depth cameras'
 # range noise grows with the square of range; on TUM's frames, walls 4-6 m away seen by one
-# frame were passed by the next, ending 16-50 cm beyond (held-out F1 0.963 without the
-# growth, 0.976 with it and the slack below; 0.977 keeping all evidence; seed 0).
+# frame were passed by the next, ending 16-50 cm beyond (held-out F1 at 80 %, seed 0: 0.963
+# without the growth, 0.975 with it and the slack below, 0.977 keeping all evidence).
 BAND_GROWTH = 0.04
 # A batch's hit within this share of its range of an entry's mean (0.02: the lateral shift of
 # about a degree of orientation error), or within `reach`, keeps the entry from being passed.
@@ -136,13 +135,13 @@ def hit_plane_normals(hit_points: np.ndarray, side: float) -> np.ndarray:
     few centimetres apart on a wall a few metres away), the cell of twice the side decides."""
     if len(hit_points) == 0:
         return np.full(hit_points.shape, np.nan)
-    normals, sparse = _cell_planes(hit_points, side)
+    normals, sparse = cell_planes(hit_points, side)
     if sparse.any():
-        normals[sparse] = _cell_planes(hit_points, 2.0 * side)[0][sparse]
+        normals[sparse] = cell_planes(hit_points, 2.0 * side)[0][sparse]
     return normals
 
 
-def _cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
+def cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
     """For each of the hits (n, d), metres: the normal of the plane its cell's hits lie on
     (n, d; NaN: none) and whether they are too few or on a line for one (n,) bool."""
     n = len(hit_points)
@@ -194,7 +193,7 @@ def _cell_planes_kernel(
 
 
 def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
-    """Plain NumPy twin of `_cell_planes`."""
+    """Plain NumPy twin of `cell_planes`."""
     n = len(hit_points)
     keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
     _, cell, counts = np.unique(keys, return_inverse=True, return_counts=True)
