@@ -126,22 +126,13 @@ def test_rays_along_a_surface_do_not_pass_it(degrees, passed):
 @pytest.mark.parametrize("dim", [2, 3])
 def test_region_normals_agree_with_their_numpy_twin(rng, dim):
     # Patches of planes (lines in 2D) of random orientations with a little noise, and clutter.
-    centres = rng.uniform(-2.0, 2.0, (60, dim))
-    normals = rng.normal(size=(60, dim))
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    spread = rng.normal(size=(60, 40, dim)) * 0.1
-    spread -= np.einsum("pnd,pd->pn", spread, normals)[..., None] * normals[:, None, :]
-    points = centres[:, None, :] + spread + rng.normal(size=(60, 40, 1)) * 0.003 * normals[:, None]
-    points = np.concatenate([points.reshape(-1, dim), rng.uniform(-2.0, 2.0, (500, dim))])
+    points = planar_patches(rng, dim, 60, 40, 0.1, 0.003)
+    points = np.concatenate([points, rng.uniform(-2.0, 2.0, (500, dim))])
     memory = memory_of(points, np.full(len(points), OCCUPIED))
     compiled = passes_module.region_normals(memory)
     reference = passes_module.region_normals_reference(memory)
-    np.testing.assert_array_equal(np.isnan(compiled), np.isnan(reference))
-    planar = ~np.isnan(reference[:, 0])
+    planar = assert_same_normals(compiled, reference)
     assert planar.sum() > 40
-    # Each normal up to its sign.
-    signs = np.sign(np.sum(compiled[planar] * reference[planar], axis=1))
-    np.testing.assert_allclose(compiled[planar] * signs[:, None], reference[planar], atol=1e-7)
 
 
 def test_rays_to_the_floor_behind_pass_what_stood_on_it(monkeypatch):
@@ -232,21 +223,37 @@ def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
 @pytest.mark.parametrize("dim", [2, 3])
 def test_cell_planes_agree_with_their_numpy_twin(rng, dim):
     # Patches of planes (lines in 2D) with a little noise, lines, and scattered hits.
-    centres = rng.uniform(-2.0, 2.0, (80, dim))
-    normals = rng.normal(size=(80, dim))
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    spread = rng.normal(size=(80, 30, dim)) * 0.05
-    spread -= np.einsum("pnd,pd->pn", spread, normals)[..., None] * normals[:, None, :]
-    patches = centres[:, None, :] + spread + rng.normal(size=(80, 30, 1)) * 0.002 * normals[:, None]
     line = np.outer(np.linspace(0.0, 0.1, 12), np.ones(dim)) + 3.0
-    points = np.concatenate([patches.reshape(-1, dim), line, rng.uniform(-2.0, 2.0, (400, dim))])
+    points = np.concatenate(
+        [planar_patches(rng, dim, 80, 30, 0.05, 0.002), line, rng.uniform(-2.0, 2.0, (400, dim))]
+    )
     compiled = passes_module.cell_planes(points, 0.2)
     reference = passes_module.cell_planes_reference(points, 0.2)
     np.testing.assert_array_equal(compiled[1], reference[1])
-    np.testing.assert_array_equal(np.isnan(compiled[0]), np.isnan(reference[0]))
-    planar = ~np.isnan(reference[0][:, 0])
+    planar = assert_same_normals(compiled[0], reference[0])
     assert planar.sum() > 100 and compiled[1].sum() > 300
-    signs = np.sign(np.sum(compiled[0][planar] * reference[0][planar], axis=1))
-    np.testing.assert_allclose(
-        compiled[0][planar] * signs[:, None], reference[0][planar], atol=1e-7
-    )
+
+
+def planar_patches(
+    rng: np.random.Generator, dim: int, patches: int, size: int, spread: float, noise: float
+) -> np.ndarray:
+    """(patches * size, dim): `patches` patches of planes (lines in 2D) of random orientations
+    centred in [-2, 2]^dim, `size` points each, Gaussian `spread` metres along the plane and
+    `noise` metres across it."""
+    centres = rng.uniform(-2.0, 2.0, (patches, dim))
+    normals = rng.normal(size=(patches, dim))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    along = rng.normal(size=(patches, size, dim)) * spread
+    along -= np.einsum("pnd,pd->pn", along, normals)[..., None] * normals[:, None, :]
+    across = rng.normal(size=(patches, size, 1)) * noise * normals[:, None]
+    return (centres[:, None, :] + along + across).reshape(-1, dim)
+
+
+def assert_same_normals(compiled: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Assert that two (n, d) arrays of normals are NaN at the same rows and agree elsewhere,
+    each up to its sign; returns the (n,) bool rows that have one."""
+    np.testing.assert_array_equal(np.isnan(compiled), np.isnan(reference))
+    planar = ~np.isnan(reference[:, 0])
+    signs = np.sign(np.sum(compiled[planar] * reference[planar], axis=1))
+    np.testing.assert_allclose(compiled[planar] * signs[:, None], reference[planar], atol=1e-7)
+    return planar

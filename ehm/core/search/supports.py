@@ -271,19 +271,9 @@ def _rebuild(
     slots enough for every old cell and every pending entry."""
     # Distinct cells first, in a table large enough for every entry: the new table holds four
     # times as many slots as there are cells, so it can take as many again before a rebuild.
+    listed = (table_keys, counts, pending, sub_lo, sub_hi, divisions, coarse, bits)
     scratch = np.full(new_size, EMPTY_KEY, dtype=np.int64)
-    distinct = _place_cells(
-        scratch,
-        np.zeros(new_size, dtype=np.int64),
-        table_keys,
-        counts,
-        pending,
-        sub_lo,
-        sub_hi,
-        divisions,
-        coarse,
-        bits,
-    )
+    distinct = _place_cells(scratch, np.zeros(new_size, dtype=np.int64), *listed)
     new_size = 64
     while new_size < 4 * distinct:
         new_size *= 2
@@ -291,9 +281,7 @@ def _rebuild(
     new_starts = np.zeros(new_size, dtype=np.int64)
     new_counts = np.zeros(new_size, dtype=np.int64)
     capacities = np.zeros(new_size, dtype=np.int64)
-    taken = _place_cells(
-        keys, capacities, table_keys, counts, pending, sub_lo, sub_hi, divisions, coarse, bits
-    )
+    taken = _place_cells(keys, capacities, *listed)
     end = 0
     for t in range(new_size):
         if keys[t] != EMPTY_KEY:
