@@ -479,7 +479,8 @@ class HilbertMap:
         after = memory.weight[near].astype(np.float64)
         before = after.copy()
         before[np.searchsorted(near, retraction.entries)] = retraction.before
-        features = self._features(memory.points_at(near), None)
+        points = memory.points_at(near)
+        features = self._features(points, self._query_groups(points, cfg.query_mode))
         share = standing_shares(features, before, after, len(clusters))
         return len(forget(clusters, share, cfg.prior_precision))
 

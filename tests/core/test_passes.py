@@ -55,6 +55,19 @@ def test_passes_agree_with_their_numpy_twin(rng, monkeypatch, dim, parallel):
     np.testing.assert_array_equal(counts, want_counts)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_occupied_layout_holds_each_regions_occupied_entries_in_order(rng, dim):
+    points = rng.uniform(-2.0, 2.0, (800, dim))
+    kinds = rng.choice([OCCUPIED, FREE_AT_SURFACE], 800, p=[0.6, 0.4])
+    memory = memory_of(points, kinds)
+    starts, entries, positions = passes_module.occupied_layout(memory)
+    occupied = np.flatnonzero(memory.samples().occupied)
+    np.testing.assert_array_equal(entries, occupied)
+    np.testing.assert_allclose(positions, memory.points_at(occupied), atol=1e-12)
+    region = np.searchsorted(memory.region_first(), occupied, side="right") - 1
+    np.testing.assert_array_equal(starts, np.searchsorted(region, np.arange(len(starts))))
+
+
 def test_a_pass_needs_the_ray_to_go_on_beyond_the_entry():
     """An entry at x = 1 m: rays that pass it and end well beyond pass it once each; a ray
     that ends within `depth` of it, one that passes too far to the side and one whose free

@@ -70,9 +70,11 @@ BAND_GROWTH = 0.04
 # A batch's hit within this share of its range of an entry's mean (0.02: the lateral shift of
 # about a degree of orientation error), or within `reach`, keeps the entry from being passed.
 REGISTRATION_SLACK = 0.02
-# Rays a batch must have before its passes are found in two parts of its rays, each on a
-# thread of its own as far as there are threads.
+# Rays a batch must have before its passes are found in PASS_PARTS parts of its rays, shared
+# by as many threads as there are. A frame's rows of rays differ in length and in the memory
+# they cross: a TUM frame's two halves on two threads took 60 ms, eight parts 45.
 PARALLEL_MIN_RAYS = 20_000
+PASS_PARTS = 8
 
 
 @numba.njit(cache=True, nogil=True)
@@ -102,6 +104,60 @@ def _entry_position(region, cell, place, fine_side, position):  # pragma: no cov
         position[a] = (
             region[a] * FINE_CELLS_PER_RADIUS + along + place[a] / OFFSET_STEPS
         ) * fine_side
+
+
+OccupiedLayout = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""The occupied entries of a memory's regions around hits, region by region, as a ray reads
+them: starts (R + 1,) int64, where each region's begin in `entries` (k,) int64, their rows in
+the memory; positions (k, d) float64, their means, metres."""
+
+
+def occupied_layout(memory: EvidenceMemory) -> OccupiedLayout:
+    """The memory's OccupiedLayout (regions along rays hold none)."""
+    return _layout_kernel(
+        memory.regions,
+        memory.region_first(),
+        memory.region_sizes,
+        memory.cells,
+        memory.place,
+        memory.sides[0],
+        region_bits(memory.dim),
+    )
+
+
+@numba.njit(cache=True, parallel=True)
+def _layout_kernel(
+    regions, region_first, region_sizes, cells, place, fine_side, bits
+):  # pragma: no cover - compiled
+    """occupied_layout of the memory's arrays (EvidenceMemory), `bits` an axis of a region
+    key."""
+    d = place.shape[1]
+    n_regions = len(regions)
+    starts = np.zeros(n_regions + 1, dtype=np.int64)
+    for r in numba.prange(n_regions):
+        if regions[r] & 1 == 0:
+            for e in range(region_first[r], region_first[r] + region_sizes[r]):
+                starts[r + 1] += cells[e] >> SUB_BITS == OCCUPIED
+    for r in range(n_regions):
+        starts[r + 1] += starts[r]
+    entries = np.empty(starts[n_regions], dtype=np.int64)
+    positions = np.empty((starts[n_regions], d))
+    half = np.int64(1) << (bits - 1)
+    for r in numba.prange(n_regions):
+        if starts[r + 1] == starts[r]:
+            continue
+        region = np.empty(d, dtype=np.int64)
+        packed = regions[r] >> 1
+        for a in range(d - 1, -1, -1):
+            region[a] = (packed & ((np.int64(1) << bits) - 1)) - half
+            packed >>= bits
+        k = starts[r]
+        for e in range(region_first[r], region_first[r] + region_sizes[r]):
+            if cells[e] >> SUB_BITS == OCCUPIED:
+                entries[k] = e
+                _entry_position(region, cells[e], place[e], fine_side, positions[k])
+                k += 1
+    return starts, entries, positions
 
 
 @numba.njit(cache=True, inline="always")
@@ -262,10 +318,9 @@ def pass_kernel(
     plane_gap,
     table_keys,
     table_rows,
-    region_first,
-    region_sizes,
-    cells,
-    place,
+    occupied_starts,
+    occupied_entries,
+    positions,
     normals,
     grazing_cos,
     fine_side,
@@ -277,8 +332,8 @@ def pass_kernel(
     """Append to `found` (capacity,) int64, from `used` on, the occupied entry of every pass of
     rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
     metres, ScanRays) through the memory's entries: table_keys, table_rows from
-    `region_table`; region_first (R,) int64 the first entry of each region; region_sizes (R,);
-    cells (m,) uint8 and place (m, d) uint8 of the entries (EvidenceMemory); normals (R, d)
+    `region_table`; occupied_starts, occupied_entries and positions from `occupied_layout`;
+    normals (R, d)
     from `region_normals`, and rays whose direction meets a region's at a cosine below
     `grazing_cos` pass none of its entries; `bits` an axis of a region key. From solid_start
     (n,) on, a ray passes only entries farther than `plane_gap` metres from the plane through
@@ -292,7 +347,6 @@ def pass_kernel(
     step = np.empty(d, dtype=np.int64)
     t_next = np.empty(d)
     t_delta = np.empty(d)
-    position = np.empty(d)
     for r in range(first_ray, last_ray):
         t, t_end = free_start[r], free_end[r]
         if t_end <= t:
@@ -309,10 +363,8 @@ def pass_kernel(
             s = hash_slot(table_keys, key << 1)
             row = table_rows[s]
             if table_keys[s] != EMPTY_KEY and _crosses(normals[row], directions[r], grazing_cos):
-                for e in range(region_first[row], region_first[row] + region_sizes[row]):
-                    if cells[e] >> SUB_BITS != OCCUPIED:
-                        continue
-                    _entry_position(region, cells[e], place[e], fine_side, position)
+                for k in range(occupied_starts[row], occupied_starts[row + 1]):
+                    position = positions[k]
                     along = 0.0
                     for a in range(d):
                         along += (position[a] - origins[r, a]) * directions[r, a]
@@ -327,69 +379,48 @@ def pass_kernel(
                         gap = position[a] - origins[r, a] - along * directions[r, a]
                         off += gap * gap
                     if off < reach * reach:
-                        found[used] = e
+                        found[used] = occupied_entries[k]
                         used += 1
             t = walk_step(region, step, t_next, t_delta)
     return last_ray, used
 
 
-def region_normals(memory: EvidenceMemory) -> np.ndarray:
+def region_normals(memory: EvidenceMemory, layout: OccupiedLayout | None = None) -> np.ndarray:
     """(R, d) float64: the unit normal of the plane the occupied entries of each of the
     memory's regions around hits lie on (at least d of them, weighted by their weights; see
-    PLANAR_SPREAD), NaN where they lie on none (and for regions along rays)."""
-    return _normals_kernel(
-        memory.regions,
-        memory.region_first(),
-        memory.region_sizes,
-        memory.cells,
-        memory.place,
-        memory.weight,
-        memory.sides[0],
-        region_bits(memory.dim),
-        PLANAR_SPREAD,
-        LINEAR_SPREAD,
-    )
+    PLANAR_SPREAD), NaN where they lie on none (and for regions along rays). layout: the
+    memory's `occupied_layout`, when it is known."""
+    starts, entries, positions = layout or occupied_layout(memory)
+    return _normals_kernel(starts, entries, positions, memory.weight, PLANAR_SPREAD, LINEAR_SPREAD)
 
 
 @numba.njit(cache=True, parallel=True)
-def _normals_kernel(
-    regions, region_first, region_sizes, cells, place, weight, fine_side, bits, planar, linear
-):  # pragma: no cover - compiled
-    """region_normals of the memory's arrays (EvidenceMemory), `bits` an axis of a region
-    key, planar and linear PLANAR_SPREAD and LINEAR_SPREAD."""
-    d = place.shape[1]
-    normals = np.full((len(regions), d), np.nan)
-    half = np.int64(1) << (bits - 1)
-    for r in numba.prange(len(regions)):
-        if regions[r] & 1:
-            continue
-        region = np.empty(d, dtype=np.int64)
-        packed = regions[r] >> 1
-        for a in range(d - 1, -1, -1):
-            region[a] = (packed & ((np.int64(1) << bits) - 1)) - half
-            packed >>= bits
-        position = np.empty(d)
+def _normals_kernel(starts, entries, positions, weight, planar, linear):  # pragma: no cover
+    """region_normals from the memory's occupied layout (starts, entries, positions) and
+    weights (m,), planar and linear PLANAR_SPREAD and LINEAR_SPREAD."""
+    d = positions.shape[1]
+    normals = np.full((len(starts) - 1, d), np.nan)
+    for r in numba.prange(len(starts) - 1):
         mean = np.zeros(d)
         total, count = 0.0, 0
-        first, last = region_first[r], region_first[r] + region_sizes[r]
-        for e in range(first, last):
-            if cells[e] >> SUB_BITS == OCCUPIED and weight[e] > 0:
-                _entry_position(region, cells[e], place[e], fine_side, position)
+        for k in range(starts[r], starts[r + 1]):
+            w = weight[entries[k]]
+            if w > 0:
                 for a in range(d):
-                    mean[a] += weight[e] * position[a]
-                total += weight[e]
+                    mean[a] += w * positions[k, a]
+                total += w
                 count += 1
         if count < d:
             continue
         mean /= total
         scatter = np.zeros((d, d))
-        for e in range(first, last):
-            if cells[e] >> SUB_BITS == OCCUPIED and weight[e] > 0:
-                _entry_position(region, cells[e], place[e], fine_side, position)
+        for k in range(starts[r], starts[r + 1]):
+            w = weight[entries[k]]
+            if w > 0:
                 for a in range(d):
                     for b in range(d):
                         scatter[a, b] += (
-                            weight[e] * (position[a] - mean[a]) * (position[b] - mean[b])
+                            w * (positions[k, a] - mean[a]) * (positions[k, b] - mean[b])
                         )
         spread, axes = np.empty(d), np.zeros((d, d))
         eigen_in_place(scatter, spread, axes)
@@ -438,9 +469,8 @@ def occupied_passes(
     none = np.zeros(0, dtype=np.int64)
     if len(memory) == 0 or len(rays) == 0:
         return none, none
-    dim = memory.dim
     keys, rows = region_table(memory.regions)
-    region_first = memory.region_first()
+    layout = occupied_layout(memory)
     fine_side = memory.sides[0]
     solid_start, hit_points, hit_normals = _solid_band(
         rays, depth, fine_side * FINE_CELLS_PER_RADIUS
@@ -456,21 +486,20 @@ def occupied_passes(
         OFF_PLANE_CELLS * fine_side,
         keys,
         rows,
-        region_first,
-        memory.region_sizes,
-        memory.cells,
-        memory.place,
-        region_normals(memory),
+        *layout,
+        region_normals(memory, layout),
         np.cos(np.radians(GRAZING_DEGREES)),
-        memory.sides[0],
+        fine_side,
         reach,
-        region_bits(dim),
+        region_bits(memory.dim),
     )
     n = len(rays)
-    bounds = [0, n] if n < PARALLEL_MIN_RAYS else [0, n // 2, n]
-    with ThreadPoolExecutor(min(len(bounds) - 1, numba.get_num_threads())) as pool:
-        parts = pool.map(_passes_of_part, repeat(arguments), bounds[:-1], bounds[1:])
-        found = np.concatenate(list(parts))
+    parts = 1 if n < PARALLEL_MIN_RAYS else PASS_PARTS
+    bounds = [n * part // parts for part in range(parts + 1)]
+    with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
+        found = np.concatenate(
+            list(pool.map(_passes_of_part, repeat(arguments), bounds[:-1], bounds[1:]))
+        )
     entries, passes = np.unique(found, return_counts=True)
     return entries, passes.astype(np.int64)
 
