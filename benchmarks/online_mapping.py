@@ -7,12 +7,12 @@ against the exact occupancy.
 
 For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the four
 methods: held-out F1 of the occupied class at p = 0.5, every method at the data set's
-resolution (0.05 m; on the street 0.2 m, on the outdoor LiDAR scans 0.1 m). On the simulated
-scenes the same maps are also scored against the exact occupancy at points near surfaces:
-uniform in balls of 0.3 m around training hits (both sides of each surface), kept where some
-training ray reached; precision, recall and F1 of the occupied class there; and where the scene
-has thin solids (posts at most 0.1 m across), the share of points inside them within 0.1 m of a
-training hit that read occupied (thin recall). Prints markdown tables, mean
+resolution (0.05 m; on the street 0.2 m, on the outdoor LiDAR scans and the hillside 0.1 m).
+On the simulated scenes the same maps are also scored against the exact occupancy at points
+near surfaces: uniform in balls of 0.3 m around training hits (both sides of each surface),
+kept where some training ray reached; precision, recall and F1 of the occupied class there; and
+where the scene has thin solids (posts at most 0.1 m across), the share of points inside them
+within 0.1 m of a training hit that read occupied (thin recall). Prints markdown tables, mean
 ± standard deviation over seeds.
 """
 
@@ -30,6 +30,7 @@ from ehm.eval.baselines import make_mapper
 from ehm.eval.datasets import (
     DataMissingError,
     dense_room,
+    hillside,
     load_dataset,
     outdoor_lidar,
     street,
@@ -47,6 +48,7 @@ SIMULATED = {
     "warehouse": warehouse,
     "street": street,
     "outdoor_lidar": outdoor_lidar,
+    "hillside": hillside,
     "dense_room": dense_room,
     "dense_room_noisy": lambda: dense_room(noise_std=0.01),
 }

@@ -5,6 +5,7 @@ from collections.abc import Callable
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 from ehm.eval.datasets.depth_camera import dense_room
+from ehm.eval.datasets.outdoor import hillside
 from ehm.eval.datasets.real import REAL_DATASETS, DataMissingError
 from ehm.eval.datasets.scene import Scene
 from ehm.eval.datasets.simulated import (
@@ -42,6 +43,7 @@ __all__ = [
     "SimulatedDataset",
     "dense_room",
     "floor_plan_2d",
+    "hillside",
     "load_dataset",
     "outdoor_lidar",
     "street",
