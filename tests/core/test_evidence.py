@@ -45,8 +45,8 @@ def test_compiled_evidence_matches_reference(rng, dim, box):
 
 
 def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng):
-    """Per kind, the weights add up to the samples drawn, and their weighted means and
-    scatter are the samples' own."""
+    """Per kind, the weights add up to those of the samples drawn, and their weighted means
+    and scatter are the samples' own."""
     config = MapConfig()
     scan = _scan(rng, 3000, 3, spread=2.0)
     rays = scan_rays([scan], config)
@@ -59,12 +59,14 @@ def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng):
         cells = evidence.subset(
             (evidence.occupied == occupied) & (evidence.at_surface == at_surface)
         )
-        assert cells.weight.sum() == len(drawn)
-        mean = drawn.points.mean(axis=0)
+        assert cells.weight.sum() == drawn.weight.sum()
+        mean = drawn.weight @ drawn.points / drawn.weight.sum()
         np.testing.assert_allclose(cells.weight @ cells.points / cells.weight.sum(), mean)
         offsets = cells.points - mean
         total = cells.scatter.sum(axis=0) + np.einsum("n,ni,nj->ij", cells.weight, offsets, offsets)
-        np.testing.assert_allclose(total, (drawn.points - mean).T @ (drawn.points - mean))
+        drawn_offsets = drawn.points - mean
+        want = np.einsum("n,ni,nj->ij", drawn.weight, drawn_offsets, drawn_offsets)
+        np.testing.assert_allclose(total, want)
 
 
 def test_a_batch_with_more_cells_than_rays_grows_its_table(rng):

@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core.observations.samples import TrainingSamples, samples_of_scans, training_samples
+from ehm.core.observations.samples import (
+    FAR_THINNING,
+    TrainingSamples,
+    samples_of_scans,
+    training_samples,
+)
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
@@ -37,17 +42,41 @@ def test_training_samples_lie_on_rays_with_the_right_labels(rng):
     assert np.all((depth[in_band] >= -0.05 - 1e-9) & (depth[in_band] <= -0.05 / 4 + 1e-9))
     assert not np.any(samples.at_surface & ~hit[ray])
     assert np.all(depth[~occupied & ~hit[ray]] <= 1e-9)
-    # Free density follows the setting: about length / spacing samples per ray.
+    # Free density follows the setting: samples standing for about length / spacing per ray.
     along = ~occupied & (depth < -0.05 - 1e-9)
     expected = np.sum(np.maximum(lengths - 0.05 * hit, 0) / 0.25)
-    assert abs(along.sum() - expected) < 0.1 * expected
+    assert abs(samples.weight[along].sum() - expected) < 0.1 * expected
+
+
+def test_free_samples_far_from_hits_are_sparser_and_weigh_more(rng):
+    """Within FAR_REACH free cluster radii (2 x 0.6 m) of its hit a ray's free samples lie a
+    spacing apart, farther FAR_THINNING spacings apart, each of weight FAR_THINNING; a ray
+    without a hit is far all along."""
+    origin = np.zeros(2)
+    angles = rng.uniform(0, 2 * np.pi, 400)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+    hit = np.arange(400) < 200
+    scan = Scan(directions * 8.0, origin, hit)
+    config = MapConfig(free_spacing=0.1, free_cluster_radius=0.6, surface_margin=0.05)
+    samples = training_samples(scan, config, rng)
+    along = ~samples.at_surface
+    distance = np.linalg.norm(samples.points[along], axis=1)
+    ray = np.argmax(samples.points[along] @ directions.T, axis=1)
+    weight = samples.weight[along]
+    near = hit[ray] & (distance > 8.0 - 1.2)
+    assert FAR_THINNING == 2
+    np.testing.assert_array_equal(weight, np.where(near, 1.0, FAR_THINNING))
+    # Samples per metre: 10 near hits, 5 elsewhere; weight per metre 10 everywhere.
+    assert abs(near.sum() / (200 * (1.2 - 0.05)) - 10) < 0.5
+    assert abs((~near & hit[ray]).sum() / (200 * 6.8) - 5) < 0.3
+    assert abs((~hit[ray]).sum() / (200 * 8.0) - 5) < 0.3
 
 
 def test_no_return_rays_give_free_samples_only(rng):
     scan = Scan(np.array([[3.0, 0.0], [0.0, 2.0]]), np.zeros(2), np.array([False, False]))
     samples = training_samples(scan, MapConfig(free_spacing=0.1), rng)
     assert not samples.occupied.any()
-    assert len(samples) > 30
+    assert 45 < samples.weight.sum() < 55  # 5 m of rays, 0.1 m apart
 
 
 def test_range_limits_drop_short_rays_and_cut_long_ones(rng):
@@ -64,11 +93,11 @@ def test_range_limits_drop_short_rays_and_cut_long_ones(rng):
     assert not np.any(np.abs(samples.points[:, 0] - samples.points[:, 1]) < 1e-12)
     np.testing.assert_allclose(samples.points[samples.occupied][:1], [[3.0, 0.0]])
     assert np.all(on_x[samples.occupied])
-    # The cut rays are free along their first 10 m, about 10 / 0.1 samples each.
+    # The cut rays are free along their first 10 m, standing for about 10 / 0.1 samples each.
     assert not samples.occupied[~on_x].any()
     for sign in (1, -1):
-        along = samples.points[~on_x & (np.sign(samples.points[:, 1]) == sign)]
-        assert 70 < len(along) < 130
+        along = ~on_x & (np.sign(samples.points[:, 1]) == sign)
+        assert 70 < samples.weight[along].sum() < 130
     unlimited = training_samples(Scan(points, origin, hits), MapConfig(free_spacing=0.1), rng)
     assert unlimited.occupied.sum() == 2 * 3
 

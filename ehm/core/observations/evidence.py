@@ -32,8 +32,10 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.observations.samples import (
+    FAR_THINNING,
     ScanRays,
     TrainingSamples,
+    dense_free_start,
     free_sample_counts,
     learn_box,
     ray_randoms,
@@ -129,9 +131,10 @@ def _rehash(keys, index, new_keys, new_index):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, inline="always")
 def _add_sample(
-    point, inv_side, side, kind, half, bits, cell, table, used, last
+    point, weight, inv_side, side, kind, half, bits, cell, table, used, last
 ):  # pragma: no cover - compiled
-    """Add `point` (d,) to the statistics of its cell of `kind` in `table` (the arrays of a
+    """Add `point` (d,), standing for `weight` samples, to the statistics of its cell of
+    `kind` in `table` (the arrays of a
     _CellTable, `used` cells filled); returns the cells used. last: (2, kinds) int64, the key
     and row of the cell each kind met last (a scan's neighbouring rays often meet it again,
     and the table is not searched)."""
@@ -156,14 +159,14 @@ def _add_sample(
             used += 1
         c = index[s]
         last[0, kind], last[1, kind] = key, c
-    stats[c, 0] += 1.0
+    stats[c, 0] += weight
     for a in range(d):
         cell[a] = point[a] - anchor[c, a]  # the offset from the cell's anchor
-        stats[c, 1 + a] += cell[a]
+        stats[c, 1 + a] += weight * cell[a]
     v = 1 + d
     for a in range(d):
         for b in range(a, d):
-            stats[c, v] += cell[a] * cell[b]
+            stats[c, v] += weight * cell[a] * cell[b]
             v += 1
     return used
 
@@ -177,8 +180,11 @@ def gather_kernel(
     lengths,
     hits,
     free_start,
+    dense_start,
     spacing,
-    free_counts,
+    far_counts,
+    dense_counts,
+    thinning,
     random,
     box,
     occupied_depth,
@@ -195,7 +201,9 @@ def gather_kernel(
 
     origins (n, d) metres, each ray's start; directions (n, d) unit; lengths (n,) metres to
     each ray's end; hits (n,) bool; free_start (n,) metres: where each ray's free samples
-    begin, spacing (n,) metres between them, free_counts (n,) how many; random (n, 3)
+    begin, `thinning` spacings (n,) metres apart, far_counts (n,) of them, each of that weight;
+    dense_start (n,) metres: where dense_counts (n,) more begin, a spacing apart (see
+    ehm.core.observations.samples.free_sample_counts); random (n, 3)
     uniforms in [0, 1): depth behind the hit, depth in front, offset of the free samples
     (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around hits
     outside it are left out; bits: bits per axis of a key.
@@ -208,7 +216,7 @@ def gather_kernel(
     cell = np.empty(d)
     last = np.full((2, 1 << KIND_BITS), EMPTY_KEY, dtype=np.int64)
     for r in range(first_ray, last_ray):
-        if used + 3 + free_counts[r] > capacity:
+        if used + 3 + far_counts[r] + dense_counts[r] > capacity:
             return r, used
         if hits[r]:
             depths = (
@@ -225,27 +233,42 @@ def gather_kernel(
                 if inside:
                     kind = FREE_AT_SURFACE if j == 2 else OCCUPIED
                     used = _add_sample(
-                        point, inv_fine, fine_side, kind, half, bits, cell, table, used, last
+                        point, 1.0, inv_fine, fine_side, kind, half, bits, cell, table, used, last
                     )
-        for k in range(free_counts[r]):
-            t = free_start[r] + (k + random[r, 2]) * spacing[r]
-            for a in range(d):
-                point[a] = origins[r, a] + directions[r, a] * t
-            used = _add_sample(
-                point, inv_coarse, coarse_side, FREE_ALONG_RAY, half, bits, cell, table, used, last
-            )
+        stretches = (
+            (free_start[r], thinning * spacing[r], far_counts[r], float(thinning)),
+            (dense_start[r], spacing[r], dense_counts[r], 1.0),
+        )
+        for start, step, count, weight in stretches:
+            for k in range(count):
+                t = start + (k + random[r, 2]) * step
+                for a in range(d):
+                    point[a] = origins[r, a] + directions[r, a] * t
+                used = _add_sample(
+                    point,
+                    weight,
+                    inv_coarse,
+                    coarse_side,
+                    FREE_ALONG_RAY,
+                    half,
+                    bits,
+                    cell,
+                    table,
+                    used,
+                    last,
+                )
     return last_ray, used
 
 
 def _gather_rays(arguments: tuple, first: int, last: int) -> _CellTable:
     """The cells of the samples of rays first, ..., last - 1 (`arguments`: gather_kernel's from
     `origins` to `bits`), in a table grown as they fill it."""
-    dim, counts = arguments[1].shape[1], arguments[6]
-    samples = int(counts[first:last].sum()) + 3 * (last - first)
+    dim, far, dense = arguments[1].shape[1], arguments[7], arguments[8]
+    samples = int(far[first:last].sum() + dense[first:last].sum()) + 3 * (last - first)
     table = _CellTable.empty(samples // SAMPLES_PER_CELL, dim)
     ray = first
     while ray < last:
-        if table.used + 3 + counts[ray] > len(table.key):
+        if table.used + 3 + far[ray] + dense[ray] > len(table.key):
             table = table.grown()
         ray, table.used = gather_kernel(ray, last, *arguments, table.arrays(), table.used)
     return table
@@ -270,15 +293,18 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
     bits = (63 - KIND_BITS) // dim
     _check_reach(rays, config, fine, bits)
     box = learn_box(config, dim) if config.learn_box else np.zeros((0, dim))
-    counts = free_sample_counts(rays, randoms, config.max_free_samples)
+    far, dense = free_sample_counts(rays, randoms, config)
     arguments = (
         np.ascontiguousarray(rays.origins),
         rays.directions,
         rays.lengths,
         rays.hits,
         rays.free_start,
+        dense_free_start(rays, config),
         rays.spacing,
-        counts,
+        far,
+        dense,
+        FAR_THINNING,
         randoms,
         box,
         config.occupied_depth,
@@ -287,7 +313,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         coarse,
         bits,
     )
-    samples_to = np.cumsum(counts + 3 * rays.hits)  # samples of the rays up to each
+    samples_to = np.cumsum(far + dense + 3 * rays.hits)  # samples of the rays up to each
     total = samples_to[-1] if len(samples_to) else 0
     parts = GATHER_PARTS if total >= PARALLEL_MIN_SAMPLES else 1
     bounds = np.searchsorted(samples_to, total * np.arange(parts + 1) / parts)
@@ -402,19 +428,20 @@ def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -
     fine, coarse = cell_sides(config)
     side = np.where(samples.at_surface, fine, coarse)
     keys = packed_cell_keys(samples.points, side, kind, KIND_BITS)
-    _, cell, weight = np.unique(keys, return_inverse=True, return_counts=True)
+    _, cell = np.unique(keys, return_inverse=True)
     cell = cell.ravel()
+    weight = np.bincount(cell, samples.weight)
     dim = samples.points.shape[1]
     means = (
-        np.stack([np.bincount(cell, samples.points[:, a], len(weight)) for a in range(dim)], 1)
+        np.stack([np.bincount(cell, samples.weight * samples.points[:, a]) for a in range(dim)], 1)
         / weight[:, None]
     )
     offsets = samples.points - means[cell]
-    outer = np.einsum("ni,nj->nij", offsets, offsets).reshape(len(offsets), -1)
+    outer = np.einsum("n,ni,nj->nij", samples.weight, offsets, offsets).reshape(len(cell), -1)
     scatter = np.stack(
         [np.bincount(cell, outer[:, c], len(weight)) for c in range(dim * dim)], 1
     ).reshape(-1, dim, dim)
     first = np.zeros(len(weight), dtype=np.int64)
     first[cell] = np.arange(len(cell))
     occupied, at_surface = sample_flags(kind[first])
-    return TrainingSamples(means, occupied, at_surface, weight.astype(np.float64), scatter)
+    return TrainingSamples(means, occupied, at_surface, weight, scatter)

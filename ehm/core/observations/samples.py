@@ -153,12 +153,41 @@ def ray_randoms(n: int, rng: np.random.Generator) -> np.ndarray:
     return rng.random((n, 3))
 
 
-def free_sample_counts(rays: ScanRays, randoms: np.ndarray, max_free_samples: int) -> np.ndarray:
-    """(n,) int64 free samples along each ray: one in each `spacing` of the free part, from
-    the offset randoms[:, 2] on (length / spacing of them in expectation)."""
-    span = np.maximum(rays.free_end - rays.free_start, 0.0)
-    counts = np.floor(span / rays.spacing + 1.0 - randoms[:, 2]).astype(np.int64)
-    return np.where(span > 0.0, np.minimum(counts, max_free_samples), 0)
+# Free samples along a ray farther than FAR_REACH free cluster radii from its hit, and all along
+# a ray without one, lie FAR_THINNING times as far apart, each standing for FAR_THINNING: open
+# space far from surfaces is easy to learn, and where rays spread apart each of its samples
+# makes a cell of its own (BENCHMARKS.md, "free space far from surfaces").
+FAR_REACH = 2.0
+FAR_THINNING = 2
+
+
+def dense_free_start(rays: ScanRays, config: MapConfig) -> np.ndarray:
+    """(n,) metres: where each ray's free samples lie `spacing` apart, up to its free end:
+    FAR_REACH free cluster radii before its hit, within its free part; at its free end (none
+    dense) for a ray without a hit."""
+    start = np.where(rays.hits, rays.lengths - FAR_REACH * config.free_cluster_radius, np.inf)
+    return np.clip(start, rays.free_start, np.maximum(rays.free_end, rays.free_start))
+
+
+def free_sample_counts(
+    rays: ScanRays, randoms: np.ndarray, config: MapConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """(far, dense) (n,) int64 free samples of each ray: one in each FAR_THINNING * `spacing`
+    from its free start to its dense start (`dense_free_start`), then one in each `spacing` to
+    its free end, each stretch from the offset randoms[:, 2] on; `max_free_samples` at most."""
+    dense_start = dense_free_start(rays, config)
+    offset = randoms[:, 2]
+    far = _stratified(dense_start - rays.free_start, FAR_THINNING * rays.spacing, offset)
+    dense = _stratified(rays.free_end - dense_start, rays.spacing, offset)
+    far = np.minimum(far, config.max_free_samples)
+    return far, np.minimum(dense, config.max_free_samples - far)
+
+
+def _stratified(span: np.ndarray, spacing: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """(n,) int64 samples in stretches of `span` metres, one in each `spacing` from `offset`
+    (in [0, 1), of a spacing) on: span / spacing in expectation."""
+    counts = np.floor(span / spacing + 1.0 - offset).astype(np.int64)
+    return np.where(span > 0.0, counts, 0)
 
 
 def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
@@ -168,7 +197,9 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     Around each hit: the hit and one point up to `occupied_depth` behind it are occupied; one
     point in the band from `surface_margin` / 4 to `surface_margin` in front of it is free.
     Along each ray, free points are stratified: one in each `spacing` of its free part, from a
-    random offset. With `learn_box`, the samples around hits outside it are left out.
+    random offset, where it lies within FAR_REACH free cluster radii of the ray's hit; one in
+    each FAR_THINNING spacings, of that weight, farther and along rays without a hit. With
+    `learn_box`, the samples around hits outside it are left out.
     """
     rays = scan_rays([scan], config)
     return samples_of_rays(rays, ray_randoms(len(rays), rng), config)
@@ -185,23 +216,28 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
         config.surface_margin * (0.25 + 0.75 * randoms[hits, 1]), rays.lengths[hits]
     )
     in_front = hit_points - hit_dirs * front_depth[:, None]
-    counts = free_sample_counts(rays, randoms, config.max_free_samples)
-    ray_of_sample = np.repeat(np.arange(len(counts)), counts)
-    rank = np.arange(len(ray_of_sample)) - np.repeat(np.cumsum(counts) - counts, counts)
-    depth = (
-        rays.free_start[ray_of_sample]
-        + (rank + randoms[ray_of_sample, 2]) * rays.spacing[ray_of_sample]
+    far, dense = free_sample_counts(rays, randoms, config)
+    stretches = (
+        (far, rays.free_start, FAR_THINNING * rays.spacing),
+        (dense, dense_free_start(rays, config), rays.spacing),
     )
-    along = rays.origins[ray_of_sample] + rays.directions[ray_of_sample] * depth[:, None]
+    along = []
+    for counts, start, spacing in stretches:
+        ray_of_sample = np.repeat(np.arange(len(counts)), counts)
+        rank = np.arange(len(ray_of_sample)) - np.repeat(np.cumsum(counts) - counts, counts)
+        depth = start[ray_of_sample] + (rank + randoms[ray_of_sample, 2]) * spacing[ray_of_sample]
+        along.append(rays.origins[ray_of_sample] + rays.directions[ray_of_sample] * depth[:, None])
     # Each hit's three samples together, then the free samples of every ray.
     surface = np.stack([hit_points, behind, in_front], axis=1).reshape(-1, rays.origins.shape[1])
-    points = np.concatenate([surface, along])
+    points = np.concatenate([surface, *along])
     n_surface = len(surface)
     occupied = np.zeros(len(points), dtype=bool)
     occupied[:n_surface] = np.tile([True, True, False], len(hit_points))
     at_surface = np.zeros(len(points), dtype=bool)
     at_surface[:n_surface] = True
-    samples = TrainingSamples(points, occupied, at_surface)
+    weight = np.ones(len(points))
+    weight[n_surface : n_surface + len(along[0])] = FAR_THINNING
+    samples = TrainingSamples(points, occupied, at_surface, weight)
     if config.learn_box:  # the samples around hits outside the box
         box = learn_box(config, rays.origins.shape[1])
         return samples.subset(~at_surface | points_in_box(points, box))
