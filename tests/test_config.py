@@ -49,6 +49,7 @@ def test_overrides_and_validation():
         ("max_range", -1.0, r"max_range must be 0 \(no limit\) or above min_range"),
         ("max_range", float("inf"), "max_range must be a finite number"),
         ("max_free_samples", 0, "max_free_samples must be an integer >= 1"),
+        ("free_thinning", 0, "free_thinning must be an integer >= 1"),
     ],
 )
 def test_settings_are_validated(setting, value, message):

@@ -4,12 +4,7 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core.observations.samples import (
-    FAR_THINNING,
-    TrainingSamples,
-    samples_of_scans,
-    training_samples,
-)
+from ehm.core.observations.samples import TrainingSamples, samples_of_scans, training_samples
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
@@ -49,23 +44,23 @@ def test_training_samples_lie_on_rays_with_the_right_labels(rng):
 
 
 def test_free_samples_far_from_hits_are_sparser_and_weigh_more(rng):
-    """Within FAR_REACH free cluster radii (2 x 0.6 m) of its hit a ray's free samples lie a
-    spacing apart, farther FAR_THINNING spacings apart, each of weight FAR_THINNING; a ray
-    without a hit is far all along."""
+    """With free_thinning 2, within FAR_REACH free cluster radii (2 x 0.6 m) of its hit a
+    ray's free samples lie a spacing apart, farther two spacings apart, each of weight 2; a ray
+    without a hit is far all along. With 1 (the default) all lie a spacing apart."""
     origin = np.zeros(2)
     angles = rng.uniform(0, 2 * np.pi, 400)
     directions = np.column_stack([np.cos(angles), np.sin(angles)])
     hit = np.arange(400) < 200
     scan = Scan(directions * 8.0, origin, hit)
     config = MapConfig(free_spacing=0.1, free_cluster_radius=0.6, surface_margin=0.05)
-    samples = training_samples(scan, config, rng)
+    assert np.all(training_samples(scan, config, rng).weight == 1.0)
+    samples = training_samples(scan, config.replace(free_thinning=2), rng)
     along = ~samples.at_surface
     distance = np.linalg.norm(samples.points[along], axis=1)
     ray = np.argmax(samples.points[along] @ directions.T, axis=1)
     weight = samples.weight[along]
     near = hit[ray] & (distance > 8.0 - 1.2)
-    assert FAR_THINNING == 2
-    np.testing.assert_array_equal(weight, np.where(near, 1.0, FAR_THINNING))
+    np.testing.assert_array_equal(weight, np.where(near, 1.0, 2.0))
     # Samples per metre: 10 near hits, 5 elsewhere; weight per metre 10 everywhere.
     assert abs(near.sum() / (200 * (1.2 - 0.05)) - 10) < 0.5
     assert abs((~near & hit[ray]).sum() / (200 * 6.8) - 5) < 0.3

@@ -32,7 +32,6 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.observations.samples import (
-    FAR_THINNING,
     ScanRays,
     TrainingSamples,
     dense_free_start,
@@ -304,7 +303,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         rays.spacing,
         far,
         dense,
-        FAR_THINNING,
+        config.free_thinning,
         randoms,
         box,
         config.occupied_depth,

@@ -154,11 +154,9 @@ def ray_randoms(n: int, rng: np.random.Generator) -> np.ndarray:
 
 
 # Free samples along a ray farther than FAR_REACH free cluster radii from its hit, and all along
-# a ray without one, lie FAR_THINNING times as far apart, each standing for FAR_THINNING: open
-# space far from surfaces is easy to learn, and where rays spread apart each of its samples
-# makes a cell of its own (BENCHMARKS.md, "free space far from surfaces").
+# a ray without one, lie MapConfig.free_thinning times as far apart, each standing for as
+# many: where rays spread apart, each of them makes a cell of its own.
 FAR_REACH = 2.0
-FAR_THINNING = 2
 
 
 def dense_free_start(rays: ScanRays, config: MapConfig) -> np.ndarray:
@@ -172,12 +170,13 @@ def dense_free_start(rays: ScanRays, config: MapConfig) -> np.ndarray:
 def free_sample_counts(
     rays: ScanRays, randoms: np.ndarray, config: MapConfig
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(far, dense) (n,) int64 free samples of each ray: one in each FAR_THINNING * `spacing`
+    """(far, dense) (n,) int64 free samples of each ray: one in each `free_thinning` spacings
     from its free start to its dense start (`dense_free_start`), then one in each `spacing` to
     its free end, each stretch from the offset randoms[:, 2] on; `max_free_samples` at most."""
     dense_start = dense_free_start(rays, config)
     offset = randoms[:, 2]
-    far = _stratified(dense_start - rays.free_start, FAR_THINNING * rays.spacing, offset)
+    far_spacing = config.free_thinning * rays.spacing
+    far = _stratified(dense_start - rays.free_start, far_spacing, offset)
     dense = _stratified(rays.free_end - dense_start, rays.spacing, offset)
     far = np.minimum(far, config.max_free_samples)
     return far, np.minimum(dense, config.max_free_samples - far)
@@ -198,7 +197,7 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     point in the band from `surface_margin` / 4 to `surface_margin` in front of it is free.
     Along each ray, free points are stratified: one in each `spacing` of its free part, from a
     random offset, where it lies within FAR_REACH free cluster radii of the ray's hit; one in
-    each FAR_THINNING spacings, of that weight, farther and along rays without a hit. With
+    each `free_thinning` spacings, of that weight, farther and along rays without a hit. With
     `learn_box`, the samples around hits outside it are left out.
     """
     rays = scan_rays([scan], config)
@@ -218,7 +217,7 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
     in_front = hit_points - hit_dirs * front_depth[:, None]
     far, dense = free_sample_counts(rays, randoms, config)
     stretches = (
-        (far, rays.free_start, FAR_THINNING * rays.spacing),
+        (far, rays.free_start, config.free_thinning * rays.spacing),
         (dense, dense_free_start(rays, config), rays.spacing),
     )
     along = []
@@ -236,7 +235,7 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
     at_surface = np.zeros(len(points), dtype=bool)
     at_surface[:n_surface] = True
     weight = np.ones(len(points))
-    weight[n_surface : n_surface + len(along[0])] = FAR_THINNING
+    weight[n_surface : n_surface + len(along[0])] = config.free_thinning
     samples = TrainingSamples(points, occupied, at_surface, weight)
     if config.learn_box:  # the samples around hits outside the box
         box = learn_box(config, rays.origins.shape[1])
