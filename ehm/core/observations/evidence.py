@@ -133,10 +133,9 @@ def _add_sample(
     point, weight, inv_side, side, kind, half, bits, cell, table, used, last
 ):  # pragma: no cover - compiled
     """Add `point` (d,), standing for `weight` samples, to the statistics of its cell of
-    `kind` in `table` (the arrays of a
-    _CellTable, `used` cells filled); returns the cells used. last: (2, kinds) int64, the key
-    and row of the cell each kind met last (a scan's neighbouring rays often meet it again,
-    and the table is not searched)."""
+    `kind` in `table` (the arrays of a _CellTable, `used` cells filled); returns the cells
+    used. last: (2, kinds) int64, the key and row of the cell each kind met last (a scan's
+    neighbouring rays often meet it again, and the table is not searched)."""
     keys, index, row_key, stats, anchor, kinds = table
     d = point.shape[0]
     key = np.int64(0)
@@ -202,10 +201,10 @@ def gather_kernel(
     each ray's end; hits (n,) bool; free_start (n,) metres: where each ray's free samples
     begin, `thinning` spacings (n,) metres apart, far_counts (n,) of them, each of that weight;
     dense_start (n,) metres: where dense_counts (n,) more begin, a spacing apart (see
-    ehm.core.observations.samples.free_sample_counts); random (n, 3)
-    uniforms in [0, 1): depth behind the hit, depth in front, offset of the free samples
-    (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around hits
-    outside it are left out; bits: bits per axis of a key.
+    ehm.core.observations.samples.free_sample_counts); random (n, 3) uniforms in [0, 1): depth
+    behind the hit, depth in front, offset of the free samples
+    (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around
+    hits outside it are left out; bits: bits per axis of a key.
     """
     d = directions.shape[1]
     half = np.int64(1) << (bits - 1)

@@ -333,9 +333,8 @@ def pass_kernel(
     rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
     metres, ScanRays) through the memory's entries: table_keys, table_rows from
     `region_table`; occupied_starts, occupied_entries and positions from `occupied_layout`;
-    normals (R, d)
-    from `region_normals`, and rays whose direction meets a region's at a cosine below
-    `grazing_cos` pass none of its entries; `bits` an axis of a region key. From solid_start
+    normals (R, d) from `region_normals`, and rays whose direction meets a region's at a cosine
+    below `grazing_cos` pass none of its entries; `bits` an axis of a region key. From solid_start
     (n,) on, a ray passes only entries farther than `plane_gap` metres from the plane through
     its hit, hit_points (n, d), of normal hit_normals (n, d) (NaN: none, and it passes none
     there). Stops before a ray that might overfill `found`; returns (the next ray, entries
@@ -390,7 +389,7 @@ def region_normals(memory: EvidenceMemory, layout: OccupiedLayout | None = None)
     memory's regions around hits lie on (at least d of them, weighted by their weights; see
     PLANAR_SPREAD), NaN where they lie on none (and for regions along rays). layout: the
     memory's `occupied_layout`, when it is known."""
-    starts, entries, positions = layout or occupied_layout(memory)
+    starts, entries, positions = occupied_layout(memory) if layout is None else layout
     return _normals_kernel(starts, entries, positions, memory.weight, PLANAR_SPREAD, LINEAR_SPREAD)
 
 

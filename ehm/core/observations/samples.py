@@ -162,7 +162,9 @@ FAR_REACH = 2.0
 def dense_free_start(rays: ScanRays, config: MapConfig) -> np.ndarray:
     """(n,) metres: where each ray's free samples lie `spacing` apart, up to its free end:
     FAR_REACH free cluster radii before its hit, within its free part; at its free end (none
-    dense) for a ray without a hit."""
+    dense) for a ray without a hit; at its free start (all dense) with `free_thinning` 1."""
+    if config.free_thinning == 1:
+        return rays.free_start
     start = np.where(rays.hits, rays.lengths - FAR_REACH * config.free_cluster_radius, np.inf)
     return np.clip(start, rays.free_start, np.maximum(rays.free_end, rays.free_start))
 
