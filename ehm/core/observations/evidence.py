@@ -34,7 +34,6 @@ from ehm.config import MapConfig
 from ehm.core.observations.samples import (
     ScanRays,
     TrainingSamples,
-    dense_free_start,
     free_sample_counts,
     learn_box,
     ray_randoms,
@@ -291,14 +290,14 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
     bits = (63 - KIND_BITS) // dim
     _check_reach(rays, config, fine, bits)
     box = learn_box(config, dim) if config.learn_box else np.zeros((0, dim))
-    far, dense = free_sample_counts(rays, randoms, config)
+    far, dense, dense_start = free_sample_counts(rays, randoms, config)
     arguments = (
         np.ascontiguousarray(rays.origins),
         rays.directions,
         rays.lengths,
         rays.hits,
         rays.free_start,
-        dense_free_start(rays, config),
+        dense_start,
         rays.spacing,
         far,
         dense,

@@ -159,7 +159,7 @@ def ray_randoms(n: int, rng: np.random.Generator) -> np.ndarray:
 FAR_REACH = 2.0
 
 
-def dense_free_start(rays: ScanRays, config: MapConfig) -> np.ndarray:
+def _dense_free_start(rays: ScanRays, config: MapConfig) -> np.ndarray:
     """(n,) metres: where each ray's free samples lie `spacing` apart, up to its free end:
     FAR_REACH free cluster radii before its hit, within its free part; at its free end (none
     dense) for a ray without a hit; at its free start (all dense) with `free_thinning` 1."""
@@ -171,17 +171,18 @@ def dense_free_start(rays: ScanRays, config: MapConfig) -> np.ndarray:
 
 def free_sample_counts(
     rays: ScanRays, randoms: np.ndarray, config: MapConfig
-) -> tuple[np.ndarray, np.ndarray]:
-    """(far, dense) (n,) int64 free samples of each ray: one in each `free_thinning` spacings
-    from its free start to its dense start (`dense_free_start`), then one in each `spacing` to
-    its free end, each stretch from the offset randoms[:, 2] on; `max_free_samples` at most."""
-    dense_start = dense_free_start(rays, config)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(far, dense, dense_start): the free samples of each ray, far (n,) int64 of them one in
+    each `free_thinning` spacings from its free start to its dense start (n,) metres
+    (`_dense_free_start`), then dense (n,) int64 one in each `spacing` to its free end, each
+    stretch from the offset randoms[:, 2] on; `max_free_samples` at most."""
+    dense_start = _dense_free_start(rays, config)
     offset = randoms[:, 2]
     far_spacing = config.free_thinning * rays.spacing
     far = _stratified(dense_start - rays.free_start, far_spacing, offset)
     dense = _stratified(rays.free_end - dense_start, rays.spacing, offset)
     far = np.minimum(far, config.max_free_samples)
-    return far, np.minimum(dense, config.max_free_samples - far)
+    return far, np.minimum(dense, config.max_free_samples - far), dense_start
 
 
 def _stratified(span: np.ndarray, spacing: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -217,10 +218,10 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
         config.surface_margin * (0.25 + 0.75 * randoms[hits, 1]), rays.lengths[hits]
     )
     in_front = hit_points - hit_dirs * front_depth[:, None]
-    far, dense = free_sample_counts(rays, randoms, config)
+    far, dense, dense_start = free_sample_counts(rays, randoms, config)
     stretches = (
         (far, rays.free_start, config.free_thinning * rays.spacing),
-        (dense, dense_free_start(rays, config), rays.spacing),
+        (dense, dense_start, rays.spacing),
     )
     along = []
     for counts, start, spacing in stretches:

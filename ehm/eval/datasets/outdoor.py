@@ -17,7 +17,12 @@ from __future__ import annotations
 import numpy as np
 
 from ehm.eval.datasets.scene import Scene
-from ehm.eval.datasets.simulated import SimulatedDataset, lidar_directions, simulate_scan
+from ehm.eval.datasets.simulated import (
+    SimulatedDataset,
+    lidar_directions,
+    scene_of,
+    simulate_scan,
+)
 
 # The road runs along x, its kerbs' inner faces at y = +-ROAD_HALF_WIDTH, metres.
 ROAD_HALF_WIDTH = 4.0
@@ -27,6 +32,9 @@ SLOPE_DEGREES = 12.0
 STEP_RISE = 0.02
 HILL_DEPTH = 20.0
 KERB_HEIGHT, KERB_WIDTH = 0.12, 0.3
+# Where the hillside begins (the north kerb's outer edge), and the run of each of its steps.
+HILL_FOOT = ROAD_HALF_WIDTH + KERB_WIDTH
+STEP_RUN = STEP_RISE / np.tan(np.radians(SLOPE_DEGREES))
 FENCE_Y = -8.0
 # The scene's own draws (the balls of bushes and crowns), fixed: only range noise follows a seed.
 _SCENE_SEED = 7
@@ -35,20 +43,19 @@ _SCENE_SEED = 7
 def hill_height(y: np.ndarray | float) -> np.ndarray:
     """The hillside's surface height, metres, at distance y north of the road's axis (0 on and
     south of the north kerb's outer edge), as its steps make it."""
-    start = ROAD_HALF_WIDTH + KERB_WIDTH
-    run = STEP_RISE / np.tan(np.radians(SLOPE_DEGREES))
-    steps = np.floor((np.asarray(y, dtype=np.float64) - start) / run) + 1
-    return np.clip(steps, 0, np.floor(HILL_DEPTH / run)) * STEP_RISE
+    steps = np.floor((np.asarray(y, dtype=np.float64) - HILL_FOOT) / STEP_RUN) + 1
+    return np.clip(steps, 0, np.floor(HILL_DEPTH / STEP_RUN)) * STEP_RISE
 
 
 def _hillside_boxes() -> list[tuple[list[float], list[float]]]:
     """The hillside's steps: columns of ground, each one STEP_RISE higher than the last."""
-    start = ROAD_HALF_WIDTH + KERB_WIDTH
-    run = STEP_RISE / np.tan(np.radians(SLOPE_DEGREES))
     half = ROAD_LENGTH / 2
     return [
-        ([-half, start + i * run, 0.0], [half, start + (i + 1) * run, (i + 1) * STEP_RISE])
-        for i in range(int(HILL_DEPTH / run))
+        (
+            [-half, HILL_FOOT + i * STEP_RUN, 0.0],
+            [half, HILL_FOOT + (i + 1) * STEP_RUN, (i + 1) * STEP_RISE],
+        )
+        for i in range(int(HILL_DEPTH / STEP_RUN))
     ]
 
 
@@ -67,11 +74,10 @@ def hillside_scene() -> Scene:
     """The road, its kerbs, the hillside with its poles and trees, the fence and the bushes of
     the south verge (see the module docstring)."""
     half = ROAD_LENGTH / 2
-    kerb = ROAD_HALF_WIDTH + KERB_WIDTH
     boxes = [
         ([-half, -25.0, -0.5], [half, 25.0, 0.0]),  # ground under everything
-        ([-half, ROAD_HALF_WIDTH, 0.0], [half, kerb, KERB_HEIGHT]),
-        ([-half, -kerb, 0.0], [half, -ROAD_HALF_WIDTH, KERB_HEIGHT]),
+        ([-half, ROAD_HALF_WIDTH, 0.0], [half, HILL_FOOT, KERB_HEIGHT]),
+        ([-half, -HILL_FOOT, 0.0], [half, -ROAD_HALF_WIDTH, KERB_HEIGHT]),
         *_hillside_boxes(),
     ]
     for x, y, width in ((-20.0, 14.0, 0.08), (-6.0, 19.0, 0.05), (8.0, 24.0, 0.08),
@@ -97,12 +103,7 @@ def hillside_scene() -> Scene:
                                 12, (0.1, 0.25))  # fmt: skip
         centres.append(bush[0])
         radii.append(bush[1])
-    return Scene(
-        np.array([box[0] for box in boxes]),
-        np.array([box[1] for box in boxes]),
-        np.concatenate(centres),
-        np.concatenate(radii),
-    )
+    return scene_of(boxes, np.concatenate(centres), np.concatenate(radii))
 
 
 def hillside(

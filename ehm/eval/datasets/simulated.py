@@ -322,13 +322,14 @@ def corridor_2d(
     return SimulatedDataset("corridor_2d", scans, scene)
 
 
-def scene_of(boxes: list, balls: list, radius: float) -> Scene:
-    """A 3D Scene of boxes ([low corner], [high corner]) and balls (x, y, z) of one radius."""
+def scene_of(boxes: list, balls: list | np.ndarray, radius: float | np.ndarray) -> Scene:
+    """A 3D Scene of boxes ([low corner], [high corner]) and balls (x, y, z), metres, of one
+    radius or (len(balls),) radii each."""
     return Scene(
         np.array([box[0] for box in boxes], dtype=np.float64),
         np.array([box[1] for box in boxes], dtype=np.float64),
         np.array(balls, dtype=np.float64).reshape(-1, 3),
-        np.full(len(balls), radius),
+        np.broadcast_to(np.asarray(radius, dtype=np.float64), len(balls)).copy(),
     )
 
 

@@ -5,8 +5,7 @@ import pytest
 
 from ehm.eval.datasets import hillside
 from ehm.eval.datasets.outdoor import (
-    KERB_WIDTH,
-    ROAD_HALF_WIDTH,
+    HILL_FOOT,
     SLOPE_DEGREES,
     hill_height,
     hillside_scene,
@@ -15,10 +14,9 @@ from ehm.eval.datasets.outdoor import (
 
 def test_the_hillside_rises_at_its_slope_in_steps_below_the_range_noise():
     scene = hillside_scene()
-    foot = ROAD_HALF_WIDTH + KERB_WIDTH
-    y = foot + np.array([1.0, 5.0, 10.0, 15.0])
+    y = HILL_FOOT + np.array([1.0, 5.0, 10.0, 15.0])
     slope = np.tan(np.radians(SLOPE_DEGREES))
-    np.testing.assert_allclose(hill_height(y), (y - foot) * slope, atol=0.02)
+    np.testing.assert_allclose(hill_height(y), (y - HILL_FOOT) * slope, atol=0.02)
     x = np.full(len(y), 2.0)  # between the poles and trees
     below = np.column_stack([x, y, hill_height(y) - 0.01])
     above = np.column_stack([x, y, hill_height(y) + 0.01])
@@ -38,7 +36,7 @@ def test_scans_see_the_slope_far_up_poles_the_fence_and_through_foliage(scans):
     for scan in scans.scans:
         assert not scene.occupied(scan.origin[None])[0]
         assert 0.1 < np.mean(~scan.hit_mask) < 0.6  # rays into the sky return nothing
-    on_slope = hits[:, 1] > ROAD_HALF_WIDTH + KERB_WIDTH + 5.0
+    on_slope = hits[:, 1] > HILL_FOOT + 5.0
     assert np.any(on_slope & (hits[:, 2] > 1.5))
     size = scene.box_max - scene.box_min
     thin = np.all(size[:, :2] <= 0.1, axis=1)
