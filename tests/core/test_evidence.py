@@ -26,9 +26,11 @@ def _sorted(samples):
 
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("box", [False, True])
-@pytest.mark.parametrize("thinning", [1, 3])
-def test_compiled_evidence_matches_reference(rng, dim, box, thinning):
-    config = MapConfig(free_spacing=0.3, max_free_samples=12, free_thinning=thinning)
+@pytest.mark.parametrize("thinning, front_reach", [(1, 1.0), (3, 2.0)])
+def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reach):
+    config = MapConfig(
+        free_spacing=0.3, max_free_samples=12, free_thinning=thinning, front_reach=front_reach
+    )
     if box:
         config = config.replace(learn_box=(-2.0,) * dim + (3.0,) * dim)
     scans = [_scan(rng, 1500, dim), _scan(rng, 700, dim)]

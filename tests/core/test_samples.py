@@ -43,6 +43,25 @@ def test_training_samples_lie_on_rays_with_the_right_labels(rng):
     assert abs(samples.weight[along].sum() - expected) < 0.1 * expected
 
 
+def test_a_hits_free_sample_reaches_front_reach_margins_denser_near_the_hit(rng):
+    """With front_reach 2, each hit's free sample lies from a quarter of the margin to two
+    margins in front of it, two in three within one margin, half in the nearest quarter of
+    that band and 13 % in the farthest."""
+    origin = np.zeros(3)
+    directions = rng.normal(size=(4000, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    scan = Scan(origin + directions * 3.0, origin, np.ones(4000, dtype=bool))
+    config = MapConfig(surface_margin=0.05, front_reach=2.0)
+    samples = training_samples(scan, config, rng)
+    in_band = ~samples.occupied & samples.at_surface
+    depth = 3.0 - np.linalg.norm(samples.points[in_band], axis=1)
+    assert in_band.sum() == 4000
+    assert depth.min() >= 0.05 / 4 - 1e-9 and depth.max() <= 0.1 + 1e-9
+    assert abs(np.mean(depth <= 0.05) - np.sqrt(0.75 / 1.75)) < 0.02
+    quarters = np.histogram(depth, bins=np.linspace(0.0125, 0.1, 5))[0] / 4000
+    np.testing.assert_allclose(quarters[[0, -1]], [0.5, 1 - np.sqrt(1.3125 / 1.75)], atol=0.02)
+
+
 def test_free_samples_far_from_hits_are_sparser_and_weigh_more(rng):
     """With free_thinning 2, within FAR_REACH free cluster radii (2 x 0.6 m) of its hit a
     ray's free samples lie a spacing apart, farther two spacings apart, each of weight 2; a ray

@@ -35,6 +35,7 @@ from ehm.core.observations.samples import (
     ScanRays,
     TrainingSamples,
     free_sample_counts,
+    front_depth,
     learn_box,
     ray_randoms,
     samples_of_rays,
@@ -66,6 +67,9 @@ GATHER_PARTS = 2
 # A table starts with a row for every SAMPLES_PER_CELL samples: a scan's samples fill 3-7 per
 # cell (OctoMap's sample scan 4.2, a TUM frame 6.7, a street sweep 3.2), so it seldom grows.
 SAMPLES_PER_CELL = 3
+
+
+_front_depth = numba.njit(cache=True, inline="always")(front_depth)
 
 
 def statistics_width(dim: int) -> int:
@@ -186,6 +190,7 @@ def gather_kernel(
     box,
     occupied_depth,
     margin,
+    front_reach,
     fine_side,
     coarse_side,
     bits,
@@ -219,7 +224,7 @@ def gather_kernel(
             depths = (
                 lengths[r],
                 lengths[r] + occupied_depth * random[r, 0],
-                lengths[r] - min(margin * (0.25 + 0.75 * random[r, 1]), lengths[r]),
+                lengths[r] - min(_front_depth(margin, front_reach, random[r, 1]), lengths[r]),
             )
             for j in range(3):
                 inside = True
@@ -306,6 +311,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         box,
         config.occupied_depth,
         config.surface_margin,
+        config.front_reach,
         fine,
         coarse,
         bits,

@@ -153,6 +153,18 @@ def ray_randoms(n: int, rng: np.random.Generator) -> np.ndarray:
     return rng.random((n, 3))
 
 
+# A hit's free sample lies at least this many surface margins in front of it.
+FRONT_NEAREST = 0.25
+
+
+def front_depth(margin: float, reach: float, u: float | np.ndarray) -> float | np.ndarray:
+    """Distance in front of its hit of a hit's free sample, metres: from FRONT_NEAREST to
+    `reach` times `margin` (`surface_margin`, metres; `reach`: MapConfig.front_reach), placed
+    by u (uniform in [0, 1), scalar or array alike) raised to the power `reach`: uniform with
+    reach 1, denser near the hit beyond (two in three within one margin with reach 2)."""
+    return margin * (FRONT_NEAREST + (reach - FRONT_NEAREST) * u**reach)
+
+
 # Free samples along a ray farther than FAR_REACH free cluster radii from its hit, and all along
 # a ray without one, lie MapConfig.free_thinning times as far apart, each standing for as
 # many: where rays spread apart, each of them makes a cell of its own.
@@ -197,7 +209,8 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     and which part of each).
 
     Around each hit: the hit and one point up to `occupied_depth` behind it are occupied; one
-    point in the band from `surface_margin` / 4 to `surface_margin` in front of it is free.
+    point from `surface_margin` / 4 to `front_reach` times `surface_margin` in front of it
+    (`front_depth`) is free.
     Along each ray, free points are stratified: one in each `spacing` of its free part, from a
     random offset, where it lies within FAR_REACH free cluster radii of the ray's hit; one in
     each `free_thinning` spacings, of that weight, farther and along rays without a hit. With
@@ -214,10 +227,11 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
     hit_points = rays.origins[hits] + rays.directions[hits] * rays.lengths[hits, None]
     hit_dirs = rays.directions[hits]
     behind = hit_points + hit_dirs * (config.occupied_depth * randoms[hits, 0])[:, None]
-    front_depth = np.minimum(
-        config.surface_margin * (0.25 + 0.75 * randoms[hits, 1]), rays.lengths[hits]
+    in_front_depth = np.minimum(
+        front_depth(config.surface_margin, config.front_reach, randoms[hits, 1]),
+        rays.lengths[hits],
     )
-    in_front = hit_points - hit_dirs * front_depth[:, None]
+    in_front = hit_points - hit_dirs * in_front_depth[:, None]
     far, dense, dense_start = free_sample_counts(rays, randoms, config)
     stretches = (
         (far, rays.free_start, config.free_thinning * rays.spacing),
