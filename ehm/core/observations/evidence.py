@@ -69,6 +69,8 @@ GATHER_PARTS = 2
 SAMPLES_PER_CELL = 3
 
 
+# The depth of a hit's free sample, compiled for gather_kernel from the one definition its NumPy
+# twin uses.
 _front_depth = numba.njit(cache=True, inline="always")(front_depth)
 
 
