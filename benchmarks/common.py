@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 import ehm
+from ehm.cli.app import parse_settings
 from ehm.eval.baselines.octree import OctoMapMapper
 from ehm.eval.metrics import score
 from ehm.eval.protocol import held_out_rays
@@ -129,23 +130,48 @@ class Sweep:
     fractions: list[float]
     datasets: list[str]
     methods: list[str]
+    settings: dict[str, Any]
+    """MapConfig overrides for the EHM methods, over MapConfig.for_resolution's."""
+
+
+def add_settings_argument(parser: argparse.ArgumentParser) -> None:
+    """--set name=value, as often as wanted: MapConfig overrides for EHM (`settings_of`)."""
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="MapConfig override for EHM, over the resolution's defaults (repeatable).",
+    )
+
+
+def settings_of(args: argparse.Namespace) -> dict[str, Any]:
+    """The MapConfig overrides of `--set` (add_settings_argument), typed like the defaults."""
+    return parse_settings(args.set)
 
 
 def sweep_arguments(
-    description: str, datasets: Sequence[str], methods: Sequence[str] = ()
+    description: str,
+    datasets: Sequence[str],
+    methods: Sequence[str] = (),
+    with_settings: bool = False,
 ) -> Sweep:
     """The sweep asked for on the command line (--seeds 0,1,2 --fractions 0.8,0.4
-    --datasets a,b --methods m,n; the defaults: those, `datasets` and `methods`)."""
+    --datasets a,b --methods m,n, and with_settings --set name=value; the defaults: those,
+    `datasets`, `methods` and no overrides)."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--seeds", default="0,1,2")
     parser.add_argument("--fractions", default="0.8,0.4")
     parser.add_argument("--datasets", default=",".join(datasets))
     if methods:
         parser.add_argument("--methods", default=",".join(methods))
+    if with_settings:
+        add_settings_argument(parser)
     args = parser.parse_args()
     return Sweep(
         [int(s) for s in args.seeds.split(",")],
         [float(f) for f in args.fractions.split(",")],
         args.datasets.split(","),
         args.methods.split(",") if methods else [],
+        settings_of(args) if with_settings else {},
     )

@@ -4,6 +4,7 @@ against the exact occupancy.
 
     python benchmarks/online_mapping.py [--seeds 0,1,2] [--fractions 0.8,0.4]
                                         [--datasets warehouse,street,...] [--methods ehm,...]
+                                        [--set front_reach=2 ...]
 
 For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the four
 methods: held-out F1 of the occupied class at p = 0.5, every method at the data set's
@@ -12,14 +13,16 @@ On the simulated scenes the same maps are also scored against the exact occupanc
 near surfaces: uniform in balls of 0.3 m around training hits (both sides of each surface),
 kept where some training ray reached; precision, recall and F1 of the occupied class there; and
 where the scene has thin solids (posts at most 0.1 m across), the share of points inside them
-within 0.1 m of a training hit that read occupied (thin recall). Prints markdown tables, mean
-± standard deviation over seeds.
+within 0.1 m of a training hit that read occupied (thin recall). `--set name=value` overrides
+a MapConfig setting of the EHM methods (as often as wanted). Prints markdown tables, mean ±
+standard deviation over seeds.
 """
 
 from __future__ import annotations
 
 import statistics
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
@@ -27,6 +30,7 @@ from scipy.spatial import cKDTree
 
 from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines import make_mapper
+from ehm.eval.baselines.localized import KINDS
 from ehm.eval.datasets import (
     DataMissingError,
     dense_room,
@@ -99,9 +103,11 @@ def measure(
     fraction: float,
     seed: int,
     methods: Sequence[str] = METHODS,
+    settings: dict[str, Any] | None = None,
 ) -> dict[str, dict[str, float]]:
     """Measures of each of `methods` on one split: 'held-out F1', and with a scene 'near
-    precision', 'near recall', 'near F1', and where it has thin solids 'thin recall'."""
+    precision', 'near recall', 'near F1', and where it has thin solids 'thin recall'.
+    settings: MapConfig overrides for the EHM methods."""
     resolution = RESOLUTIONS.get(name, RESOLUTION)
     split = held_out_rays(scans, fraction, resolution, seed)
     near = truth = None
@@ -113,7 +119,7 @@ def measure(
         thin = thin_solid_test_points(scene, split.train, rng)
     found = {}
     for method in methods:
-        mapper = make_mapper(method, resolution, seed)
+        mapper = make_mapper(method, resolution, seed, settings if method in KINDS else None)
         probability, build_s, _ = run_method(mapper, split.train, split.points)
         row = {"held-out F1": f1_score(split.occupied, probability > 0.5), "build s": build_s}
         if near is not None:
@@ -146,9 +152,10 @@ def scans_and_scene(name: str) -> tuple[list[Scan], Scene | None] | None:
 
 
 def main() -> None:
-    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, METHODS)
+    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, METHODS, with_settings=True)
     seeds, fractions, methods = sweep.seeds, sweep.fractions, sweep.methods
-    print(heading("Online mapping", f"seeds {seeds}, train fractions {fractions}"))
+    settings = "".join(f", {name}={value}" for name, value in sweep.settings.items())
+    print(heading("Online mapping", f"seeds {seeds}, train fractions {fractions}{settings}"))
     for name in sweep.datasets:
         loaded = scans_and_scene(name)
         if loaded is None:
@@ -156,7 +163,10 @@ def main() -> None:
         scans, scene = loaded
         rows = []
         for fraction in fractions:
-            runs = [measure(name, scans, scene, fraction, seed, methods) for seed in seeds]
+            runs = [
+                measure(name, scans, scene, fraction, seed, methods, sweep.settings)
+                for seed in seeds
+            ]
             for method in methods:
                 cells = [method, f"{fraction:.0%}"]
                 for measure_name in runs[0][method]:

@@ -11,7 +11,7 @@ Methods: see METHODS. `hm` stands for its three feature variants.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -97,9 +97,18 @@ def method_names(names: list[str]) -> list[str]:
     return expanded
 
 
-def make_mapper(name: str, resolution: float, seed: int) -> Mapper:
-    """A fresh, empty mapper of method `name` (see METHODS)."""
+def make_mapper(
+    name: str, resolution: float, seed: int, settings: dict[str, Any] | None = None
+) -> Mapper:
+    """A fresh, empty mapper of method `name` (see METHODS); `settings`, MapConfig overrides,
+    for an EHM method (ehm, ehm-alone, ehm-batch, lls-hm) only."""
     methods = method_names([name])
     if len(methods) != 1:
         raise InputError(f"{name!r} stands for {', '.join(methods)}: give one method")
-    return METHODS[methods[0]](resolution, seed)
+    if not settings:
+        return METHODS[methods[0]](resolution, seed)
+    from ehm.eval.baselines.localized import KINDS, LocalizedMapper
+
+    if methods[0] not in KINDS:
+        raise InputError(f"settings are MapConfig's, for EHM methods; {name!r} takes none")
+    return LocalizedMapper(methods[0], seed, resolution, settings)

@@ -3,6 +3,8 @@ and LLS-HM (Guizilini & Ramos 2016), the same clusters and kernels without batch
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ehm.config import DEFAULT_RESOLUTION, MapConfig
@@ -32,14 +34,22 @@ KINDS = {
 
 class LocalizedMapper:
     """A HilbertMap with the default settings for `resolution` metres of detail (see
-    MapConfig.for_resolution), learned as `kind` (see KINDS) says."""
+    MapConfig.for_resolution) and `settings` (MapConfig overrides) over them, learned as
+    `kind` (see KINDS) says."""
 
-    def __init__(self, kind: str, seed: int = 0, resolution: float = DEFAULT_RESOLUTION) -> None:
+    def __init__(
+        self,
+        kind: str,
+        seed: int = 0,
+        resolution: float = DEFAULT_RESOLUTION,
+        settings: dict[str, Any] | None = None,
+    ) -> None:
         if kind not in KINDS:
             raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
         self.kind = kind
         self.description, overrides = KINDS[kind]
-        self.map = HilbertMap(MapConfig.for_resolution(resolution, seed=seed, **overrides))
+        config = MapConfig.for_resolution(resolution, seed=seed, **overrides)
+        self.map = HilbertMap(config.replace(**(settings or {})))
         self.scan_seconds: list[float] = []
         """Wall-clock seconds of each integrate (kinds learned scan by scan only)."""
 

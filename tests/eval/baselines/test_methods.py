@@ -48,3 +48,13 @@ def test_method_names_expand_hm_and_name_unknown_methods():
         method_names(["voxblox"])
     with pytest.raises(ValueError, match="one method"):
         make_mapper("hm", 0.05, 0)
+
+
+def test_settings_reach_ehm_methods_over_their_own_and_no_other():
+    mapper = make_mapper("ehm-alone", 0.2, 3, {"front_reach": 2.0, "neighbours": 6})
+    config = mapper.map.config
+    assert (config.front_reach, config.neighbours, config.seed) == (2.0, 6, 3)
+    assert config.cluster_radius == pytest.approx(0.48)  # the resolution's defaults beneath
+    assert config.keep_evidence is False and config.batch_rays == 0  # and the kind's
+    with pytest.raises(ValueError, match="settings are MapConfig's, for EHM methods"):
+        make_mapper("octomap", 0.05, 0, {"front_reach": 2.0})
