@@ -21,7 +21,14 @@ import time
 from typing import Any
 
 import numpy as np
-from common import RESOLUTION, add_settings_argument, heading, markdown_table, settings_of
+from common import (
+    RESOLUTION,
+    add_settings_argument,
+    heading,
+    markdown_table,
+    settings_of,
+    settings_text,
+)
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
@@ -82,12 +89,11 @@ def main() -> None:
     warm_up("ehm", 3)
     runs = [run(seed, settings) for seed in seeds]
     dataset = changing_room()
-    overrides = "".join(f", {name}={value}" for name, value in settings.items())
     print(
         heading(
             "Changing room",
             f"{len(dataset.scans)} scans of {len(dataset.scans[0]):,} rays, seeds {seeds}"
-            f"{overrides}",
+            + settings_text(settings),
         )
     )
     header = (

@@ -150,6 +150,11 @@ def settings_of(args: argparse.Namespace) -> dict[str, Any]:
     return parse_settings(args.set)
 
 
+def settings_text(settings: dict[str, Any]) -> str:
+    """', name=value' for each MapConfig override, for a heading ('' for none)."""
+    return "".join(f", {name}={value}" for name, value in settings.items())
+
+
 def sweep_arguments(
     description: str,
     datasets: Sequence[str],

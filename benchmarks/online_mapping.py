@@ -25,7 +25,14 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
+from common import (
+    RESOLUTION,
+    RESOLUTIONS,
+    heading,
+    markdown_table,
+    settings_text,
+    sweep_arguments,
+)
 from scipy.spatial import cKDTree
 
 from ehm.core.sensor.scan import Scan
@@ -154,7 +161,7 @@ def scans_and_scene(name: str) -> tuple[list[Scan], Scene | None] | None:
 def main() -> None:
     sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, METHODS, with_settings=True)
     seeds, fractions, methods = sweep.seeds, sweep.fractions, sweep.methods
-    settings = "".join(f", {name}={value}" for name, value in sweep.settings.items())
+    settings = settings_text(sweep.settings)
     print(heading("Online mapping", f"seeds {seeds}, train fractions {fractions}{settings}"))
     for name in sweep.datasets:
         loaded = scans_and_scene(name)
