@@ -3,6 +3,7 @@ against its NumPy twin, and the cases that decide what a pass is."""
 
 import numpy as np
 import pytest
+from plane_points import assert_same_normals, planar_patches
 
 from ehm.config import MapConfig
 from ehm.core.observations import passes as passes_module
@@ -34,6 +35,7 @@ def rays_of(origins: np.ndarray, ends: np.ndarray, hits: np.ndarray, margin: flo
         np.zeros(len(lengths)),
         free_end,
         spacing,
+        plane_side=0.2,  # the memory's regions
     )
 
 
@@ -175,14 +177,6 @@ def test_rays_to_the_floor_behind_pass_what_stood_on_it(monkeypatch):
     assert len(occupied_passes_reference(memory, rays, 0.03, 0.15)[0]) == 0
 
 
-def test_hits_on_a_plane_have_its_normal_and_scattered_ones_none(rng):
-    floor = np.column_stack([rng.uniform(0.01, 0.19, (20, 2)), np.full(20, 0.05)])
-    scattered = rng.uniform(1.01, 1.19, (20, 3))
-    normals = passes_module.hit_plane_normals(np.vstack([floor, scattered]), 0.2)
-    np.testing.assert_allclose(np.abs(normals[:20]), np.tile([0.0, 0.0, 1.0], (20, 1)), atol=1e-9)
-    assert np.isnan(normals[20:]).all()
-
-
 @pytest.mark.parametrize("distance, passed", [(1.0, True), (3.0, False)])
 def test_the_solid_band_deepens_with_range(distance, passed):
     """An entry 40 cm in front of a lone hit (no plane around it): at 1 m the band is 15 cm
@@ -211,62 +205,3 @@ def test_a_batch_hit_near_an_entry_keeps_it(range_m, kept):
     # A batch without hits keeps nothing.
     rays.hits[:] = False
     assert not passes_module.hit_again(memory, np.arange(3), rays, 0.03).any()
-
-
-def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
-    """A wall (x = 1 m) hit along two LiDAR rings 9 cm apart: each 10 cm cell holds one ring,
-    a line, and the 20 cm cell around both finds the wall's plane. A wall hit densely with
-    1.5 cm of range noise is no plane in its 10 cm cells (least spread 0.27 of the next), and
-    is not given the plane its 20 cm cell would find (0.07)."""
-    y = np.arange(0.005, 0.2, 0.01)
-    rings = np.column_stack([np.ones(40), np.tile(y, 2), np.repeat([0.02, 0.11], 20)])
-    noisy = np.column_stack(
-        [
-            1.05 + np.clip(rng.normal(0.0, 0.015, 800), -0.045, 0.045),
-            rng.uniform(0.0, 0.2, (800, 2)) + np.array([0.0, 0.2]),
-        ]
-    )
-    normals = passes_module.hit_plane_normals(np.vstack([rings, noisy]), 0.1)
-    np.testing.assert_allclose(np.abs(normals[:40]), np.tile([1.0, 0.0, 0.0], (40, 1)), atol=1e-9)
-    assert np.isnan(normals[40:]).all()
-    wide = passes_module.hit_plane_normals(noisy, 0.2)
-    np.testing.assert_allclose(np.abs(wide[:, 0]), 1.0, atol=0.01)
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_cell_planes_agree_with_their_numpy_twin(rng, dim):
-    # Patches of planes (lines in 2D) with a little noise, lines, and scattered hits.
-    line = np.outer(np.linspace(0.0, 0.1, 12), np.ones(dim)) + 3.0
-    points = np.concatenate(
-        [planar_patches(rng, dim, 80, 30, 0.05, 0.002), line, rng.uniform(-2.0, 2.0, (400, dim))]
-    )
-    compiled = passes_module.cell_planes(points, 0.2)
-    reference = passes_module.cell_planes_reference(points, 0.2)
-    np.testing.assert_array_equal(compiled[1], reference[1])
-    planar = assert_same_normals(compiled[0], reference[0])
-    assert planar.sum() > 100 and compiled[1].sum() > 300
-
-
-def planar_patches(
-    rng: np.random.Generator, dim: int, patches: int, size: int, spread: float, noise: float
-) -> np.ndarray:
-    """(patches * size, dim): `patches` patches of planes (lines in 2D) of random orientations
-    centred in [-2, 2]^dim, `size` points each, Gaussian `spread` metres along the plane and
-    `noise` metres across it."""
-    centres = rng.uniform(-2.0, 2.0, (patches, dim))
-    normals = rng.normal(size=(patches, dim))
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    along = rng.normal(size=(patches, size, dim)) * spread
-    along -= np.einsum("pnd,pd->pn", along, normals)[..., None] * normals[:, None, :]
-    across = rng.normal(size=(patches, size, 1)) * noise * normals[:, None]
-    return (centres[:, None, :] + along + across).reshape(-1, dim)
-
-
-def assert_same_normals(compiled: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """Assert that two (n, d) arrays of normals are NaN at the same rows and agree elsewhere,
-    each up to its sign; returns the (n,) bool rows that have one."""
-    np.testing.assert_array_equal(np.isnan(compiled), np.isnan(reference))
-    planar = ~np.isnan(reference[:, 0])
-    signs = np.sign(np.sum(compiled[planar] * reference[planar], axis=1))
-    np.testing.assert_allclose(compiled[planar] * signs[:, None], reference[planar], atol=1e-7)
-    return planar

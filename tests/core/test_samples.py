@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
-from ehm.core.observations.samples import TrainingSamples, samples_of_scans, training_samples
+from ehm.core.observations.samples import (
+    TrainingSamples,
+    samples_of_scans,
+    scan_rays,
+    training_samples,
+)
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
@@ -62,6 +67,30 @@ def test_a_hits_free_sample_reaches_front_reach_margins_denser_near_the_hit(rng)
     np.testing.assert_allclose(quarters[[0, -1]], [0.5, 1 - np.sqrt(1.3125 / 1.75)], atol=0.02)
 
 
+def test_a_grazing_hits_free_sample_lies_as_far_off_its_plane_as_head_on(rng):
+    """A floor seen from 1 m above, its hits 1.1-3 m away (cosines 0.32-0.67 to its normal):
+    each hit's free sample lies from a quarter of the margin to one margin above the floor,
+    uniformly, as on a ray along the normal. Without front_stretch it lies that far along the
+    ray, the cosine times as high. (Hits in the floor's outermost cells, too few for a plane,
+    keep their samples along the ray.)"""
+    origin = np.array([0.0, 0.0, 1.0])
+    radius, angle = rng.uniform(1.1, 3.0, 20_000), rng.uniform(0.0, 2.0 * np.pi, 20_000)
+    floor = np.column_stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros(20_000)])
+    scan = Scan(floor, origin, np.ones(20_000, dtype=bool))
+    config = MapConfig(surface_margin=0.05)
+    planar = ~np.isnan(scan_rays([scan], config).hit_normals[:, 0])
+    assert planar.mean() > 0.99
+    cosine = 1.0 / np.sqrt(1.0 + radius**2)
+    bounds = ((True, 0.0125, 0.05), (False, 0.0125 * cosine.min(), 0.05 * cosine.max()))
+    for stretch, lowest, highest in bounds:
+        samples = training_samples(scan, config.replace(front_stretch=stretch), rng)
+        height = samples.points[~samples.occupied & samples.at_surface, 2]  # one per hit
+        assert height[planar].min() >= lowest - 1e-9 and height[planar].max() <= highest + 1e-9
+        if stretch:
+            assert abs(np.mean(height[planar]) - 0.03125) < 0.001
+    assert abs(np.mean(height) - 0.03125 * np.mean(cosine)) < 0.001
+
+
 def test_free_samples_far_from_hits_are_sparser_and_weigh_more(rng):
     """With free_thinning 2, within FAR_REACH free cluster radii (2 x 0.6 m) of its hit a
     ray's free samples lie a spacing apart, farther two spacings apart, each of weight 2; a ray
@@ -117,9 +146,9 @@ def test_range_limits_drop_short_rays_and_cut_long_ones(rng):
 
 
 def test_free_samples_per_ray_are_bounded(rng):
-    """One point a million kilometres away adds at most max_free_samples samples."""
+    """One point a thousand kilometres away adds at most max_free_samples samples."""
     config = MapConfig(free_spacing=0.1, max_free_samples=50)
-    far = Scan(np.array([[1e9, 0.0], [1.0, 0.0]]), np.zeros(2))
+    far = Scan(np.array([[1e6, 0.0], [1.0, 0.0]]), np.zeros(2))
     samples = training_samples(far, config, rng)
     assert len(samples) <= 50 + 3 * 2 + 10
 

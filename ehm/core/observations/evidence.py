@@ -36,6 +36,7 @@ from ehm.core.observations.samples import (
     TrainingSamples,
     free_sample_counts,
     front_depth,
+    front_stretches,
     learn_box,
     ray_randoms,
     samples_of_rays,
@@ -193,6 +194,7 @@ def gather_kernel(
     occupied_depth,
     margin,
     front_reach,
+    front_stretch,
     fine_side,
     coarse_side,
     bits,
@@ -210,7 +212,9 @@ def gather_kernel(
     ehm.core.observations.samples.free_sample_counts); random (n, 3) uniforms in [0, 1): depth
     behind the hit, depth in front, offset of the free samples
     (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around
-    hits outside it are left out; bits: bits per axis of a key.
+    hits outside it are left out; front_stretch (n,): how many times as far along its ray each
+    hit's free sample lies (ehm.core.observations.samples.front_stretches); bits: bits per
+    axis of a key.
     """
     d = directions.shape[1]
     half = np.int64(1) << (bits - 1)
@@ -223,10 +227,11 @@ def gather_kernel(
         if used + 3 + far_counts[r] + dense_counts[r] > capacity:
             return r, used
         if hits[r]:
+            front = front_stretch[r] * _front_depth(margin, front_reach, random[r, 1])
             depths = (
                 lengths[r],
                 lengths[r] + occupied_depth * random[r, 0],
-                lengths[r] - min(_front_depth(margin, front_reach, random[r, 1]), lengths[r]),
+                lengths[r] - min(front, lengths[r]),
             )
             for j in range(3):
                 inside = True
@@ -237,13 +242,23 @@ def gather_kernel(
                 if inside:
                     kind = FREE_AT_SURFACE if j == 2 else OCCUPIED
                     used = _add_sample(
-                        point, 1.0, inv_fine, fine_side, kind, half, bits, cell, table, used, last
+                        point,
+                        1.0,
+                        inv_fine,
+                        fine_side,
+                        kind,
+                        half,
+                        bits,
+                        cell,
+                        table,
+                        used,
+                        last,
                     )
-        stretches = (
+        runs = (
             (free_start[r], thinning * spacing[r], far_counts[r], float(thinning)),
             (dense_start[r], spacing[r], dense_counts[r], 1.0),
         )
-        for start, step, count, weight in stretches:
+        for start, step, count, weight in runs:
             for k in range(count):
                 t = start + (k + random[r, 2]) * step
                 for a in range(d):
@@ -314,6 +329,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         config.occupied_depth,
         config.surface_margin,
         config.front_reach,
+        front_stretches(rays, config),
         fine,
         coarse,
         bits,

@@ -34,8 +34,8 @@ from ehm.core.model.eigen import eigen_in_place
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
 from ehm.core.observations.memory_keys import SUB_BITS, region_bits
+from ehm.core.observations.planes import LINEAR_SPREAD, group_spreads, plane_normals
 from ehm.core.observations.samples import ScanRays
-from ehm.core.search.cells import packed_cell_keys
 from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 
@@ -47,20 +47,14 @@ PASS_REACH_CELLS = 1.0
 # On the changing room (pass_retraction 0.5, three seeds; BENCHMARKS.md) ghosts six scans
 # through 0.048 against 0.084 without it; held-out F1 on TUM and the Intel lab 0.001 lower.
 OFF_PLANE_CELLS = 1.5
-# The batch's hits in a region lie on a plane when there are at least PLANE_HITS of them and
-# their least spread is at most HIT_PLANAR_SPREAD of the next (and not on a line).
-PLANE_HITS = 6
-HIT_PLANAR_SPREAD = 0.1
 # Rays at more than this angle to the normal of the plane a region's occupied entries lie on
 # pass none of them, degrees.
 GRAZING_DEGREES = 70.0
 # A region's occupied entries lie on a plane when their least spread (the smallest eigenvalue
-# of their scatter) is at most PLANAR_SPREAD of the next, and that is more than LINEAR_SPREAD
-# of the largest (else they lie on a line, as a post's do). A depth camera's noise makes the
-# median TUM region a third as thick as it is wide: at 0.1, three in four regions with passes
-# had no plane.
+# of their scatter) is at most PLANAR_SPREAD of the next, and not on a line (LINEAR_SPREAD,
+# ehm.core.observations.planes). A depth camera's noise makes the median TUM region a third as
+# thick as it is wide: at 0.1, three in four regions with passes had no plane.
 PLANAR_SPREAD = 0.35
-LINEAR_SPREAD = 0.1
 # The solid band in front of a hit grows by this many metres per square metre of the ray's
 # length: at 2 m it is `occupied_depth` and 16 cm deep, at 5 m a metre more. Depth cameras'
 # range noise grows with the square of range; on TUM's frames, walls 4-6 m away seen by one
@@ -184,124 +178,13 @@ def _off_plane(position, point, normal, gap):  # pragma: no cover - compiled
     return abs(distance) > gap
 
 
-def hit_plane_normals(hit_points: np.ndarray, side: float) -> np.ndarray:
-    """(n, d): for each of a batch's hits (n, d), metres, the unit normal of the plane the
-    batch's hits in its cell of `side` metres lie on (PLANE_HITS, HIT_PLANAR_SPREAD), NaN where
-    they lie on none. Where that cell holds too few hits, or hits on a line (a LiDAR's rings a
-    few centimetres apart on a wall a few metres away), the cell of twice the side decides."""
-    if len(hit_points) == 0:
-        return np.full(hit_points.shape, np.nan)
-    normals, sparse = cell_planes(hit_points, side)
-    if sparse.any():
-        normals[sparse] = cell_planes(hit_points, 2.0 * side)[0][sparse]
-    return normals
-
-
-def cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
-    """For each of the hits (n, d), metres: the normal of the plane its cell's hits lie on
-    (n, d; NaN: none) and whether they are too few or on a line for one (n,) bool."""
-    n = len(hit_points)
-    keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
-    order = np.argsort(keys)
-    ordered = keys[order]
-    starts = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1], [True]]))
-    cell = np.empty(n, dtype=np.int64)
-    cell[order] = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
-    normals, sparse = _cell_planes_kernel(
-        hit_points, order, starts, PLANE_HITS, HIT_PLANAR_SPREAD, LINEAR_SPREAD
-    )
-    return normals[cell], sparse[cell]
-
-
-@numba.njit(cache=True, parallel=True)
-def _cell_planes_kernel(
-    points, order, starts, min_hits, planar, linear
-):  # pragma: no cover - compiled
-    """The plane of each group of points (n, d), group g the rows order[starts[g]:starts[g +
-    1]]: its unit normal (G, d) where the group holds at least `min_hits` points whose least
-    spread is at most `planar` of the next (NaN elsewhere), and whether it holds fewer or
-    lies on a line, its middle spread at most `linear` of the largest (G,) bool."""
-    groups, d = len(starts) - 1, points.shape[1]
-    normals = np.full((groups, d), np.nan)
-    sparse = np.zeros(groups, dtype=np.bool_)
-    for g in numba.prange(groups):
-        first, last = starts[g], starts[g + 1]
-        mean = np.zeros(d)
-        for i in range(first, last):
-            for a in range(d):
-                mean[a] += points[order[i], a]
-        mean /= last - first
-        scatter = np.zeros((d, d))
-        for i in range(first, last):
-            for a in range(d):
-                for b in range(d):
-                    scatter[a, b] += (points[order[i], a] - mean[a]) * (
-                        points[order[i], b] - mean[b]
-                    )
-        spread, axes = np.empty(d), np.zeros((d, d))
-        eigen_in_place(scatter, spread, axes)
-        if last - first < min_hits or spread[1] <= linear * spread[d - 1]:
-            sparse[g] = True
-        elif spread[0] <= planar * spread[1]:
-            for a in range(d):
-                normals[g, a] = axes[a, 0]
-    return normals, sparse
-
-
-def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
-    """Plain NumPy twin of `cell_planes`."""
-    n = len(hit_points)
-    keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
-    _, cell, counts = np.unique(keys, return_inverse=True, return_counts=True)
-    spread, axes = _group_spreads(hit_points, cell, np.ones(n))
-    sparse = (counts < PLANE_HITS) | _on_a_line(spread)
-    normals = _plane_normals(spread, axes, HIT_PLANAR_SPREAD)
-    normals[sparse] = np.nan
-    return normals[cell], sparse[cell]
-
-
-def _group_spreads(
-    points: np.ndarray, group: np.ndarray, weight: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The spread of the (n, d) points of each group (group (n,) int64, 0 .. G - 1, each met),
-    weighted by weight (n,): the eigenvalues of their scatter, ascending (G, d), and its unit
-    eigenvectors, one a column (G, d, d)."""
-    d, size = points.shape[1], group.max() + 1
-    total = np.bincount(group, weight, size)
-    means = np.stack([np.bincount(group, weight * p, size) for p in points.T], axis=1)
-    offsets = points - (means / total[:, None])[group]
-    scatter = np.empty((size, d, d))
-    for a in range(d):
-        for b in range(d):
-            scatter[:, a, b] = np.bincount(group, weight * offsets[:, a] * offsets[:, b], size)
-    return np.linalg.eigh(scatter)
-
-
-def _on_a_line(spread: np.ndarray) -> np.ndarray:
-    """(G,) bool: spreads (G, d) whose middle one is at most LINEAR_SPREAD of the largest (a
-    post's points, or one ring of a LiDAR's)."""
-    return spread[:, 1] <= LINEAR_SPREAD * spread[:, -1]
-
-
-def _plane_normals(spread: np.ndarray, axes: np.ndarray, planar_spread: float) -> np.ndarray:
-    """(G, d): the axis of least spread of each group (spread (G, d), axes (G, d, d) from
-    `_group_spreads`) where it is at most `planar_spread` of the next and the group is not on a
-    line; NaN elsewhere."""
-    flat = (spread[:, 0] <= planar_spread * spread[:, 1]) & ~_on_a_line(spread)
-    return np.where(flat[:, None], axes[:, :, 0], np.nan)
-
-
-def _solid_band(
-    rays: ScanRays, depth: float, side: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where each ray's solid band starts (n,) (its free end for rays without a hit), its hit
-    (n, d) and the normal of the plane of the batch's hits there (n, d; NaN: none)."""
+def _solid_band(rays: ScanRays, depth: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where each ray's solid band starts (n,) (its free end for rays without a hit) and its
+    hit (n, d)."""
     hit_points = rays.origins + rays.directions * rays.lengths[:, None]
-    normals = np.full(hit_points.shape, np.nan)
-    normals[rays.hits] = hit_plane_normals(hit_points[rays.hits], side)
     band = depth + BAND_GROWTH * rays.lengths**2
     solid_start = np.where(rays.hits, rays.free_end - band, rays.free_end)
-    return solid_start, hit_points, normals
+    return solid_start, hit_points
 
 
 @numba.njit(cache=True, nogil=True)
@@ -442,7 +325,7 @@ def region_normals_reference(memory: EvidenceMemory) -> np.ndarray:
     occupied = occupied[np.isin(region[occupied], rows)]
     slot = np.searchsorted(rows, region[occupied])
     points, weight = memory.points_at(occupied), memory.weight[occupied].astype(np.float64)
-    normals[rows] = _plane_normals(*_group_spreads(points, slot, weight), PLANAR_SPREAD)
+    normals[rows] = plane_normals(*group_spreads(points, slot, weight), PLANAR_SPREAD)
     return normals
 
 
@@ -471,9 +354,7 @@ def occupied_passes(
     keys, rows = region_table(memory.regions)
     layout = occupied_layout(memory)
     fine_side = memory.sides[0]
-    solid_start, hit_points, hit_normals = _solid_band(
-        rays, depth, fine_side * FINE_CELLS_PER_RADIUS
-    )
+    solid_start, hit_points = _solid_band(rays, depth)
     arguments = (
         np.ascontiguousarray(rays.origins),
         rays.directions,
@@ -481,7 +362,7 @@ def occupied_passes(
         rays.free_end,
         solid_start,
         hit_points,
-        hit_normals,
+        rays.hit_normals,
         OFF_PLANE_CELLS * fine_side,
         keys,
         rows,
@@ -545,7 +426,8 @@ def occupied_passes_reference(
     # The entry's region, which its mean may lie on the far edge of.
     cell_centres = memory.corners_at(entries) + memory.sides[0] / 2
     low = np.floor(cell_centres / side) * side
-    solid_start, hit_points, hit_normals = _solid_band(rays, depth, side)
+    solid_start, hit_points = _solid_band(rays, depth)
+    hit_normals = rays.hit_normals
     passes = np.zeros(len(entries), dtype=np.int64)
     for r in range(len(rays)):
         o, u = rays.origins[r], rays.directions[r]

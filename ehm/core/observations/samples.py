@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from ehm.config import MapConfig
+from ehm.core.observations.planes import hit_plane_normals
 from ehm.core.sensor.boxes import points_in_box, ray_box_intervals
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
@@ -99,7 +101,8 @@ class ScanRays:
     origins: (n, d) each ray's start. directions: (n, d) unit vectors. lengths: (n,) distance
     to each ray's end (its hit, or where it stops without one). hits: (n,) bool.
     free_start, free_end: (n,) the part of each ray that gives free samples (start > end where
-    it gives none). spacing: (n,) distance between its free samples.
+    it gives none). spacing: (n,) distance between its free samples. plane_side: the side of
+    the cells whose hits `hit_normals` fits planes to (`cluster_radius`).
     """
 
     origins: np.ndarray
@@ -109,9 +112,22 @@ class ScanRays:
     free_start: np.ndarray
     free_end: np.ndarray
     spacing: np.ndarray
+    plane_side: float
 
     def __len__(self) -> int:
         return len(self.lengths)
+
+    @cached_property
+    def hit_normals(self) -> np.ndarray:
+        """(n, d) the unit normal of the plane the rays' hits lie on around each ray's hit
+        (ehm.core.observations.planes.hit_plane_normals, cells of `plane_side`), NaN for rays
+        without a hit and hits on no plane; found once."""
+        normals = np.full(self.directions.shape, np.nan)
+        hits = self.hits
+        if hits.any():
+            points = self.origins[hits] + self.directions[hits] * self.lengths[hits, None]
+            normals[hits] = hit_plane_normals(points, self.plane_side)
+        return normals
 
 
 def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
@@ -124,7 +140,8 @@ def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
     inside it, as densely as along the whole ray.
     """
     parts = [_rays_of_scan(scan, config) for scan in scans]
-    return ScanRays(*(np.concatenate(column) for column in zip(*parts, strict=True)))
+    columns = (np.concatenate(column) for column in zip(*parts, strict=True))
+    return ScanRays(*columns, plane_side=config.cluster_radius)
 
 
 def _rays_of_scan(scan: Scan, config: MapConfig) -> tuple[np.ndarray, ...]:
@@ -155,6 +172,9 @@ def ray_randoms(n: int, rng: np.random.Generator) -> np.ndarray:
 
 # A hit's free sample lies at least this many surface margins in front of it.
 FRONT_NEAREST = 0.25
+# Least cosine between a ray and the plane of its hit that stretches the ray's free sample in
+# front (`front_stretches`): at most 1 / FRONT_COS_FLOOR times as far along the ray.
+FRONT_COS_FLOOR = 0.3
 
 
 def front_depth(margin: float, reach: float, u: float | np.ndarray) -> float | np.ndarray:
@@ -163,6 +183,23 @@ def front_depth(margin: float, reach: float, u: float | np.ndarray) -> float | n
     by u (uniform in [0, 1), scalar or array alike) raised to the power `reach`: uniform with
     reach 1, denser near the hit beyond (two in three within one margin with reach 2)."""
     return margin * (FRONT_NEAREST + (reach - FRONT_NEAREST) * u**reach)
+
+
+def front_stretches(rays: ScanRays, config: MapConfig) -> np.ndarray:
+    """(n,) how many times as far along each ray its hit's free sample lies: 1 / cos of the
+    angle between the ray and the normal of the plane its batch's hits lie on around its hit
+    (ScanRays.hit_normals), the cosine floored at FRONT_COS_FLOOR, so that the sample lies as
+    far off the plane as on a ray along its normal. A ray at a grazing angle runs that close
+    to the plane over a longer stretch, and a sample drawn only within one margin of its hit
+    would lie a fraction of a margin off the surface. 1 for rays without a hit on a plane, and
+    for every ray without `front_stretch`."""
+    stretch = np.ones(len(rays))
+    if not config.front_stretch:
+        return stretch
+    cosine = np.abs(np.einsum("nd,nd->n", rays.hit_normals, rays.directions))
+    planar = ~np.isnan(cosine)
+    stretch[planar] = 1.0 / np.maximum(cosine[planar], FRONT_COS_FLOOR)
+    return stretch
 
 
 # Free samples along a ray farther than FAR_REACH free cluster radii from its hit, and all along
@@ -210,7 +247,8 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
 
     Around each hit: the hit and one point up to `occupied_depth` behind it are occupied; one
     point from `surface_margin` / 4 to `front_reach` times `surface_margin` in front of it
-    (`front_depth`) is free.
+    (`front_depth`), that many times its ray's stretch (`front_stretches`) along the ray, is
+    free.
     Along each ray, free points are stratified: one in each `spacing` of its free part, from a
     random offset, where it lies within FAR_REACH free cluster radii of the ray's hit; one in
     each `free_thinning` spacings, of that weight, farther and along rays without a hit. With
@@ -227,18 +265,19 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
     hit_points = rays.origins[hits] + rays.directions[hits] * rays.lengths[hits, None]
     hit_dirs = rays.directions[hits]
     behind = hit_points + hit_dirs * (config.occupied_depth * randoms[hits, 0])[:, None]
+    stretch = front_stretches(rays, config)[hits]
     in_front_depth = np.minimum(
-        front_depth(config.surface_margin, config.front_reach, randoms[hits, 1]),
+        stretch * front_depth(config.surface_margin, config.front_reach, randoms[hits, 1]),
         rays.lengths[hits],
     )
     in_front = hit_points - hit_dirs * in_front_depth[:, None]
     far, dense, dense_start = free_sample_counts(rays, randoms, config)
-    stretches = (
+    runs = (
         (far, rays.free_start, config.free_thinning * rays.spacing),
         (dense, dense_start, rays.spacing),
     )
     along = []
-    for counts, start, spacing in stretches:
+    for counts, start, spacing in runs:
         ray_of_sample = np.repeat(np.arange(len(counts)), counts)
         rank = np.arange(len(ray_of_sample)) - np.repeat(np.cumsum(counts) - counts, counts)
         depth = start[ray_of_sample] + (rank + randoms[ray_of_sample, 2]) * spacing[ray_of_sample]

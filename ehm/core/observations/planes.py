@@ -1,0 +1,131 @@
+"""Planes that points lie on: the plane of a batch's hits around each hit (by cells), and of
+weighted groups of points.
+
+A group of points lies on a plane when its least spread (the smallest eigenvalue of its
+scatter) is a small share of the next and it does not lie on a line: its middle spread is more
+than LINEAR_SPREAD of the largest (a post's points, or one ring of a LiDAR's, lie on a line).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ehm.core.model.eigen import eigen_in_place
+from ehm.core.search.cells import packed_cell_keys
+
+# The batch's hits in a cell lie on a plane when there are at least PLANE_HITS of them and their
+# least spread is at most HIT_PLANAR_SPREAD of the next (and not on a line).
+PLANE_HITS = 6
+HIT_PLANAR_SPREAD = 0.1
+LINEAR_SPREAD = 0.1
+
+
+def hit_plane_normals(hit_points: np.ndarray, side: float) -> np.ndarray:
+    """(n, d): for each of a batch's hits (n, d), metres, the unit normal of the plane the
+    batch's hits in its cell of `side` metres lie on (PLANE_HITS, HIT_PLANAR_SPREAD), NaN where
+    they lie on none. Where that cell holds too few hits, or hits on a line (a LiDAR's rings a
+    few centimetres apart on a wall a few metres away), the cell of twice the side decides."""
+    if len(hit_points) == 0:
+        return np.full(hit_points.shape, np.nan)
+    normals, sparse = cell_planes(hit_points, side)
+    if sparse.any():
+        normals[sparse] = cell_planes(hit_points, 2.0 * side)[0][sparse]
+    return normals
+
+
+def cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
+    """For each of the hits (n, d), metres: the normal of the plane its cell's hits lie on
+    (n, d; NaN: none) and whether they are too few or on a line for one (n,) bool."""
+    n = len(hit_points)
+    keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
+    order = np.argsort(keys)
+    ordered = keys[order]
+    starts = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1], [True]]))
+    cell = np.empty(n, dtype=np.int64)
+    cell[order] = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
+    normals, sparse = _cell_planes_kernel(
+        hit_points, order, starts, PLANE_HITS, HIT_PLANAR_SPREAD, LINEAR_SPREAD
+    )
+    return normals[cell], sparse[cell]
+
+
+@numba.njit(cache=True, parallel=True)
+def _cell_planes_kernel(
+    points, order, starts, min_hits, planar, linear
+):  # pragma: no cover - compiled
+    """The plane of each group of points (n, d), group g the rows order[starts[g]:starts[g +
+    1]]: its unit normal (G, d) where the group holds at least `min_hits` points whose least
+    spread is at most `planar` of the next (NaN elsewhere), and whether it holds fewer or
+    lies on a line, its middle spread at most `linear` of the largest (G,) bool."""
+    groups, d = len(starts) - 1, points.shape[1]
+    normals = np.full((groups, d), np.nan)
+    sparse = np.zeros(groups, dtype=np.bool_)
+    for g in numba.prange(groups):
+        first, last = starts[g], starts[g + 1]
+        if last - first < min_hits:
+            sparse[g] = True
+            continue
+        mean = np.zeros(d)
+        for i in range(first, last):
+            for a in range(d):
+                mean[a] += points[order[i], a]
+        mean /= last - first
+        scatter = np.zeros((d, d))
+        for i in range(first, last):
+            for a in range(d):
+                for b in range(d):
+                    scatter[a, b] += (points[order[i], a] - mean[a]) * (
+                        points[order[i], b] - mean[b]
+                    )
+        spread, axes = np.empty(d), np.zeros((d, d))
+        eigen_in_place(scatter, spread, axes)
+        if spread[1] <= linear * spread[d - 1]:
+            sparse[g] = True
+        elif spread[0] <= planar * spread[1]:
+            for a in range(d):
+                normals[g, a] = axes[a, 0]
+    return normals, sparse
+
+
+def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `cell_planes`."""
+    n = len(hit_points)
+    keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
+    _, cell, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    spread, axes = group_spreads(hit_points, cell, np.ones(n))
+    sparse = (counts < PLANE_HITS) | on_a_line(spread)
+    normals = plane_normals(spread, axes, HIT_PLANAR_SPREAD)
+    normals[sparse] = np.nan
+    return normals[cell], sparse[cell]
+
+
+def group_spreads(
+    points: np.ndarray, group: np.ndarray, weight: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The spread of the (n, d) points of each group (group (n,) int64, 0 .. G - 1, each met),
+    weighted by weight (n,): the eigenvalues of their scatter, ascending (G, d), and its unit
+    eigenvectors, one a column (G, d, d)."""
+    d, size = points.shape[1], group.max() + 1
+    total = np.bincount(group, weight, size)
+    means = np.stack([np.bincount(group, weight * p, size) for p in points.T], axis=1)
+    offsets = points - (means / total[:, None])[group]
+    scatter = np.empty((size, d, d))
+    for a in range(d):
+        for b in range(d):
+            scatter[:, a, b] = np.bincount(group, weight * offsets[:, a] * offsets[:, b], size)
+    return np.linalg.eigh(scatter)
+
+
+def on_a_line(spread: np.ndarray) -> np.ndarray:
+    """(G,) bool: spreads (G, d) whose middle one is at most LINEAR_SPREAD of the largest (a
+    post's points, or one ring of a LiDAR's)."""
+    return spread[:, 1] <= LINEAR_SPREAD * spread[:, -1]
+
+
+def plane_normals(spread: np.ndarray, axes: np.ndarray, planar_spread: float) -> np.ndarray:
+    """(G, d): the axis of least spread of each group (spread (G, d), axes (G, d, d) from
+    `group_spreads`) where it is at most `planar_spread` of the next and the group is not on a
+    line; NaN elsewhere."""
+    flat = (spread[:, 0] <= planar_spread * spread[:, 1]) & ~on_a_line(spread)
+    return np.where(flat[:, None], axes[:, :, 0], np.nan)

@@ -1,0 +1,50 @@
+"""Planes of a batch's hits: the normals found by cells, the wider cell for hits on lines, and
+the compiled fit against its NumPy twin."""
+
+import numpy as np
+import pytest
+from plane_points import assert_same_normals, planar_patches
+
+from ehm.core.observations.planes import cell_planes, cell_planes_reference, hit_plane_normals
+
+
+def test_hits_on_a_plane_have_its_normal_and_scattered_ones_none(rng):
+    floor = np.column_stack([rng.uniform(0.01, 0.19, (20, 2)), np.full(20, 0.05)])
+    scattered = rng.uniform(1.01, 1.19, (20, 3))
+    normals = hit_plane_normals(np.vstack([floor, scattered]), 0.2)
+    np.testing.assert_allclose(np.abs(normals[:20]), np.tile([0.0, 0.0, 1.0], (20, 1)), atol=1e-9)
+    assert np.isnan(normals[20:]).all()
+
+
+def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
+    """A wall (x = 1 m) hit along two LiDAR rings 9 cm apart: each 10 cm cell holds one ring,
+    a line, and the 20 cm cell around both finds the wall's plane. A wall hit densely with
+    1.5 cm of range noise is no plane in its 10 cm cells (least spread 0.27 of the next), and
+    is not given the plane its 20 cm cell would find (0.07)."""
+    y = np.arange(0.005, 0.2, 0.01)
+    rings = np.column_stack([np.ones(40), np.tile(y, 2), np.repeat([0.02, 0.11], 20)])
+    noisy = np.column_stack(
+        [
+            1.05 + np.clip(rng.normal(0.0, 0.015, 800), -0.045, 0.045),
+            rng.uniform(0.0, 0.2, (800, 2)) + np.array([0.0, 0.2]),
+        ]
+    )
+    normals = hit_plane_normals(np.vstack([rings, noisy]), 0.1)
+    np.testing.assert_allclose(np.abs(normals[:40]), np.tile([1.0, 0.0, 0.0], (40, 1)), atol=1e-9)
+    assert np.isnan(normals[40:]).all()
+    wide = hit_plane_normals(noisy, 0.2)
+    np.testing.assert_allclose(np.abs(wide[:, 0]), 1.0, atol=0.01)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cell_planes_agree_with_their_numpy_twin(rng, dim):
+    # Patches of planes (lines in 2D) with a little noise, lines, and scattered hits.
+    line = np.outer(np.linspace(0.0, 0.1, 12), np.ones(dim)) + 3.0
+    points = np.concatenate(
+        [planar_patches(rng, dim, 80, 30, 0.05, 0.002), line, rng.uniform(-2.0, 2.0, (400, dim))]
+    )
+    compiled = cell_planes(points, 0.2)
+    reference = cell_planes_reference(points, 0.2)
+    np.testing.assert_array_equal(compiled[1], reference[1])
+    planar = assert_same_normals(compiled[0], reference[0])
+    assert planar.sum() > 100 and compiled[1].sum() > 300
