@@ -13,6 +13,7 @@ import numpy as np
 
 from ehm.core.model.eigen import eigen_in_place
 from ehm.core.search.cells import packed_cell_keys
+from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 
 # The batch's hits in a cell lie on a plane when there are at least PLANE_HITS of them and their
 # least spread is at most HIT_PLANAR_SPREAD of the next (and not on a line).
@@ -39,53 +40,68 @@ def cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.nda
     (n, d; NaN: none) and whether they are too few or on a line for one (n,) bool."""
     n = len(hit_points)
     keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
-    order = np.argsort(keys)
-    ordered = keys[order]
-    starts = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1], [True]]))
-    cell = np.empty(n, dtype=np.int64)
-    cell[order] = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
-    normals, sparse = _cell_planes_kernel(
-        hit_points, order, starts, PLANE_HITS, HIT_PLANAR_SPREAD, LINEAR_SPREAD
-    )
-    return normals[cell], sparse[cell]
+    return _cell_planes_kernel(hit_points, keys, PLANE_HITS, HIT_PLANAR_SPREAD, LINEAR_SPREAD)
 
 
 @numba.njit(cache=True, parallel=True)
-def _cell_planes_kernel(
-    points, order, starts, min_hits, planar, linear
-):  # pragma: no cover - compiled
-    """The plane of each group of points (n, d), group g the rows order[starts[g]:starts[g +
-    1]]: its unit normal (G, d) where the group holds at least `min_hits` points whose least
-    spread is at most `planar` of the next (NaN elsewhere), and whether it holds fewer or
-    lies on a line, its middle spread at most `linear` of the largest (G,) bool."""
-    groups, d = len(starts) - 1, points.shape[1]
-    normals = np.full((groups, d), np.nan)
-    sparse = np.zeros(groups, dtype=np.bool_)
-    for g in numba.prange(groups):
-        first, last = starts[g], starts[g + 1]
-        if last - first < min_hits:
-            sparse[g] = True
+def _cell_planes_kernel(points, keys, min_hits, planar, linear):  # pragma: no cover - compiled
+    """cell_planes of points (n, d) in the cells of keys (n,) int64 >= 0: each cell's points
+    found through a table of its key (ehm.core.search.hashing), their offsets from the cell's
+    first point summed with their outer products in one pass; where a cell holds at least
+    `min_hits`, the eigen decomposition of its scatter gives its unit normal where the least
+    spread is at most `planar` of the next, and it lies on a line where the middle spread is
+    at most `linear` of the largest."""
+    n, d = points.shape
+    table = np.full(table_size(n), EMPTY_KEY, dtype=np.int64)
+    rows = np.zeros(len(table), dtype=np.int64)
+    cell = np.empty(n, dtype=np.int64)
+    first = np.empty(n, dtype=np.int64)
+    cells = 0
+    for i in range(n):
+        s = hash_slot(table, keys[i])
+        if table[s] == EMPTY_KEY:
+            table[s] = keys[i]
+            rows[s] = cells
+            first[cells] = i
+            cells += 1
+        cell[i] = rows[s]
+    count = np.zeros(cells, dtype=np.int64)
+    sums = np.zeros((cells, d))
+    outer = np.zeros((cells, d, d))
+    offset = np.empty(d)
+    for i in range(n):
+        c = cell[i]
+        count[c] += 1
+        for a in range(d):
+            offset[a] = points[i, a] - points[first[c], a]
+            sums[c, a] += offset[a]
+        for a in range(d):
+            for b in range(d):
+                outer[c, a, b] += offset[a] * offset[b]
+    normals = np.full((cells, d), np.nan)
+    sparse = np.zeros(cells, dtype=np.bool_)
+    for c in numba.prange(cells):
+        if count[c] < min_hits:
+            sparse[c] = True
             continue
-        mean = np.zeros(d)
-        for i in range(first, last):
-            for a in range(d):
-                mean[a] += points[order[i], a]
-        mean /= last - first
-        scatter = np.zeros((d, d))
-        for i in range(first, last):
-            for a in range(d):
-                for b in range(d):
-                    scatter[a, b] += (points[order[i], a] - mean[a]) * (
-                        points[order[i], b] - mean[b]
-                    )
+        scatter = np.empty((d, d))
+        for a in range(d):
+            for b in range(d):
+                scatter[a, b] = outer[c, a, b] - sums[c, a] * sums[c, b] / count[c]
         spread, axes = np.empty(d), np.zeros((d, d))
         eigen_in_place(scatter, spread, axes)
         if spread[1] <= linear * spread[d - 1]:
-            sparse[g] = True
+            sparse[c] = True
         elif spread[0] <= planar * spread[1]:
             for a in range(d):
-                normals[g, a] = axes[a, 0]
-    return normals, sparse
+                normals[c, a] = axes[a, 0]
+    hit_normals = np.empty((n, d))
+    hit_sparse = np.empty(n, dtype=np.bool_)
+    for i in numba.prange(n):
+        hit_sparse[i] = sparse[cell[i]]
+        for a in range(d):
+            hit_normals[i, a] = normals[cell[i], a]
+    return hit_normals, hit_sparse
 
 
 def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
