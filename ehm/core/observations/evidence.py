@@ -242,17 +242,7 @@ def gather_kernel(
                 if inside:
                     kind = FREE_AT_SURFACE if j == 2 else OCCUPIED
                     used = _add_sample(
-                        point,
-                        1.0,
-                        inv_fine,
-                        fine_side,
-                        kind,
-                        half,
-                        bits,
-                        cell,
-                        table,
-                        used,
-                        last,
+                        point, 1.0, inv_fine, fine_side, kind, half, bits, cell, table, used, last
                     )
         runs = (
             (free_start[r], thinning * spacing[r], far_counts[r], float(thinning)),

@@ -110,7 +110,7 @@ def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarr
     keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
     _, cell, counts = np.unique(keys, return_inverse=True, return_counts=True)
     spread, axes = group_spreads(hit_points, cell, np.ones(n))
-    sparse = (counts < PLANE_HITS) | on_a_line(spread)
+    sparse = (counts < PLANE_HITS) | _on_a_line(spread)
     normals = plane_normals(spread, axes, HIT_PLANAR_SPREAD)
     normals[sparse] = np.nan
     return normals[cell], sparse[cell]
@@ -133,7 +133,7 @@ def group_spreads(
     return np.linalg.eigh(scatter)
 
 
-def on_a_line(spread: np.ndarray) -> np.ndarray:
+def _on_a_line(spread: np.ndarray) -> np.ndarray:
     """(G,) bool: spreads (G, d) whose middle one is at most LINEAR_SPREAD of the largest (a
     post's points, or one ring of a LiDAR's)."""
     return spread[:, 1] <= LINEAR_SPREAD * spread[:, -1]
@@ -143,5 +143,5 @@ def plane_normals(spread: np.ndarray, axes: np.ndarray, planar_spread: float) ->
     """(G, d): the axis of least spread of each group (spread (G, d), axes (G, d, d) from
     `group_spreads`) where it is at most `planar_spread` of the next and the group is not on a
     line; NaN elsewhere."""
-    flat = (spread[:, 0] <= planar_spread * spread[:, 1]) & ~on_a_line(spread)
+    flat = (spread[:, 0] <= planar_spread * spread[:, 1]) & ~_on_a_line(spread)
     return np.where(flat[:, None], axes[:, :, 0], np.nan)
