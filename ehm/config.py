@@ -76,10 +76,10 @@ class MapConfig:
     """How far in front of its hit a hit's free sample may lie, in surface margins: uniform up
     to one margin with 1, denser near the hit beyond (ehm.core.observations.samples.
     front_depth). 2 takes away the tail of the map's occupied level 5-10 cm in front of
-    surfaces: near-surface precision 0.532 against 0.505 on the simulated warehouse, held-out
-    F1 within 0.002 of 1's everywhere and up to 0.004 above it, up to 6 % more cells of
-    evidence; thin posts seen from afar fade (on the street, 0.75 of the points inside posts
-    read occupied against 0.80; BENCHMARKS.md)."""
+    surfaces faced head-on: with front_stretch, near-surface precision 0.545 against 0.540 on
+    the simulated warehouse and 0.600 against 0.606 on the virtual room, held-out F1 0.992
+    against 0.988 there; up to 6 % more cells of evidence; thin posts seen from afar fade
+    (BENCHMARKS.md)."""
     front_stretch: bool = True
     """Where a batch's hits around a hit lie on a plane, the hit's free sample lies as far off
     the plane as it would on a ray along the plane's normal: 1 / cos of the ray's angle to the
