@@ -146,11 +146,15 @@ def test_range_limits_drop_short_rays_and_cut_long_ones(rng):
 
 
 def test_free_samples_per_ray_are_bounded(rng):
-    """One point a thousand kilometres away adds at most max_free_samples samples."""
+    """One point a thousand kilometres away adds at most max_free_samples samples; one beyond
+    the reach of the cells its plane is looked for in (1.3e8 m at 12 cm) is refused."""
     config = MapConfig(free_spacing=0.1, max_free_samples=50)
     far = Scan(np.array([[1e6, 0.0], [1.0, 0.0]]), np.zeros(2))
     samples = training_samples(far, config, rng)
     assert len(samples) <= 50 + 3 * 2 + 10
+    too_far = Scan(np.array([[1e9, 0.0], [1.0, 0.0]]), np.zeros(2))
+    with pytest.raises(InputError, match="set max_range"):
+        training_samples(too_far, config, rng)
 
 
 def test_samples_of_scans_are_each_scans_samples_in_order(plan):
