@@ -52,6 +52,7 @@ def test_overrides_and_validation():
         ("free_thinning", 0, "free_thinning must be an integer >= 1"),
         ("front_reach", 0.5, "front_reach must be >= 1, got 0.5"),
         ("front_reach", float("nan"), "front_reach must be a finite number, got nan"),
+        ("front_stretch", 1, "front_stretch must be True or False, got 1"),
     ],
 )
 def test_settings_are_validated(setting, value, message):
