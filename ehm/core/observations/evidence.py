@@ -68,6 +68,10 @@ GATHER_PARTS = 2
 # A table starts with a row for every SAMPLES_PER_CELL samples: a scan's samples fill 3-7 per
 # cell (OctoMap's sample scan 4.2, a TUM frame 6.7, a street sweep 3.2), so it seldom grows.
 SAMPLES_PER_CELL = 3
+# Cells gather_kernel remembers having met lately (2^RECENT_BITS; 64 KB, within a core's
+# second-level cache), and the multiplier that spreads their keys (2^64 / golden ratio).
+RECENT_BITS = 12
+_RECENT_MULTIPLIER = np.uint64(11400714819323198485)
 
 
 # The depth of a hit's free sample, compiled for gather_kernel from the one definition its NumPy
@@ -134,47 +138,6 @@ def _rehash(keys, index, new_keys, new_index):  # pragma: no cover - compiled
             new_index[t] = index[s]
 
 
-@numba.njit(cache=True, inline="always")
-def _add_sample(
-    point, weight, inv_side, side, kind, half, bits, cell, table, used, last
-):  # pragma: no cover - compiled
-    """Add `point` (d,), standing for `weight` samples, to the statistics of its cell of
-    `kind` in `table` (the arrays of a _CellTable, `used` cells filled); returns the cells
-    used. last: (2, kinds) int64, the key and row of the cell each kind met last (a scan's
-    neighbouring rays often meet it again, and the table is not searched)."""
-    keys, index, row_key, stats, anchor, kinds = table
-    d = point.shape[0]
-    key = np.int64(0)
-    for a in range(d):
-        cell[a] = np.floor(point[a] * inv_side)
-        key = (key << bits) | (np.int64(cell[a]) + half)
-    key = (key << KIND_BITS) | kind
-    if last[0, kind] == key:
-        c = last[1, kind]
-    else:
-        s = hash_slot(keys, key)
-        if keys[s] == EMPTY_KEY:
-            keys[s] = key
-            index[s] = used
-            row_key[used] = key
-            for a in range(d):
-                anchor[used, a] = cell[a] * side
-            kinds[used] = kind
-            used += 1
-        c = index[s]
-        last[0, kind], last[1, kind] = key, c
-    stats[c, 0] += weight
-    for a in range(d):
-        cell[a] = point[a] - anchor[c, a]  # the offset from the cell's anchor
-        stats[c, 1 + a] += weight * cell[a]
-    v = 1 + d
-    for a in range(d):
-        for b in range(a, d):
-            stats[c, v] += weight * cell[a] * cell[b]
-            v += 1
-    return used
-
-
 @numba.njit(cache=True, nogil=True)
 def gather_kernel(
     first_ray,
@@ -215,58 +178,87 @@ def gather_kernel(
     hits outside it are left out; front_stretch (n,): how many times as far along its ray each
     hit's free sample lies (ehm.core.observations.samples.front_stretches); bits: bits per
     axis of a key.
+
+    Each sample is added where it is made, in one place of this loop: a helper taking the
+    table's arrays cost five times as much per sample, in counting the arrays in and out.
     """
+    keys, index, row_key, stats, anchor, kinds = table
     d = directions.shape[1]
     half = np.int64(1) << (bits - 1)
-    inv_fine, inv_coarse = 1.0 / fine_side, 1.0 / coarse_side
-    capacity = min(len(table[2]), len(table[0]) // 2)
+    capacity = min(len(row_key), len(keys) // 2)
     point = np.empty(d)
     cell = np.empty(d)
-    last = np.full((2, 1 << KIND_BITS), EMPTY_KEY, dtype=np.int64)
+    # The key and row of cells met lately, one slot per top bits of the key's hash: a scan's
+    # neighbouring rays meet the same cells, and the table, larger than the processor's
+    # caches, is not searched for them.
+    recent = np.full((2, 1 << RECENT_BITS), EMPTY_KEY, dtype=np.int64)
     for r in range(first_ray, last_ray):
         if used + 3 + far_counts[r] + dense_counts[r] > capacity:
             return r, used
-        if hits[r]:
-            front = front_stretch[r] * _front_depth(margin, front_reach, random[r, 1])
-            depths = (
-                lengths[r],
-                lengths[r] + occupied_depth * random[r, 0],
-                lengths[r] - min(front, lengths[r]),
-            )
-            for j in range(3):
-                inside = True
-                for a in range(d):
-                    point[a] = origins[r, a] + directions[r, a] * depths[j]
-                    if box.shape[0] == 2 and (point[a] < box[0, a] or point[a] > box[1, a]):
-                        inside = False
-                if inside:
-                    kind = FREE_AT_SURFACE if j == 2 else OCCUPIED
-                    used = _add_sample(
-                        point, 1.0, inv_fine, fine_side, kind, half, bits, cell, table, used, last
-                    )
-        runs = (
-            (free_start[r], thinning * spacing[r], far_counts[r], float(thinning)),
-            (dense_start[r], spacing[r], dense_counts[r], 1.0),
-        )
-        for start, step, count, weight in runs:
-            for k in range(count):
-                t = start + (k + random[r, 2]) * step
-                for a in range(d):
-                    point[a] = origins[r, a] + directions[r, a] * t
-                used = _add_sample(
-                    point,
-                    weight,
-                    inv_coarse,
-                    coarse_side,
-                    FREE_ALONG_RAY,
-                    half,
-                    bits,
-                    cell,
-                    table,
-                    used,
-                    last,
-                )
+        around_hit = 3 if hits[r] else 0
+        for j in range(around_hit + far_counts[r] + dense_counts[r]):
+            # The j-th sample of the ray: its depth along the ray, kind, weight and cell side.
+            if j < around_hit:
+                side, weight = fine_side, 1.0
+                if j == 0:
+                    depth, kind = lengths[r], OCCUPIED
+                elif j == 1:
+                    depth, kind = lengths[r] + occupied_depth * random[r, 0], OCCUPIED
+                else:
+                    front = front_stretch[r] * _front_depth(margin, front_reach, random[r, 1])
+                    depth, kind = lengths[r] - min(front, lengths[r]), FREE_AT_SURFACE
+            elif j < around_hit + far_counts[r]:
+                k = j - around_hit
+                depth = free_start[r] + (k + random[r, 2]) * thinning * spacing[r]
+                side, weight, kind = coarse_side, float(thinning), FREE_ALONG_RAY
+            else:
+                k = j - around_hit - far_counts[r]
+                depth = dense_start[r] + (k + random[r, 2]) * spacing[r]
+                side, weight, kind = coarse_side, 1.0, FREE_ALONG_RAY
+            inside = True
+            key = np.int64(0)
+            for a in range(d):
+                point[a] = origins[r, a] + directions[r, a] * depth
+                if j < around_hit and box.shape[0] == 2:
+                    inside &= box[0, a] <= point[a] <= box[1, a]
+                cell[a] = np.floor(point[a] / side)
+                key = (key << bits) | (np.int64(cell[a]) + half)
+            if not inside:
+                continue
+            key = (key << KIND_BITS) | kind
+            slot = _recent_slot(key)
+            if recent[0, slot] == key:
+                c = recent[1, slot]
+            else:
+                s = hash_slot(keys, key)
+                if keys[s] == EMPTY_KEY:
+                    keys[s] = key
+                    index[s] = used
+                    row_key[used] = key
+                    for a in range(d):
+                        anchor[used, a] = cell[a] * side
+                    kinds[used] = kind
+                    used += 1
+                c = index[s]
+                recent[0, slot], recent[1, slot] = key, c
+            # The sample's weight, offset from the cell's anchor and scatter about it.
+            stats[c, 0] += weight
+            for a in range(d):
+                cell[a] = point[a] - anchor[c, a]
+                stats[c, 1 + a] += weight * cell[a]
+            v = 1 + d
+            for a in range(d):
+                for b in range(a, d):
+                    stats[c, v] += weight * cell[a] * cell[b]
+                    v += 1
     return last_ray, used
+
+
+@numba.njit(cache=True, inline="always")
+def _recent_slot(key):  # pragma: no cover - compiled
+    """Slot of `key` among the cells gather_kernel met lately: the top RECENT_BITS bits of a
+    multiplicative hash."""
+    return np.int64((np.uint64(key) * _RECENT_MULTIPLIER) >> np.uint64(64 - RECENT_BITS))
 
 
 def _gather_rays(arguments: tuple, first: int, last: int) -> _CellTable:
