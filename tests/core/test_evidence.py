@@ -7,6 +7,7 @@ from ehm.config import MapConfig
 from ehm.core.observations import evidence
 from ehm.core.observations.evidence import evidence_reference, gather_evidence
 from ehm.core.observations.samples import ray_randoms, samples_of_rays, scan_rays
+from ehm.core.search.cells import packed_cell_keys
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
@@ -85,6 +86,20 @@ def test_a_batch_with_more_cells_than_rays_grows_its_table(rng):
     assert len(got) == len(want) > 20 * len(rays)
     np.testing.assert_allclose(got.weight, want.weight)
     np.testing.assert_allclose(got.points, want.points, atol=1e-9)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cell_corners_are_read_back_from_the_keys(rng, dim):
+    """The low corner of a cell, read from its key, is the one the key was made from: fine
+    cells for the kinds around hits, coarse ones along rays, on both sides of the origin."""
+    points = rng.uniform(-50.0, 50.0, (500, dim))
+    kinds = rng.integers(0, 3, len(points))
+    fine, coarse = 0.03, 0.2
+    sides = np.where(kinds == evidence.FREE_ALONG_RAY, coarse, fine)
+    keys = packed_cell_keys(points, sides, kinds, evidence.KIND_BITS)
+    corners = np.empty((len(points), dim))
+    evidence.cell_corners(keys, fine, coarse, (63 - evidence.KIND_BITS) // dim, corners)
+    np.testing.assert_array_equal(corners, np.floor(points / sides[:, None]) * sides[:, None])
 
 
 def test_samples_beyond_the_cells_reach_are_refused(rng):

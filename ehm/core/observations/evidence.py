@@ -48,8 +48,9 @@ from ehm.errors import InputError
 # Kinds of samples, in the order the compiled pass numbers them: free samples along rays (in
 # coarse cells), free samples in front of hits and occupied samples (in fine cells).
 FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED = 0, 1, 2
-# Bits of a cell key that hold the kind.
+# Bits of a cell key that hold the kind, and their mask.
 KIND_BITS = 2
+KIND_MASK = (1 << KIND_BITS) - 1
 # Cells of each kind across the cluster radius of its kind (`cluster_radius` around hits,
 # `free_cluster_radius` along rays): 3 cm and 20 cm at the default 5 cm of detail. Measured
 # over three seeds on every data set (BENCHMARKS.md): coarse cells of 30 cm lost 0.027
@@ -81,24 +82,23 @@ _front_depth = numba.njit(cache=True, inline="always")(front_depth)
 
 def statistics_width(dim: int) -> int:
     """Values a cell keeps (see _CellTable): its weight, the sum of its samples' offsets from
-    its anchor (dim) and the upper triangle of their scatter about it (dim (dim + 1) / 2)."""
+    its corner (dim) and the upper triangle of their scatter about it (dim (dim + 1) / 2)."""
     return 1 + dim + dim * (dim + 1) // 2
 
 
 @dataclass
 class _CellTable:
     """Cells met so far: an open-addressing table of keys (ehm.core.search.hashing) pointing into
-    rows filled in the order cells are met. Per row: key (c,) int64; stats (c,
-    statistics_width(d)): the weight, the sum of the samples' offsets from the anchor and the
-    upper triangle of their scatter about it, row-major (one cache line or two per sample
-    added); anchor (c, d) metres, the cell's corner; kind (c,) int64."""
+    rows filled in the order cells are met. Per row: key (c,) int64, which holds the cell's
+    corner and kind (cell_corners); stats (c, statistics_width(d)): the weight, the sum of the
+    samples' offsets from the corner and the upper triangle of their scatter about it,
+    row-major (one cache line or two per sample added)."""
 
+    dim: int
     keys: np.ndarray
     index: np.ndarray
     key: np.ndarray
     stats: np.ndarray
-    anchor: np.ndarray
-    kind: np.ndarray
     used: int = 0
 
     @classmethod
@@ -106,23 +106,22 @@ class _CellTable:
         size = table_size(capacity)
         capacity = size // 2
         return cls(
+            dim,
             np.full(size, EMPTY_KEY, dtype=np.int64),
             np.zeros(size, dtype=np.int64),
             np.zeros(capacity, dtype=np.int64),
             np.zeros((capacity, statistics_width(dim))),
-            np.zeros((capacity, dim)),
-            np.zeros(capacity, dtype=np.int64),
         )
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        """(keys, index, key, stats, anchor, kind), as the compiled passes take them."""
-        return self.keys, self.index, self.key, self.stats, self.anchor, self.kind
+        """(keys, index, key, stats), as the compiled passes take them."""
+        return self.keys, self.index, self.key, self.stats
 
     def grown(self) -> _CellTable:
         """The same cells in a table of twice the capacity."""
-        table = _CellTable.empty(2 * len(self.key), self.anchor.shape[1])
+        table = _CellTable.empty(2 * len(self.key), self.dim)
         n = self.used
-        for name in ("key", "stats", "anchor", "kind"):
+        for name in ("key", "stats"):
             getattr(table, name)[:n] = getattr(self, name)[:n]
         table.used = n
         _rehash(self.keys, self.index, table.keys, table.index)
@@ -182,12 +181,13 @@ def gather_kernel(
     Each sample is added where it is made, in one place of this loop: a helper taking the
     table's arrays cost five times as much per sample, in counting the arrays in and out.
     """
-    keys, index, row_key, stats, anchor, kinds = table
+    keys, index, row_key, stats = table
     d = directions.shape[1]
     half = np.int64(1) << (bits - 1)
     capacity = min(len(row_key), len(keys) // 2)
     point = np.empty(d)
     cell = np.empty(d)
+    offset = np.empty(d)
     # The key and row of cells met lately, one slot per top bits of the key's hash: a scan's
     # neighbouring rays meet the same cells, and the table, larger than the processor's
     # caches, is not searched for them.
@@ -222,6 +222,7 @@ def gather_kernel(
                 if j < around_hit and box.shape[0] == 2:
                     inside &= box[0, a] <= point[a] <= box[1, a]
                 cell[a] = np.floor(point[a] / side)
+                offset[a] = point[a] - cell[a] * side  # from the cell's corner
                 key = (key << bits) | (np.int64(cell[a]) + half)
             if not inside:
                 continue
@@ -235,21 +236,17 @@ def gather_kernel(
                     keys[s] = key
                     index[s] = used
                     row_key[used] = key
-                    for a in range(d):
-                        anchor[used, a] = cell[a] * side
-                    kinds[used] = kind
                     used += 1
                 c = index[s]
                 recent[0, slot], recent[1, slot] = key, c
-            # The sample's weight, offset from the cell's anchor and scatter about it.
+            # The sample's weight, offset from the cell's corner and scatter about it.
             stats[c, 0] += weight
             for a in range(d):
-                cell[a] = point[a] - anchor[c, a]
-                stats[c, 1 + a] += weight * cell[a]
+                stats[c, 1 + a] += weight * offset[a]
             v = 1 + d
             for a in range(d):
                 for b in range(a, d):
-                    stats[c, v] += weight * cell[a] * cell[b]
+                    stats[c, v] += weight * offset[a] * offset[b]
                     v += 1
     return last_ray, used
 
@@ -338,9 +335,9 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
             (points[first:last], weight[first:last], scatter[first:last])
             for first, last in pairwise(firsts)
         ]
-        list(run(_cell_samples_of, tables, kept, outputs))
-    kinds = [table.kind[: table.used][rows] for table, rows in zip(tables, kept, strict=True)]
-    occupied, at_surface = sample_flags(np.concatenate(kinds))
+        list(run(_cell_samples_of, tables, kept, outputs, repeat((fine, coarse, bits))))
+    keys = [table.key[: table.used][rows] for table, rows in zip(tables, kept, strict=True)]
+    occupied, at_surface = sample_flags(np.concatenate(keys) & KIND_MASK)
     return TrainingSamples(points, occupied, at_surface, weight, scatter)
 
 
@@ -351,7 +348,7 @@ def _fold_into(
     """Add the statistics of the cells of another table (other_key, other_stats, its first
     len(other_kept) rows) that are still kept (other_kept bool) and that a table (its keys,
     index and stats arrays, see _CellTable) holds too to its rows, and keep them no longer:
-    the two measure offsets from the same anchor."""
+    the two measure offsets from the same corner."""
     for r in range(len(other_kept)):
         if other_kept[r]:
             s = hash_slot(keys, other_key[r])
@@ -363,21 +360,43 @@ def _fold_into(
 
 
 def _cell_samples_of(
-    table: _CellTable, kept: np.ndarray, outputs: tuple[np.ndarray, np.ndarray, np.ndarray]
+    table: _CellTable,
+    kept: np.ndarray,
+    outputs: tuple[np.ndarray, np.ndarray, np.ndarray],
+    cells: tuple[float, float, int],
 ) -> None:
     """Write the weighted samples of the `kept` (used,) bool cells of `table` to `outputs`
-    (points, weight, scatter; see _cell_samples)."""
+    (points, weight, scatter; see _cell_samples); cells: the (fine, coarse) sides, metres,
+    and the bits per axis of the table's keys."""
     used = table.used
-    _cell_samples(table.stats[:used], table.anchor[:used], kept, *outputs)
+    corners = np.empty((used, table.dim))
+    cell_corners(table.key[:used], *cells, corners)
+    _cell_samples(table.stats[:used], corners, kept, *outputs)
 
 
 @numba.njit(cache=True, nogil=True)
-def _cell_samples(stats, anchor, kept, points, weight, scatter):  # pragma: no cover - compiled
+def cell_corners(keys, fine_side, coarse_side, bits, corners):  # pragma: no cover - compiled
+    """Write the low corner, metres, of the cell of each of `keys` (c,) int64 (gather_kernel's:
+    `bits` per axis, then the kind; FREE_ALONG_RAY cells are `coarse_side` wide, the others
+    `fine_side`) to corners (c, d)."""
+    d = corners.shape[1]
+    half = np.int64(1) << (bits - 1)
+    mask = (np.int64(1) << bits) - 1
+    for row in range(len(keys)):
+        side = coarse_side if keys[row] & KIND_MASK == FREE_ALONG_RAY else fine_side
+        packed = keys[row] >> KIND_BITS
+        for a in range(d - 1, -1, -1):
+            corners[row, a] = ((packed & mask) - half) * side
+            packed >>= bits
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell_samples(stats, corner, kept, points, weight, scatter):  # pragma: no cover - compiled
     """Write, for each of the cells that are `kept` (c,) bool one after the other, the mean of
     its samples to points (k, d) metres, their number to weight (k,) and their scatter about
     the mean to scatter (k, d, d) m^2, from the cell's row of statistics (see _CellTable) and
-    its anchor (c, d)."""
-    d = anchor.shape[1]
+    its low corner (c, d)."""
+    d = corner.shape[1]
     mean = np.empty(d)
     out = 0
     for row in range(len(kept)):
@@ -386,7 +405,7 @@ def _cell_samples(stats, anchor, kept, points, weight, scatter):  # pragma: no c
             weight[out] = w
             for a in range(d):
                 mean[a] = stats[row, 1 + a] / w
-                points[out, a] = anchor[row, a] + mean[a]
+                points[out, a] = corner[row, a] + mean[a]
             v = 1 + d
             for a in range(d):
                 for b in range(a, d):
