@@ -112,13 +112,13 @@ def space_sides(features: SparseFeatures, means: np.ndarray) -> np.ndarray:
     return sample_sides(features.indptr, features.rows, cluster_side)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def sample_sides(indptr, rows, cluster_side):  # pragma: no cover - compiled
     """(n,) int64: the side of `cluster_side` (c,) 0 or 1 that all of a sample's clusters
     share, BORDER where they differ or it has none (indptr, rows: its features)."""
     n = len(indptr) - 1
     side = np.full(n, BORDER, dtype=np.int64)
-    for i in range(n):
+    for i in numba.prange(n):
         if indptr[i + 1] > indptr[i]:
             first = cluster_side[rows[indptr[i]]]
             side[i] = first

@@ -56,22 +56,33 @@ def add_curvature(
     )
 
 
-@numba.njit(cache=True)
+# Parts of the samples whose curvature curvature_sum adds up apart, on as many threads as
+# there are, before adding the parts' sums: a fixed number, so the sums do not depend on the
+# threads.
+CURVATURE_PARTS = 2
+
+
+@numba.njit(cache=True, parallel=True)
 def curvature_sum(
     indptr, rows, values, sample_weights, weights, bias, precision
 ):  # pragma: no cover - compiled
     """Compiled core of `add_curvature`, on the features' compressed rows (see
     SparseFeatures)."""
-    for i in range(len(indptr) - 1):
-        if sample_weights[i] == 0.0:  # replayed samples, counted when they were new
-            continue
-        score = bias
-        for e in range(indptr[i], indptr[i + 1]):
-            score += weights[rows[e]] * values[e]
-        p = sigmoid_scalar(score)
-        curvature = sample_weights[i] * p * (1.0 - p)
-        for e in range(indptr[i], indptr[i + 1]):
-            precision[rows[e]] += curvature * values[e] * values[e]
+    n = len(indptr) - 1
+    sums = np.zeros((CURVATURE_PARTS, len(precision)))
+    for part in numba.prange(CURVATURE_PARTS):
+        for i in range(n * part // CURVATURE_PARTS, n * (part + 1) // CURVATURE_PARTS):
+            if sample_weights[i] == 0.0:  # replayed samples, counted when they were new
+                continue
+            score = bias
+            for e in range(indptr[i], indptr[i + 1]):
+                score += weights[rows[e]] * values[e]
+            p = sigmoid_scalar(score)
+            curvature = sample_weights[i] * p * (1.0 - p)
+            for e in range(indptr[i], indptr[i + 1]):
+                sums[part, rows[e]] += curvature * values[e] * values[e]
+    for part in range(CURVATURE_PARTS):
+        precision += sums[part]
 
 
 def curvature_sum_reference(
