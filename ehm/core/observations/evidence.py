@@ -178,8 +178,9 @@ def gather_kernel(
     hit's free sample lies (ehm.core.observations.samples.front_stretches); bits: bits per
     axis of a key.
 
-    Each sample is added where it is made, in one place of this loop: a helper taking the
-    table's arrays cost five times as much per sample, in counting the arrays in and out.
+    Each sample is added where it is made, in one place of this loop: the same work in a
+    helper taking the table's arrays, called once per sample, took five times as long
+    (BENCHMARKS.md, the real-time issue's eighth step).
     """
     keys, index, row_key, stats = table
     d = directions.shape[1]
