@@ -38,6 +38,7 @@ from ehm.core.observations.planes import LINEAR_SPREAD, group_spreads, plane_nor
 from ehm.core.observations.samples import ScanRays
 from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
+from ehm.core.search.index import PARALLEL_SEARCH_POINTS
 
 # How close a ray must come to an entry's mean to pass it, in fine evidence cells (3 cm at 5 cm
 # of detail).
@@ -181,10 +182,9 @@ def _off_plane(position, point, normal, gap):  # pragma: no cover - compiled
 def _solid_band(rays: ScanRays, depth: float) -> tuple[np.ndarray, np.ndarray]:
     """Where each ray's solid band starts (n,) (its free end for rays without a hit) and its
     hit (n, d)."""
-    hit_points = rays.origins + rays.directions * rays.lengths[:, None]
     band = depth + BAND_GROWTH * rays.lengths**2
     solid_start = np.where(rays.hits, rays.free_end - band, rays.free_end)
-    return solid_start, hit_points
+    return solid_start, rays.ends
 
 
 @numba.njit(cache=True, nogil=True)
@@ -393,14 +393,17 @@ def hit_again(
     hits = rays.hits
     if len(entries) == 0 or not hits.any():
         return np.zeros(len(entries), dtype=bool)
-    origins = rays.origins[hits]
-    hit_points = origins + rays.directions[hits] * rays.lengths[hits, None]
     points = memory.points_at(entries)
     farthest = REGISTRATION_SLACK * rays.lengths.max() + reach  # entries lie on the rays
+    # Only hits within `farthest` of the entries' box can be any entry's nearest.
+    low, high = points.min(axis=0) - farthest, points.max(axis=0) + farthest
+    near_box = hits & np.all((rays.ends >= low) & (rays.ends <= high), axis=1)
+    if not near_box.any():
+        return np.zeros(len(entries), dtype=bool)
+    origins, hit_points = rays.origins[near_box], rays.ends[near_box]
     tree = cKDTree(hit_points, balanced_tree=False, compact_nodes=False)  # faster to build
-    distance, nearest = tree.query(
-        points, distance_upper_bound=farthest, workers=numba.get_num_threads()
-    )
+    workers = numba.get_num_threads() if len(points) >= PARALLEL_SEARCH_POINTS else 1
+    distance, nearest = tree.query(points, distance_upper_bound=farthest, workers=workers)
     found = np.flatnonzero(np.isfinite(distance))
     ranges = np.linalg.norm(points[found] - origins[nearest[found]], axis=1)
     near = np.zeros(len(entries), dtype=bool)

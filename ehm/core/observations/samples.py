@@ -118,6 +118,12 @@ class ScanRays:
         return len(self.lengths)
 
     @cached_property
+    def ends(self) -> np.ndarray:
+        """(n, d) where each ray ends, metres: its hit, or where it stops without one; found
+        once."""
+        return self.origins + self.directions * self.lengths[:, None]
+
+    @cached_property
     def hit_normals(self) -> np.ndarray:
         """(n, d) the unit normal of the plane the rays' hits lie on around each ray's hit
         (ehm.core.observations.planes.hit_plane_normals, cells of `plane_side`), NaN for rays
@@ -125,8 +131,7 @@ class ScanRays:
         normals = np.full(self.directions.shape, np.nan)
         hits = self.hits
         if hits.any():
-            points = self.origins[hits] + self.directions[hits] * self.lengths[hits, None]
-            normals[hits] = hit_plane_normals(points, self.plane_side)
+            normals[hits] = hit_plane_normals(self.ends[hits], self.plane_side)
         return normals
 
 
