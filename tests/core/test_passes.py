@@ -205,3 +205,26 @@ def test_a_batch_hit_near_an_entry_keeps_it(range_m, kept):
     # A batch without hits keeps nothing.
     rays.hits[:] = False
     assert not passes_module.hit_again(memory, np.arange(3), rays, 0.03).any()
+
+
+def test_hits_again_match_every_hit_searched_by_brute_force(rng):
+    """Entries in a 2 m box and hits of rays from one origin spread over a 40 m one, most far
+    from every entry: what keeps an entry is the nearest of all hits, within reach or within
+    the slack of its range, whichever hits the search leaves out."""
+    entry_points = rng.uniform(0.0, 2.0, (300, 3))
+    memory = memory_of(entry_points, np.full(300, OCCUPIED))
+    ends = np.concatenate([rng.uniform(-20.0, 20.0, (3000, 3)), entry_points[:100] + 0.05])
+    origin = np.array([-3.0, 0.5, 1.0])
+    rays = rays_of(np.tile(origin, (len(ends), 1)), ends, rng.random(len(ends)) < 0.9, 0.05)
+    entries = np.arange(len(memory))
+    points = memory.points_at(entries)
+    hit_points = ends[rays.hits]
+    distance = np.linalg.norm(points[:, None] - hit_points[None], axis=2).min(axis=1)
+    ranges = np.linalg.norm(points - origin, axis=1)
+    farthest = passes_module.REGISTRATION_SLACK * rays.lengths.max() + 0.03
+    want = (distance <= farthest) & (
+        distance <= np.maximum(0.03, passes_module.REGISTRATION_SLACK * ranges)
+    )
+    got = passes_module.hit_again(memory, entries, rays, 0.03)
+    np.testing.assert_array_equal(got, want)
+    assert 0 < got.sum() < len(got)
