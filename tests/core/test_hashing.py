@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.search.hashing import group_by_key, table_size, unique_keys
+from ehm.core.search.hashing import group_by_key, hash_bits, table_size, unique_keys
 
 
 def test_unique_keys_is_np_unique(rng):
@@ -24,3 +24,16 @@ def test_rows_grouped_by_key_as_a_stable_argsort_groups_them(rng):
 
 def test_tables_stay_at_most_half_full():
     assert [table_size(n) for n in (0, 32, 33, 1000)] == [64, 64, 128, 2048]
+
+
+def test_hash_bits_are_the_top_bits_of_the_golden_ratio_hash_and_spread_neighbours():
+    """Keys of 4,096 neighbouring cells (consecutive along one axis, rows of 64 along another)
+    fill most of 4,096 slots, and each slot is the top 12 bits of key times 2^64 / golden
+    ratio."""
+    keys = (np.arange(64)[:, None] << 20 | np.arange(64)[None, :]).ravel().astype(np.int64)
+    got = np.array([hash_bits(key, 12) for key in keys])
+    with np.errstate(over="ignore"):
+        want = (keys.astype(np.uint64) * np.uint64(11400714819323198485)) >> np.uint64(52)
+    np.testing.assert_array_equal(got, want.astype(np.int64))
+    assert got.min() >= 0 and got.max() < 4096
+    assert len(np.unique(got)) > 0.6 * len(keys)

@@ -42,7 +42,7 @@ from ehm.core.observations.samples import (
     samples_of_rays,
 )
 from ehm.core.search.cells import packed_cell_keys
-from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
+from ehm.core.search.hashing import EMPTY_KEY, hash_bits, hash_slot, table_size
 from ehm.errors import InputError
 
 # Kinds of samples, in the order the compiled pass numbers them: free samples along rays (in
@@ -70,9 +70,8 @@ GATHER_PARTS = 2
 # cell (OctoMap's sample scan 4.2, a TUM frame 6.7, a street sweep 3.2), so it seldom grows.
 SAMPLES_PER_CELL = 3
 # Cells gather_kernel remembers having met lately (2^RECENT_BITS; 64 KB, within a core's
-# second-level cache), and the multiplier that spreads their keys (2^64 / golden ratio).
+# second-level cache).
 RECENT_BITS = 12
-_RECENT_MULTIPLIER = np.uint64(11400714819323198485)
 
 
 # The depth of a hit's free sample, compiled for gather_kernel from the one definition its NumPy
@@ -228,7 +227,7 @@ def gather_kernel(
             if not inside:
                 continue
             key = (key << KIND_BITS) | kind
-            slot = _recent_slot(key)
+            slot = hash_bits(key, RECENT_BITS)
             if recent[0, slot] == key:
                 c = recent[1, slot]
             else:
@@ -250,13 +249,6 @@ def gather_kernel(
                     stats[c, v] += weight * offset[a] * offset[b]
                     v += 1
     return last_ray, used
-
-
-@numba.njit(cache=True, inline="always")
-def _recent_slot(key):  # pragma: no cover - compiled
-    """Slot of `key` among the cells gather_kernel met lately: the top RECENT_BITS bits of a
-    multiplicative hash."""
-    return np.int64((np.uint64(key) * _RECENT_MULTIPLIER) >> np.uint64(64 - RECENT_BITS))
 
 
 def _gather_rays(arguments: tuple, first: int, last: int) -> _CellTable:

@@ -268,7 +268,7 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
     """The samples of `rays` placed by `randoms` (see ray_randoms), as `training_samples`
     describes them."""
     hits = rays.hits
-    hit_points = rays.origins[hits] + rays.directions[hits] * rays.lengths[hits, None]
+    hit_points = rays.ends[hits]
     hit_dirs = rays.directions[hits]
     behind = hit_points + hit_dirs * (config.occupied_depth * randoms[hits, 0])[:, None]
     stretch = front_stretches(rays, config)[hits]

@@ -32,6 +32,13 @@ def hash_slot(table_keys, key):  # pragma: no cover - compiled
     return s
 
 
+@numba.njit(cache=True, inline="always")
+def hash_bits(key, bits):  # pragma: no cover - compiled
+    """The top `bits` bits (1 to 63) of the multiplicative hash of `key` (>= 0): a slot among
+    2^bits for a small direct-mapped cache of keys, which neighbouring keys spread over."""
+    return np.int64((np.uint64(key) * _HASH_MULTIPLIER) >> np.uint64(64 - bits))
+
+
 @numba.njit(cache=True, nogil=True)
 def unique_keys(keys):  # pragma: no cover - compiled
     """Sorted distinct values of `keys` (n,) int64 >= 0: np.unique, with the duplicates
