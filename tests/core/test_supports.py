@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
+from ehm.core.model.kernels import OUTSIDE, kernels_of_codes
 from ehm.core.search.supports import (
     SupportHash,
     _candidate_counts,
+    _lowest_bit,
     support_boxes,
     support_features_reference,
 )
@@ -168,3 +170,37 @@ def test_sub_cell_masks_leave_out_most_kernels_of_a_cell(rng, random_clusters):
     )
     assert np.all(listed >= nonzero) and np.all(listed <= in_cells)
     assert listed.sum() < 0.5 * in_cells.sum()
+
+
+def test_points_sharing_sub_cells_get_their_own_kernels_in_any_order(rng, random_clusters):
+    """Crowds of points in few sub-cells (which share one list of candidates) each get the
+    features the reference finds, whatever order they are given in."""
+    clusters = random_clusters(rng)
+    table = _listed(clusters)
+    centres = rng.uniform(0.0, 6.0, (40, 3))
+    points = centres[rng.integers(0, 40, 5000)] + rng.normal(0.0, 0.05, (5000, 3))
+    args = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    want = support_features_reference(points, *args)
+    _assert_same_features(table.features(points, *args), want)
+    order = rng.permutation(len(points))
+    shuffled = table.features(points[order], *args)
+    counts = np.diff(shuffled.indptr)
+    np.testing.assert_array_equal(counts, np.diff(want.indptr)[order])
+
+
+def test_kernel_codes_below_outside_have_a_value():
+    """Features keep the kernels whose code is below OUTSIDE: the code just below it has a
+    value, OUTSIDE and above have none."""
+    values = np.array([np.nextafter(OUTSIDE, 0.0), OUTSIDE, np.nextafter(OUTSIDE, 2.0), -1.0])
+    kernels_of_codes(values)
+    assert values[0] > 0.0 and np.all(values[1:3] == 0.0) and values[3] == 1.0
+
+
+def test_lowest_bit_matches_numpy():
+    rng = np.random.default_rng(7)
+    words = rng.integers(1, 2**63, 2000, dtype=np.uint64) << rng.integers(0, 40, 2000).astype(
+        np.uint64
+    )
+    words = np.concatenate([words[words != 0], np.uint64(1) << np.arange(64, dtype=np.uint64)])
+    for word in words:
+        assert _lowest_bit(word) == int(word & (~word + np.uint64(1))).bit_length() - 1
