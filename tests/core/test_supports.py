@@ -8,7 +8,6 @@ from ehm.core.model.kernels import OUTSIDE, kernels_of_codes
 from ehm.core.search.supports import (
     SupportHash,
     _candidate_counts,
-    _lowest_bit,
     support_boxes,
     support_features_reference,
 )
@@ -194,13 +193,3 @@ def test_kernel_codes_below_outside_have_a_value():
     values = np.array([np.nextafter(OUTSIDE, 0.0), OUTSIDE, np.nextafter(OUTSIDE, 2.0), -1.0])
     kernels_of_codes(values)
     assert values[0] > 0.0 and np.all(values[1:3] == 0.0) and values[3] == 1.0
-
-
-def test_lowest_bit_matches_numpy():
-    rng = np.random.default_rng(7)
-    words = rng.integers(1, 2**63, 2000, dtype=np.uint64) << rng.integers(0, 40, 2000).astype(
-        np.uint64
-    )
-    words = np.concatenate([words[words != 0], np.uint64(1) << np.arange(64, dtype=np.uint64)])
-    for word in words:
-        assert _lowest_bit(word) == int(word & (~word + np.uint64(1))).bit_length() - 1

@@ -38,7 +38,6 @@ from ehm.core.model.kernels import (
     cluster_kernel_reference,
     kernel_code,
     kernels_of_codes,
-    projected_radii,
 )
 from ehm.core.search.hashing import EMPTY_KEY, group_by_key, hash_slot
 from ehm.errors import InputError
@@ -376,74 +375,87 @@ def _candidates(points, bound, table):  # pragma: no cover - compiled
     return rows
 
 
-@numba.njit(cache=True, parallel=True)
-def _inside_masks(
-    points, order, starts, list_bound, lists, means, transforms, planar, words
-):  # pragma: no cover - compiled
-    """Which candidates are not zero at each point: the points order[starts[g]:starts[g + 1]]
-    share the candidate kernels lists[list_bound[g]:list_bound[g + 1]], and bit t % 64 of
-    point i's word words[i] + t // 64 tells whether its t-th is. Returns the masks
-    (words[n],) uint64 and how many each point has (n,) int64; a point's kernels are projected
-    one after another while they are in cache, without a branch on the codes."""
-    n = points.shape[0]
-    masks = np.zeros(words[n], dtype=np.uint64)
-    counts = np.zeros(n, dtype=np.int64)
-    for g in numba.prange(len(starts) - 1):
-        for j in range(starts[g], starts[g + 1]):
-            i = order[j]
-            inside = 0
-            for w in range(words[i], words[i + 1]):
-                first = list_bound[g] + 64 * (w - words[i])
-                word = np.uint64(0)
-                for t in range(first, min(first + 64, list_bound[g + 1])):
-                    r2, r_max = projected_radii(points, i, lists[t], means, transforms)
-                    hit = kernel_code(r2, r_max, planar[lists[t]]) < OUTSIDE
-                    word |= np.uint64(hit) << np.uint64(t - first)
-                    inside += hit
-                masks[w] = word
-            counts[i] = inside
-    return masks, counts
-
-
-@numba.njit(cache=True, parallel=True)
-def _inside_codes(
-    points, order, starts, list_bound, lists, means, transforms, planar, words, masks, indptr
-):  # pragma: no cover - compiled
-    """Rows (indptr[n],) int64 and kernel codes (indptr[n],) float64 of the kernels not zero at
-    each point (see _inside_masks), point i's from indptr[i] on in the order of its
-    candidates."""
-    rows = np.empty(indptr[-1], dtype=np.int64)
-    codes = np.empty(indptr[-1])
-    for g in numba.prange(len(starts) - 1):
-        first = list_bound[g]
-        for j in range(starts[g], starts[g + 1]):
-            i = order[j]
-            out = indptr[i]
-            for w in range(words[i], words[i + 1]):
-                mask = masks[w]
-                while mask:
-                    t = first + 64 * (w - words[i]) + _lowest_bit(mask)
-                    mask &= mask - np.uint64(1)
-                    m = lists[t]
-                    r2, r_max = projected_radii(points, i, m, means, transforms)
-                    rows[out] = m
-                    codes[out] = kernel_code(r2, r_max, planar[m])
-                    out += 1
-    return rows, codes
-
-
-# Index of the lowest set bit of a word by a de Bruijn sequence: the bit times _DE_BRUIJN has
-# a distinct top six bits for each of the 64 bits.
-_DE_BRUIJN = np.uint64(0x03F79D71B4CB0A89)
-_DE_BRUIJN_INDEX = np.zeros(64, dtype=np.int64)
-_DE_BRUIJN_INDEX[[((1 << b) * int(_DE_BRUIJN) % 2**64) >> 58 for b in range(64)]] = np.arange(64)
+# Parts the groups of points sharing a list are split into, for the threads to share: each
+# part lays its lists out in buffers of its own, made once.
+_LIST_PARTS = 64
 
 
 @numba.njit(cache=True, inline="always")
-def _lowest_bit(mask):  # pragma: no cover - compiled
-    """Index of the lowest set bit of a uint64 that is not 0."""
-    lowest = mask & (~mask + np.uint64(1))
-    return _DE_BRUIJN_INDEX[(lowest * _DE_BRUIJN) >> np.uint64(58)]
+def _gather_list(first, last, lists, means, transforms, planar, laid_out):  # pragma: no cover
+    """The kernels lists[first:last] laid out for _list_codes in the first last - first
+    columns of laid_out (13, L): each kernel's mean in rows 0-2, its transform's rows in 3-11
+    (row a, column b in row 3 + 3 a + b) and in row 12 whether it is planar. A 2D kernel is
+    laid out as a 3D one whose third axis is zero: the sums then add zeros and are the same."""
+    d = means.shape[1]
+    laid_out[:, : last - first] = 0.0
+    for t in range(last - first):
+        m = lists[first + t]
+        laid_out[12, t] = planar[m]
+        for a in range(d):
+            laid_out[a, t] = means[m, a]
+            for b in range(d):
+                laid_out[3 + 3 * a + b, t] = transforms[m, a, b]
+
+
+@numba.njit(cache=True, inline="always")
+def _list_codes(points, i, n, laid_out, codes):  # pragma: no cover - compiled
+    """Kernel codes of point i at the first n kernels of a list laid out by _gather_list,
+    into codes[:n]. One loop along the list, in vector registers, summing in the order of
+    ehm.core.model.kernels.projected_radii: the codes are kernel_code's to the last bit."""
+    x = (points[i, 0], points[i, 1], points[i, 2] if points.shape[1] == 3 else 0.0)
+    for t in range(n):
+        r2 = 0.0
+        r_max = 0.0
+        for a in range(3):
+            u = 0.0
+            for b in range(3):
+                u += laid_out[3 + 3 * a + b, t] * (x[b] - laid_out[b, t])
+            r2 += u * u
+            r_max = max(r_max, abs(u))
+        codes[t] = kernel_code(r2, r_max, laid_out[12, t] != 0.0)
+
+
+@numba.njit(cache=True, parallel=True)
+def _inside_kernels(
+    points, order, starts, list_bound, lists, means, transforms, planar, indptr, write
+):  # pragma: no cover - compiled
+    """The kernels not zero at each point, where the points order[starts[g]:starts[g + 1]]
+    share the candidate kernels lists[list_bound[g]:list_bound[g + 1]]: without `write`,
+    how many at each point (n,) int64, with empty rows and codes; with it, their rows
+    (indptr[n],) int64 and kernel codes (indptr[n],) float64, point i's from indptr[i] on in
+    the order of its candidates."""
+    n_points = points.shape[0]
+    counts = np.zeros(n_points, dtype=np.int64)
+    rows = np.empty(indptr[-1] if write else 0, dtype=np.int64)
+    codes = np.empty(indptr[-1] if write else 0)
+    n_groups = len(starts) - 1
+    for part in numba.prange(_LIST_PARTS):
+        group_lo = n_groups * part // _LIST_PARTS
+        group_hi = n_groups * (part + 1) // _LIST_PARTS
+        longest = 0
+        for g in range(group_lo, group_hi):
+            longest = max(longest, list_bound[g + 1] - list_bound[g])
+        laid_out = np.empty((13, longest))
+        scratch = np.empty(longest)
+        for g in range(group_lo, group_hi):
+            first, last = list_bound[g], list_bound[g + 1]
+            _gather_list(first, last, lists, means, transforms, planar, laid_out)
+            for j in range(starts[g], starts[g + 1]):
+                i = order[j]
+                _list_codes(points, i, last - first, laid_out, scratch)
+                if write:
+                    out = indptr[i]
+                    for t in range(last - first):
+                        if scratch[t] < OUTSIDE:
+                            rows[out] = lists[first + t]
+                            codes[out] = scratch[t]
+                            out += 1
+                else:
+                    inside = 0
+                    for t in range(last - first):
+                        inside += scratch[t] < OUTSIDE
+                    counts[i] = inside
+    return counts, rows, codes
 
 
 @numba.njit(cache=True, parallel=True)
@@ -673,14 +685,9 @@ class SupportHash:
         np.cumsum(_candidate_counts(shared, table), out=list_bound[1:])
         lists = _candidates(shared, list_bound, table)
         groups = (order, starts, list_bound, lists, means, transforms, planar)
-        list_words = (np.diff(list_bound) + 63) // 64
-        words = np.zeros(len(points) + 1, dtype=np.int64)
-        words[1 + order] = np.repeat(list_words, np.diff(starts))
-        np.cumsum(words, out=words)
-        masks, counts = _inside_masks(points, *groups, words)
         indptr = np.zeros(len(points) + 1, dtype=np.int64)
-        np.cumsum(counts, out=indptr[1:])
-        rows, values = _inside_codes(points, *groups, words, masks, indptr)
+        np.cumsum(_inside_kernels(points, *groups, indptr, False)[0], out=indptr[1:])
+        _, rows, values = _inside_kernels(points, *groups, indptr, True)
         kernels_of_codes(values)
         return SparseFeatures(indptr, rows, values)
 
