@@ -2,7 +2,13 @@
 
 import numpy as np
 
-from ehm.core.search.hashing import group_by_key, hash_bits, table_size, unique_keys
+from ehm.core.search.hashing import (
+    group_by_key,
+    group_rows,
+    hash_bits,
+    table_size,
+    unique_keys,
+)
 
 
 def test_unique_keys_is_np_unique(rng):
@@ -17,9 +23,24 @@ def test_rows_grouped_by_key_as_a_stable_argsort_groups_them(rng):
     stable = np.argsort(keys, kind="stable")
     np.testing.assert_array_equal(order, stable)
     np.testing.assert_array_equal(distinct, np.unique(keys))
-    np.testing.assert_array_equal(starts, np.searchsorted(keys[stable], distinct))
+    np.testing.assert_array_equal(
+        starts, np.append(np.searchsorted(keys[stable], distinct), len(keys))
+    )
     empty = group_by_key(np.zeros(0, dtype=np.int64))
-    assert [len(part) for part in empty] == [0, 0, 0]
+    assert [len(part) for part in empty] == [0, 1, 0]
+
+
+def test_rows_grouped_in_the_order_keys_first_come(rng):
+    keys = rng.integers(0, 300, 5000).astype(np.int64) * 7_919
+    starts, order = group_rows(keys)
+    _, first_rows = np.unique(keys, return_index=True)
+    first_come = keys[np.sort(first_rows)]
+    place = {key: r for r, key in enumerate(first_come)}
+    rank = np.array([place[key] for key in keys])
+    np.testing.assert_array_equal(order, np.argsort(rank, kind="stable"))
+    np.testing.assert_array_equal(np.diff(starts), np.bincount(rank))
+    empty_starts, empty_order = group_rows(np.zeros(0, dtype=np.int64))
+    assert list(empty_starts) == [0] and len(empty_order) == 0
 
 
 def test_tables_stay_at_most_half_full():

@@ -198,8 +198,8 @@ def _cell_hash(
     arguments of _quick_means_kernel from `cells` to `sorted_scatter`), after the cells' lower
     corner (d,) metres."""
     hashed = cell_keys(points, cell)
-    distinct, starts, sorted_index = group_by_key(hashed.keys)
-    sizes = np.diff(starts, append=len(points))
+    distinct, bounds, sorted_index = group_by_key(hashed.keys)
+    starts, sizes = bounds[:-1], np.diff(bounds)
     return hashed.low, (
         hashed.cells,
         hashed.strides,

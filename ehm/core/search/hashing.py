@@ -58,8 +58,9 @@ def unique_keys(keys):  # pragma: no cover - compiled
 @numba.njit(cache=True, nogil=True)
 def group_by_key(keys):  # pragma: no cover - compiled
     """Rows of `keys` (n,) int64 >= 0 grouped by key: (distinct (u,) int64, sorted; starts
-    (u,) int64, where each key's rows begin in `order`; order (n,) int64, the rows, key by key
-    and in their own order within a key), as a stable argsort of the keys gives them."""
+    (u + 1,) int64, where each key's rows begin in `order`, and its end; order (n,) int64, the
+    rows, key by key and in their own order within a key), as a stable argsort of the keys
+    gives them."""
     distinct = unique_keys(keys)
     table = np.full(table_size(len(distinct)), EMPTY_KEY, dtype=np.int64)
     rank = np.empty(len(table), dtype=np.int64)
@@ -68,15 +69,43 @@ def group_by_key(keys):  # pragma: no cover - compiled
         table[s] = distinct[r]
         rank[s] = r
     row_rank = np.empty(len(keys), dtype=np.int64)
-    starts = np.zeros(len(distinct) + 1, dtype=np.int64)
     for i in range(len(keys)):
         row_rank[i] = rank[hash_slot(table, keys[i])]
+    return (distinct, *_rows_by_rank(row_rank, len(distinct)))
+
+
+@numba.njit(cache=True, nogil=True)
+def group_rows(keys):  # pragma: no cover - compiled
+    """Rows of `keys` (n,) int64 >= 0 grouped by key, the keys in the order they first come:
+    (starts (u + 1,) int64, where each key's rows begin in `order`, and its end; order (n,)
+    int64, the rows, key by key and in their own order within a key). One pass over a table,
+    no sort."""
+    table = np.full(table_size(len(keys)), EMPTY_KEY, dtype=np.int64)
+    rank = np.empty(len(table), dtype=np.int64)
+    row_rank = np.empty(len(keys), dtype=np.int64)
+    n = 0
+    for i in range(len(keys)):
+        s = hash_slot(table, keys[i])
+        if table[s] == EMPTY_KEY:
+            table[s] = keys[i]
+            rank[s] = n
+            n += 1
+        row_rank[i] = rank[s]
+    return _rows_by_rank(row_rank, n)
+
+
+@numba.njit(cache=True, nogil=True)
+def _rows_by_rank(row_rank, n_groups):  # pragma: no cover - compiled
+    """(starts (n_groups + 1,), order (n,)): rows grouped by their rank (n,) int64, a counting
+    sort that keeps their order within a group."""
+    starts = np.zeros(n_groups + 1, dtype=np.int64)
+    for i in range(len(row_rank)):
         starts[row_rank[i] + 1] += 1
-    for r in range(len(distinct)):
+    for r in range(n_groups):
         starts[r + 1] += starts[r]
     filled = starts[:-1].copy()
-    order = np.empty(len(keys), dtype=np.int64)
-    for i in range(len(keys)):
+    order = np.empty(len(row_rank), dtype=np.int64)
+    for i in range(len(row_rank)):
         order[filled[row_rank[i]]] = i
         filled[row_rank[i]] += 1
-    return distinct, starts[:-1].copy(), order
+    return starts, order

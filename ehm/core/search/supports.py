@@ -38,8 +38,9 @@ from ehm.core.model.kernels import (
     cluster_kernel_reference,
     kernel_code,
     kernels_of_codes,
+    projected_radii,
 )
-from ehm.core.search.hashing import EMPTY_KEY, group_by_key, hash_slot
+from ehm.core.search.hashing import EMPTY_KEY, group_rows, hash_slot
 from ehm.errors import InputError
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
@@ -378,6 +379,10 @@ def _candidates(points, bound, table):  # pragma: no cover - compiled
 # Parts the groups of points sharing a list are split into, for the threads to share: each
 # part lays its lists out in buffers of its own, made once.
 _LIST_PARTS = 64
+# Points a list must serve to be laid out along itself first (_gather_list); fewer project
+# onto its kernels one by one. On the sample scan's map, where 262,838 training samples fall
+# into 110,644 lists, laying every list out took 56 ms to count the kernels, this 25.
+_LAID_OUT_POINTS = 4
 
 
 @numba.njit(cache=True, inline="always")
@@ -387,7 +392,8 @@ def _gather_list(first, last, lists, means, transforms, planar, laid_out):  # pr
     (row a, column b in row 3 + 3 a + b) and in row 12 whether it is planar. A 2D kernel is
     laid out as a 3D one whose third axis is zero: the sums then add zeros and are the same."""
     d = means.shape[1]
-    laid_out[:, : last - first] = 0.0
+    if d < 3:
+        laid_out[:, : last - first] = 0.0
     for t in range(last - first):
         m = lists[first + t]
         laid_out[12, t] = planar[m]
@@ -415,6 +421,18 @@ def _list_codes(points, i, n, laid_out, codes):  # pragma: no cover - compiled
         codes[t] = kernel_code(r2, r_max, laid_out[12, t] != 0.0)
 
 
+@numba.njit(cache=True, inline="always")
+def _point_codes(
+    points, i, first, last, lists, means, transforms, planar, codes
+):  # pragma: no cover
+    """Kernel codes of point i at the kernels lists[first:last], one after another, into
+    codes[:last - first]."""
+    for t in range(last - first):
+        m = lists[first + t]
+        r2, r_max = projected_radii(points, i, m, means, transforms)
+        codes[t] = kernel_code(r2, r_max, planar[m])
+
+
 @numba.njit(cache=True, parallel=True)
 def _inside_kernels(
     points, order, starts, list_bound, lists, means, transforms, planar, indptr, write
@@ -439,10 +457,15 @@ def _inside_kernels(
         scratch = np.empty(longest)
         for g in range(group_lo, group_hi):
             first, last = list_bound[g], list_bound[g + 1]
-            _gather_list(first, last, lists, means, transforms, planar, laid_out)
+            laid = starts[g + 1] - starts[g] >= _LAID_OUT_POINTS
+            if laid:
+                _gather_list(first, last, lists, means, transforms, planar, laid_out)
             for j in range(starts[g], starts[g + 1]):
                 i = order[j]
-                _list_codes(points, i, last - first, laid_out, scratch)
+                if laid:
+                    _list_codes(points, i, last - first, laid_out, scratch)
+                else:
+                    _point_codes(points, i, first, last, lists, means, transforms, planar, scratch)
                 if write:
                     out = indptr[i]
                     for t in range(last - first):
@@ -678,9 +701,8 @@ class SupportHash:
         without branches on the data), point by point within each list while its kernels are
         in cache, and only the kernels found not zero are evaluated."""
         table = self._arguments()
-        _, firsts, order = group_by_key(_sub_cell_keys(points, table))
-        starts = np.append(firsts, len(points))
-        shared = np.ascontiguousarray(points[order[firsts]])
+        starts, order = group_rows(_sub_cell_keys(points, table))
+        shared = np.ascontiguousarray(points[order[starts[:-1]]])
         list_bound = np.zeros(len(starts), dtype=np.int64)
         np.cumsum(_candidate_counts(shared, table), out=list_bound[1:])
         lists = _candidates(shared, list_bound, table)
