@@ -124,7 +124,7 @@ def kernel_code(r2: float, r_max: float, planar: bool) -> float:  # pragma: no c
 
 
 @numba.njit(cache=True)
-def _kernels_of_codes_serial(codes):  # pragma: no cover - compiled
+def kernels_of_codes_serial(codes):  # pragma: no cover - compiled
     """kernels_of_codes on one thread: a loop without branches, which LLVM vectorises."""
     for t in range(codes.shape[0]):
         code = codes[t]
@@ -139,7 +139,7 @@ def kernels_of_codes(codes):  # pragma: no cover - compiled
     parts = 8
     step = (n + parts - 1) // parts
     for part in numba.prange(parts):
-        _kernels_of_codes_serial(codes[part * step : min(n, (part + 1) * step)])
+        kernels_of_codes_serial(codes[part * step : min(n, (part + 1) * step)])
 
 
 def cluster_kernel_reference(projected: np.ndarray, planar: np.ndarray) -> np.ndarray:

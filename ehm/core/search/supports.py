@@ -38,6 +38,7 @@ from ehm.core.model.kernels import (
     cluster_kernel_reference,
     kernel_code,
     kernels_of_codes,
+    kernels_of_codes_serial,
     projected_radii,
 )
 from ehm.core.search.hashing import EMPTY_KEY, group_rows, hash_slot
@@ -433,19 +434,41 @@ def _point_codes(
         codes[t] = kernel_code(r2, r_max, planar[m])
 
 
+# What a pass over the points that share lists of candidates does at each point (_list_pass):
+# count the kernels not zero there, write their rows and codes, or add up the log-odds.
+_COUNT, _WRITE, _SUM = 0, 1, 2
+
+
 @numba.njit(cache=True, parallel=True)
-def _inside_kernels(
-    points, order, starts, list_bound, lists, means, transforms, planar, indptr, write
+def _list_pass(
+    points,
+    order,
+    starts,
+    list_bound,
+    lists,
+    means,
+    transforms,
+    planar,
+    mode,
+    counts,
+    indptr,
+    rows,
+    codes,
+    learned,
+    scores,
+    variance_sums,
 ):  # pragma: no cover - compiled
-    """The kernels not zero at each point, where the points order[starts[g]:starts[g + 1]]
-    share the candidate kernels lists[list_bound[g]:list_bound[g + 1]]: without `write`,
-    how many at each point (n,) int64, with empty rows and codes; with it, their rows
-    (indptr[n],) int64 and kernel codes (indptr[n],) float64, point i's from indptr[i] on in
-    the order of its candidates."""
-    n_points = points.shape[0]
-    counts = np.zeros(n_points, dtype=np.int64)
-    rows = np.empty(indptr[-1] if write else 0, dtype=np.int64)
-    codes = np.empty(indptr[-1] if write else 0)
+    """One pass over the points, where the points order[starts[g]:starts[g + 1]] share the
+    candidate kernels lists[list_bound[g]:list_bound[g + 1]], doing at each point i what
+    `mode` says:
+    - _COUNT: counts[i] (n,) int64, the kernels not zero there;
+    - _WRITE: their rows into rows (indptr[n],) int64 and their codes into codes
+      (indptr[n],) float64, from indptr[i] on in the order of the candidates;
+    - _SUM: scores[i] = bias + sum_m w_m phi_m and, with variance, [sum_m phi_m^2 /
+      lambda_m, sum_m phi_m] into variance_sums (n, 2), zeros before; learned: (weights (M,),
+      bias, inverse_precision (M,), with_variance). The kernels that are zero add zeros, and
+      the sums are those over the kernels not zero, in the same order, to the last bit."""
+    weights, bias, inverse_precision, with_variance = learned
     n_groups = len(starts) - 1
     for part in numba.prange(_LIST_PARTS):
         group_lo = n_groups * part // _LIST_PARTS
@@ -466,7 +489,12 @@ def _inside_kernels(
                     _list_codes(points, i, last - first, laid_out, scratch)
                 else:
                     _point_codes(points, i, first, last, lists, means, transforms, planar, scratch)
-                if write:
+                if mode == _COUNT:
+                    inside = 0
+                    for t in range(last - first):
+                        inside += scratch[t] < OUTSIDE
+                    counts[i] = inside
+                elif mode == _WRITE:
                     out = indptr[i]
                     for t in range(last - first):
                         if scratch[t] < OUTSIDE:
@@ -474,38 +502,23 @@ def _inside_kernels(
                             codes[out] = scratch[t]
                             out += 1
                 else:
-                    inside = 0
+                    kernels_of_codes_serial(scratch[: last - first])
+                    scores[i] = bias
                     for t in range(last - first):
-                        inside += scratch[t] < OUTSIDE
-                    counts[i] = inside
-    return counts, rows, codes
+                        add_to_sums(
+                            scores,
+                            variance_sums,
+                            i,
+                            lists[first + t],
+                            scratch[t],
+                            weights,
+                            inverse_precision,
+                            with_variance,
+                        )
 
 
-@numba.njit(cache=True, parallel=True)
-def _weighted_sums(
-    bound, rows, values, weights, bias, inverse_precision, with_variance, scores, variance_sums
-):  # pragma: no cover - compiled
-    """Write bias + sum_m w_m phi_m of each point, from its kernel values at rows (point i's
-    from bound[i] on), into scores (n,), and when with_variance add its [sum_m phi_m^2 /
-    lambda_m, sum_m phi_m] to variance_sums (n, 2), zeros before."""
-    n = len(bound) - 1
-    for i in numba.prange(n):
-        scores[i] = bias
-        for t in range(bound[i], bound[i + 1]):
-            add_to_sums(
-                scores,
-                variance_sums,
-                i,
-                rows[t],
-                values[t],
-                weights,
-                inverse_precision,
-                with_variance,
-            )
-
-
-# Points whose kernels are held at once in a query: 65,536 points of a TUM frame's map, 18
-# kernels each, take 19 MB.
+# Points a query takes at once: where they lie apart, each has a list of candidates of its own
+# (30-45 kernels on a TUM frame's map, 16-24 MB for 65,536 points).
 CHUNK = 65_536
 
 
@@ -691,35 +704,38 @@ class SupportHash:
             self.bits,
         )
 
-    def _kernel_values(
-        self, points: np.ndarray, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
-    ) -> SparseFeatures:
-        """The kernels not zero at each of (n, d) points, metres, and their values there.
-
-        Points whose sub-cells match at both scales share one list of candidate kernels, made
-        once; each point projects onto its list's kernels in two passes (count, then write,
-        without branches on the data), point by point within each list while its kernels are
-        in cache, and only the kernels found not zero are evaluated."""
+    def _shared_lists(self, points: np.ndarray) -> tuple:
+        """(n, d) points grouped by the sub-cells they lie in at both scales, each group with
+        the one list of candidate kernels its points share: (order, starts, list_bound,
+        lists), as _list_pass reads them."""
         table = self._arguments()
         starts, order = group_rows(_sub_cell_keys(points, table))
         shared = np.ascontiguousarray(points[order[starts[:-1]]])
         list_bound = np.zeros(len(starts), dtype=np.int64)
         np.cumsum(_candidate_counts(shared, table), out=list_bound[1:])
-        lists = _candidates(shared, list_bound, table)
-        groups = (order, starts, list_bound, lists, means, transforms, planar)
-        indptr = np.zeros(len(points) + 1, dtype=np.int64)
-        np.cumsum(_inside_kernels(points, *groups, indptr, False)[0], out=indptr[1:])
-        _, rows, values = _inside_kernels(points, *groups, indptr, True)
-        kernels_of_codes(values)
-        return SparseFeatures(indptr, rows, values)
+        return order, starts, list_bound, _candidates(shared, list_bound, table)
 
     def features(
         self, points: np.ndarray, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
     ) -> SparseFeatures:
-        """Every kernel not zero at each of (n, d) points, metres, as the points' features."""
-        return self._kernel_values(
-            np.ascontiguousarray(points, dtype=np.float64), means, transforms, planar
-        )
+        """Every kernel not zero at each of (n, d) points, metres, as the points' features.
+
+        Each point projects onto its list's kernels twice, to count those not zero and to
+        write them, and only those are evaluated."""
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        n = len(points)
+        kernels = (*self._shared_lists(points), means, transforms, planar)
+        none, nothing = np.zeros(0, dtype=np.int64), np.zeros(0)
+        unsummed = ((nothing, 0.0, nothing, False), nothing, np.zeros((0, 2)))
+        counts = np.zeros(n, dtype=np.int64)
+        _list_pass(points, *kernels, _COUNT, counts, none, none, nothing, *unsummed)
+        indptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(counts, out=indptr[1:])
+        rows = np.empty(indptr[-1], dtype=np.int64)
+        values = np.empty(indptr[-1])
+        _list_pass(points, *kernels, _WRITE, counts, indptr, rows, values, *unsummed)
+        kernels_of_codes(values)
+        return SparseFeatures(indptr, rows, values)
 
     def decision_values(
         self,
@@ -734,21 +750,26 @@ class SupportHash:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) log-odds bias + w^T phi(x) over every kernel at each of (n, d) points, and
         with_variance, their (n, 2) variance sums [sum_m phi_m^2 / lambda_m, sum_m phi_m]
-        (else (0, 2))."""
+        (else (0, 2)), in one pass over the points' kernels."""
         points = np.ascontiguousarray(points, dtype=np.float64)
         scores = np.empty(len(points))
         variance_sums = np.zeros((len(points) if with_variance else 0, 2))
+        none, nothing = np.zeros(0, dtype=np.int64), np.zeros(0)
+        learned = (weights, float(bias), inverse_precision, with_variance)
         for first in range(0, len(points), CHUNK):
             chunk = slice(first, min(len(points), first + CHUNK))
-            found = self._kernel_values(points[chunk], means, transforms, planar)
-            _weighted_sums(
-                found.indptr,
-                found.rows,
-                found.values,
-                weights,
-                float(bias),
-                inverse_precision,
-                with_variance,
+            _list_pass(
+                points[chunk],
+                *self._shared_lists(points[chunk]),
+                means,
+                transforms,
+                planar,
+                _SUM,
+                none,
+                none,
+                none,
+                nothing,
+                learned,
                 scores[chunk],
                 variance_sums[chunk],
             )
