@@ -2,7 +2,7 @@
 sample scan (88,206 rays, 0.05 m), a TUM depth frame (0.05 m) and a sweep of the simulated
 street's 32-ring LiDAR (0.2 m); OctoMap's insertPointCloud of the same scans alongside.
 
-    python benchmarks/integrate_times.py [--repeats 5]
+    python benchmarks/integrate_times.py [--repeats 5] [--set features=support ...]
 
 A scan of a sequence is learned into the map of the scans before it, as a robot's would be:
 each scan after the first is timed once (the sequence `repeats` times over, in fresh maps);
@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from common import heading, markdown_table
+from common import add_settings_argument, heading, markdown_table, settings_of, settings_text
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
@@ -47,9 +47,8 @@ CASES = (
 )
 
 
-def ehm_times(scans: list[ehm.Scan], resolution: float, repeats: int) -> list[dict[str, float]]:
+def ehm_times(scans: list[ehm.Scan], config: ehm.MapConfig, repeats: int) -> list[dict[str, float]]:
     """Seconds of each timed integrate: 'total' and the map's stage timings."""
-    config = ehm.MapConfig.for_resolution(resolution)
     runs = []
     if len(scans) == 1:
         for _ in range(repeats):
@@ -84,7 +83,9 @@ def octomap_times(scans: list[ehm.Scan], resolution: float, repeats: int) -> lis
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
+    add_settings_argument(parser)
     args = parser.parse_args()
+    settings = settings_of(args)
     rows = []
     for case in CASES:
         try:
@@ -92,8 +93,9 @@ def main() -> None:
         except DataMissingError as missing:
             print(f"skipped {case.name}: {missing}")
             continue
-        ehm.HilbertMap(ehm.MapConfig.for_resolution(case.resolution)).fit(scans[:1])  # compile
-        runs = ehm_times(scans, case.resolution, args.repeats)
+        config = ehm.MapConfig.for_resolution(case.resolution, **settings)
+        ehm.HilbertMap(config).fit(scans[:1])  # compile
+        runs = ehm_times(scans, config, args.repeats)
         octomap = 1e3 * min(octomap_times(scans, case.resolution, args.repeats))
         fastest = {key: 1e3 * value for key, value in min(runs, key=lambda r: r["total"]).items()}
         median = 1e3 * statistics.median(run["total"] for run in runs)
@@ -120,7 +122,8 @@ def main() -> None:
         "OctoMap ms",
         "/ OctoMap",
     ]
-    print(heading("Integrate times", f"fastest of {args.repeats} repeats, its stages"))
+    detail = f"fastest of {args.repeats} repeats, its stages{settings_text(settings)}"
+    print(heading("Integrate times", detail))
     print(markdown_table([*header, *STAGES, "other"], rows))
 
 
