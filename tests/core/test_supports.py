@@ -8,6 +8,8 @@ from ehm.core.model.kernels import OUTSIDE, kernels_of_codes
 from ehm.core.search.supports import (
     SupportHash,
     _candidate_counts,
+    _sub_cell_mask,
+    sub_cell_slabs,
     support_boxes,
     support_features_reference,
 )
@@ -193,3 +195,26 @@ def test_kernel_codes_below_outside_have_a_value():
     values = np.array([np.nextafter(OUTSIDE, 0.0), OUTSIDE, np.nextafter(OUTSIDE, 2.0), -1.0])
     kernels_of_codes(values)
     assert values[0] > 0.0 and np.all(values[1:3] == 0.0) and values[3] == 1.0
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_sub_cell_masks_are_the_sub_cells_of_the_box_in_the_cell(rng, dim):
+    """The mask of a kernel's box of sub-cells in one cell, from slabs, holds the bit
+    (numbered as _cell_of numbers sub-cells) of every sub-cell of the cell inside the box."""
+    divisions = 2 ** (6 // dim)
+    slabs = sub_cell_slabs(dim, divisions)
+    cell = rng.integers(-5, 5, (300, dim))
+    sub_lo = cell * divisions + rng.integers(-6, divisions, (300, dim))
+    sub_hi = sub_lo + rng.integers(0, 2 * divisions, (300, dim))
+    keep = np.all((sub_hi >= cell * divisions) & (sub_lo < (cell + 1) * divisions), axis=1)
+    local = np.stack(np.meshgrid(*[np.arange(divisions)] * dim, indexing="ij"), -1)
+    local = local.reshape(-1, dim)
+    bits = (local * divisions ** np.arange(dim)).sum(axis=1).astype(np.uint64)
+    for m in np.flatnonzero(keep):
+        inside = np.all(
+            (cell[m] * divisions + local >= sub_lo[m]) & (cell[m] * divisions + local <= sub_hi[m]),
+            axis=1,
+        )
+        want = np.bitwise_or.reduce(np.uint64(1) << bits[inside], initial=np.uint64(0))
+        got = _sub_cell_mask(m, cell[m].astype(np.int64), sub_lo, sub_hi, divisions, slabs)
+        assert got == want

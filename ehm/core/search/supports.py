@@ -90,30 +90,31 @@ def _cell_of(points, i, sub_side, divisions, bits, coarse):  # pragma: no cover 
     return (key << 1) | np.int64(coarse), index
 
 
+def sub_cell_slabs(dim: int, divisions: int) -> np.ndarray:
+    """(dim, divisions, divisions) uint64: the sub-cells of a cell (bit sum_a divisions^a
+    c_a for the sub-cell at c, as _cell_of numbers them) whose coordinate along axis a lies
+    in lo .. hi, as bits of slabs[a, lo, hi]. A box of sub-cells is the AND of its axes'
+    slabs."""
+    bit = np.arange(divisions**dim)
+    coordinates = (bit[:, None] // divisions ** np.arange(dim)) % divisions
+    slabs = np.zeros((dim, divisions, divisions), dtype=np.uint64)
+    for a in range(dim):
+        for lo in range(divisions):
+            for hi in range(lo, divisions):
+                inside = bit[(coordinates[:, a] >= lo) & (coordinates[:, a] <= hi)]
+                slabs[a, lo, hi] = np.bitwise_or.reduce(np.uint64(1) << inside.astype(np.uint64))
+    return slabs
+
+
 @numba.njit(cache=True, inline="always")
-def _sub_cell_mask(m, cell, sub_lo, sub_hi, divisions):  # pragma: no cover - compiled
+def _sub_cell_mask(m, cell, sub_lo, sub_hi, divisions, slabs):  # pragma: no cover - compiled
     """Mask of the sub-cells of `cell` (integer coordinates) that kernel m's box, sub-cells
-    sub_lo[m] .. sub_hi[m] (inclusive), overlaps."""
-    d = cell.shape[0]
-    first = np.empty(d, dtype=np.int64)
-    extent = np.empty(d, dtype=np.int64)
-    n = 1
-    for a in range(d):
+    sub_lo[m] .. sub_hi[m] (inclusive), overlaps; slabs: sub_cell_slabs."""
+    mask = ~np.uint64(0)
+    for a in range(cell.shape[0]):
         low = max(sub_lo[m, a] - cell[a] * divisions, 0)
         high = min(sub_hi[m, a] - cell[a] * divisions, divisions - 1)
-        first[a] = low
-        extent[a] = high - low + 1
-        n *= extent[a]
-    mask = np.uint64(0)
-    for c in range(n):
-        bit = np.int64(0)
-        stride = np.int64(1)
-        rest = c
-        for a in range(d):
-            bit += stride * (first[a] + rest % extent[a])
-            rest //= extent[a]
-            stride *= divisions
-        mask |= np.uint64(1) << np.uint64(bit)
+        mask &= slabs[a, low, high]
     return mask
 
 
@@ -153,12 +154,13 @@ def _insert(
     divisions,
     coarse,
     bits,
+    slabs,
 ):  # pragma: no cover - compiled
     """List `kernels` in every cell of scale coarse[m] that holds one of the sub-cells
     sub_lo[m] .. sub_hi[m] (inclusive, per axis), each entry with the mask of those sub-cells
-    in it. used: [pool entries in use up to the end, table slots taken]. Stops before a
-    kernel that would leave the table more than half full or overrun the pool, and returns how
-    many kernels it listed."""
+    in it (slabs: sub_cell_slabs). used: [pool entries in use up to the end, table slots
+    taken]. Stops before a kernel that would leave the table more than half full or overrun
+    the pool, and returns how many kernels it listed."""
     cell = np.empty(sub_lo.shape[1], dtype=np.int64)
     for done in range(len(kernels)):
         m = kernels[done]
@@ -201,7 +203,7 @@ def _insert(
                 masks[j] = masks[j - 1]
                 j -= 1
             pool[j] = m
-            masks[j] = _sub_cell_mask(m, cell, sub_lo, sub_hi, divisions)
+            masks[j] = _sub_cell_mask(m, cell, sub_lo, sub_hi, divisions, slabs)
             counts[s] += 1
     return len(kernels)
 
@@ -546,6 +548,7 @@ class SupportHash:
         self.sides = np.array(sides, dtype=np.float64)
         self.divisions = 2 ** (SUBCELL_BITS // dim)
         self.bits = axis_bits(dim)
+        self._slabs = sub_cell_slabs(dim, self.divisions)
         self._used = np.zeros(2, dtype=np.int64)  # pool entries to the end, table slots taken
         self._table = self._empty_table(64)
         self._pool = np.zeros(256, dtype=np.int32)
@@ -641,6 +644,7 @@ class SupportHash:
                 self.divisions,
                 self._coarse,
                 self.bits,
+                self._slabs,
             )
             pending = pending[done:]
             if len(pending):
