@@ -70,6 +70,33 @@ def test_occupied_layout_holds_each_regions_occupied_entries_in_order(rng, dim):
     np.testing.assert_array_equal(starts, np.searchsorted(region, np.arange(len(starts))))
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_occupied_bitmap_holds_the_regions_with_occupied_entries(rng, dim, monkeypatch):
+    """The bitmap's set bits are the regions with occupied entries, numbered row-major from
+    the box's least region; a box of more regions than BITMAP_REGIONS has no bitmap, and the
+    walk then looks every region up."""
+    points = rng.uniform(-2.0, 2.0, (800, dim))
+    kinds = rng.choice([OCCUPIED, FREE_AT_SURFACE], 800, p=[0.3, 0.7])
+    memory = memory_of(points, kinds)
+    starts = passes_module.occupied_layout(memory)[0]
+    bits = passes_module.region_bits(dim)
+    low, extent, words = passes_module.occupied_bitmap(memory.regions, starts, bits, dim)
+    packed = memory.regions[np.diff(starts) > 0] >> 1
+    shifts = bits * np.arange(dim - 1, -1, -1)
+    regions = ((packed[:, None] >> shifts) & ((1 << bits) - 1)) - (1 << (bits - 1))
+    occupied = memory.points_at(np.flatnonzero(memory.samples().occupied))
+    assert len(regions) > 20 and np.all(  # each region within a cell of its entries' means
+        np.abs(np.floor(occupied / 0.2)[:, None, :] - regions[None]).max(axis=2).min(axis=1) <= 1
+    )
+    np.testing.assert_array_equal(low, regions.min(axis=0))
+    np.testing.assert_array_equal(extent, regions.max(axis=0) - low + 1)
+    index = np.ravel_multi_index((regions - low).T, extent)
+    set_bits = np.flatnonzero(np.unpackbits(words.view(np.uint8), bitorder="little"))
+    np.testing.assert_array_equal(set_bits, np.sort(index))
+    monkeypatch.setattr(passes_module, "BITMAP_REGIONS", int(np.prod(extent)) - 1)
+    assert len(passes_module.occupied_bitmap.py_func(memory.regions, starts, bits, dim)[2]) == 0
+
+
 def test_a_pass_needs_the_ray_to_go_on_beyond_the_entry():
     """An entry at x = 1 m: rays that pass it and end well beyond pass it once each; a ray
     that ends within `depth` of it, one that passes too far to the side and one whose free
