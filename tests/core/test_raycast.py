@@ -144,6 +144,21 @@ def test_guesses_are_refined_or_refused():
     assert np.isnan(found[2])  # nothing in the window
 
 
+def test_guesses_look_further_where_the_window_holds_no_crossing():
+    from ehm.core.queries.raycast import refine_guesses
+
+    def log_odds(points):  # occupied from x = 1.5 to x = 1.7
+        return np.where((points[:, 0] > 1.5) & (points[:, 0] < 1.7), 1.0, -1.0)
+
+    origins, directions = np.zeros((3, 2)), np.tile([1.0, 0.0], (3, 1))
+    low, high = np.array([0.8, 1.6, 0.8]), np.array([1.3, 1.9, 1.3])
+    further = np.array([1.8, 2.5, 1.4])
+    found = refine_guesses(log_odds, origins, directions, low, high, 0.0, 0.1, 0.001, further)
+    assert abs(found[0] - 1.5) < 0.001  # found beyond the window, before `further`
+    assert np.isnan(found[1])  # inside at low: not looked for further on
+    assert np.isnan(found[2])  # `further` falls short of it
+
+
 def test_rays_see_what_the_map_learns_after_their_first_cast():
     """The grid rays march first follows the map as it learns: a wall learned later stops the
     same ray sooner."""

@@ -142,20 +142,47 @@ def refine_guesses(
     threshold: float,
     step: float,
     tolerance: float,
+    further: np.ndarray | None = None,
 ) -> np.ndarray:
     """(n,) distance, metres, of the first crossing of `threshold` between `low` and `high`
     (n,) along each ray: samples `step` apart from low, the step that crosses bisected to
     `tolerance`; NaN where the log-odds are above the threshold at low already or never
-    within [low, high] (the guess was wrong)."""
+    within [low, high] (the guess was wrong). With `further` (n,), metres, a ray that stays
+    below the threshold up to high looks on up to further, in a second round."""
     distance = np.full(len(low), np.nan)
     below = np.flatnonzero(log_odds(origins + directions * low[:, None]) <= threshold)
-    count = int(np.ceil(np.max(high - low, initial=0.0) / step))
-    t = np.minimum(low[below, None] + step * np.arange(1, count + 1), high[below, None])
-    crossed, found = _ladder_crossings(
-        log_odds, origins[below], directions[below], low[below], t, threshold, tolerance
-    )
-    distance[below[crossed]] = found[crossed]
+    crossed = _ladder_from(log_odds, origins, directions, below, low, high, threshold, step,
+                           tolerance, distance)  # fmt: skip
+    if further is not None:
+        on = below[~crossed]
+        on = on[further[on] > high[on]]
+        _ladder_from(log_odds, origins, directions, on, high, further, threshold, step,
+                     tolerance, distance)  # fmt: skip
     return distance
+
+
+def _ladder_from(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    rays: np.ndarray,
+    start: np.ndarray,
+    end: np.ndarray,
+    threshold: float,
+    step: float,
+    tolerance: float,
+    distance: np.ndarray,
+) -> np.ndarray:
+    """Sample `rays` (k,) int64 `step` apart from start to end ((n,) metres; the log-odds at
+    start at most the threshold) and write the crossing of those that cross into `distance`
+    (n,); returns (k,) bool, which crossed."""
+    count = int(np.ceil(np.max(end[rays] - start[rays], initial=0.0) / step))
+    t = np.minimum(start[rays, None] + step * np.arange(1, count + 1), end[rays, None])
+    crossed, found = _ladder_crossings(
+        log_odds, origins[rays], directions[rays], start[rays], t, threshold, tolerance
+    )
+    distance[rays[crossed]] = found[crossed]
+    return crossed
 
 
 def _ladder_crossings(
