@@ -309,16 +309,15 @@ def _rebuild(
 @numba.njit(cache=True, inline="always")
 def _block(points, i, scale, table):  # pragma: no cover - compiled
     """(first, last + 1) positions in the pool of the kernels listed in point i's cell of
-    `scale` (0 fine, 1 coarse), empty where the cell lists none; the bit of the point's
-    sub-cell in their masks; and the slot of the cell in the table (of the empty slot where
-    it lists none). table: SupportHash._arguments()."""
+    `scale` (0 fine, 1 coarse), empty where the cell lists none, and the bit of the point's
+    sub-cell in their masks. table: SupportHash._arguments()."""
     keys, starts, counts, _, _, sub_sides, divisions, bits = table
     key, index = _cell_of(points, i, sub_sides[scale], divisions, bits, scale)
     bit = np.uint64(1) << np.uint64(index)
     s = hash_slot(keys, key)
     if keys[s] == EMPTY_KEY:
-        return 0, 0, bit, s
-    return starts[s], starts[s] + counts[s], bit, s
+        return 0, 0, bit
+    return starts[s], starts[s] + counts[s], bit
 
 
 @numba.njit(cache=True, parallel=True)
@@ -352,7 +351,7 @@ def _candidate_counts(points, table):  # pragma: no cover - compiled
     found = np.zeros(n, dtype=np.int64)
     for i in numba.prange(n):
         for scale in range(2):
-            first, end, bit, _ = _block(points, i, scale, table)
+            first, end, bit = _block(points, i, scale, table)
             for j in range(first, end):
                 if masks[j] & bit:
                     found[i] += 1
@@ -371,7 +370,7 @@ def _candidates(points, bound, table):  # pragma: no cover - compiled
     for i in numba.prange(n):
         out = bound[i]
         for scale in range(2):
-            first, end, bit, _ = _block(points, i, scale, table)
+            first, end, bit = _block(points, i, scale, table)
             for j in range(first, end):
                 if out < bound[i + 1]:
                     rows[out] = pool[j]
@@ -384,7 +383,8 @@ def _candidates(points, bound, table):  # pragma: no cover - compiled
 _LIST_PARTS = 64
 # Points a list must serve to be laid out along itself first (_gather_list); fewer project
 # onto its kernels one by one. On the sample scan's map, where 262,838 training samples fall
-# into 110,644 lists, laying every list out took 56 ms to count the kernels, this 25.
+# into 110,644 lists, laying every list out took 56 ms to count the kernels in one run, this
+# 39 in the next (BENCHMARKS.md).
 _LAID_OUT_POINTS = 4
 
 
