@@ -69,7 +69,8 @@ def test_2d_kernels_and_points_far_outside(rng):
     )
     clusters.refresh(np.arange(n), MapConfig(planar_kernel=True, planar_ratio=0.3))
     table = _listed(clusters, (0.2, 0.9))
-    points = np.vstack([rng.uniform(-4, 4, (2000, 2)), [[1e12, -1e12], [-5e5, 3.0]]])
+    crowds = rng.uniform(-3, 3, (20, 2))[rng.integers(0, 20, 2000)] + rng.normal(0, 0.01, (2000, 2))
+    points = np.vstack([rng.uniform(-4, 4, (2000, 2)), crowds, [[1e12, -1e12], [-5e5, 3.0]]])
     args = (clusters.means, clusters.transforms, clusters.planar_kernel)
     _assert_same_features(table.features(points, *args), support_features_reference(points, *args))
 
