@@ -126,11 +126,12 @@ class MapConfig:
     point queries differ from grids (Sec. 3.5), which sum every kernel. 'support': every
     kernel that is not zero there, found in a spatial hash of the kernels' supports that is
     updated in time proportional to what changed (ehm.core.search.supports), so training, point
-    queries and grids share one model, and point queries take 0.12-0.75x OctoMap's getLabels
-    time (0.39-1.42x with 'nearest'). Not the default yet: learning costs 1.8x (a sample
-    takes about 11 kernels, not 5.4). With learning_rate 0.6 it beats the default's held-out
-    F1 on eight data sets and stays within 0.0015 of it on the other two, with higher
-    near-surface precision; at 0.3 it loses up to 0.013 on the PCL room (BENCHMARKS.md)."""
+    queries and grids share one model, and point queries take 0.12-0.86x OctoMap's getLabels
+    time (0.38-1.89x with 'nearest'). Not the default yet: an integrate costs 1.26-1.45x the
+    default's (a TUM frame's sample takes 18.4 kernels, not 5.4, and SGD pays per kernel).
+    With learning_rate 0.6 its held-out F1 was higher than the default's on every data set
+    (seed 0 against three seeds; the warehouse 0.964 against 0.951), with thin structures
+    found more often; at 0.3 it loses up to 0.013 on the PCL room (BENCHMARKS.md)."""
     length_scale: float = 3.0
     """Kernel support in standard deviations of the cluster (r = 1 at this many sigmas), for
     the kernels of free clusters."""
