@@ -1,17 +1,17 @@
 """Ray casting: EHM's `raycast` against OctoMap's `castRay`, on the same rays, in one process.
 
-    python benchmarks/raycast.py [--rays 100000]
+    python benchmarks/raycast.py [--rays 100000] [--set features=support ...]
 
-Each data set is mapped whole by both (EHM with the defaults, OctoMap at 0.05 m with every
-hit inserted); then up to `rays` of its own rays are cast from their sensor origins, out to
-30 m, twice by EHM: the first call makes the grid of log-odds rays march first, the second
-finds it kept (a planner casting rays again between map updates). A third cast comes right
-after the map learned its last scan (a map learned scan by scan, a lone scan in two halves):
-the grid made by a cast before that update followed it. The distance each returns
-is compared with the exact surface (the simulated warehouse) or with the range the sensor
-measured (OctoMap's sample scan). OctoMap is called once per ray through octomap-python, the
-way a Python planner would, twice: stopping at unknown voxels (`ignoreUnknownCells=False`,
-its default) and passing through them.
+Each data set is mapped whole by both (EHM with the defaults or the `--set` overrides,
+OctoMap at 0.05 m with every hit inserted); then up to `rays` of its own rays are cast from
+their sensor origins, out to 30 m, twice by EHM: the first call makes the grid of log-odds
+rays march first, the second finds it kept (a planner casting rays again between map
+updates). A third cast comes right after the map learned its last scan (a map learned scan
+by scan, a lone scan in two halves): the grid made by a cast before that update followed it.
+The distance each returns is compared with the exact surface (the simulated warehouse) or
+with the range the sensor measured (OctoMap's sample scan). OctoMap is called once per ray
+through octomap-python, the way a Python planner would, twice: stopping at unknown voxels
+(`ignoreUnknownCells=False`, its default) and passing through them.
 """
 
 from __future__ import annotations
@@ -20,7 +20,15 @@ import argparse
 import time
 
 import numpy as np
-from common import RESOLUTION, heading, markdown_table, octomap_mapper
+from common import (
+    RESOLUTION,
+    add_settings_argument,
+    heading,
+    markdown_table,
+    octomap_mapper,
+    settings_of,
+    settings_text,
+)
 
 import ehm
 from ehm.core.sensor.scan import Scan
@@ -70,13 +78,15 @@ def halves(scan: Scan) -> list[Scan]:
     ]
 
 
-def after_update(scans: list[Scan], origins, directions) -> tuple[np.ndarray, float, float, float]:
+def after_update(
+    scans: list[Scan], origins, directions, settings: dict
+) -> tuple[np.ndarray, float, float, float]:
     """Rays cast right after the map learned its last scan, with the grid made before it:
     (distances, seconds of the cast, seconds the update spent bringing the grid up to date,
-    seconds of the same cast again, nothing changed since). The map learns scan by scan (a
-    lone scan in two halves)."""
+    seconds of the same cast again, nothing changed since). The map (MapConfig overrides
+    `settings`) learns scan by scan (a lone scan in two halves)."""
     parts = scans if len(scans) > 1 else halves(scans[0])
-    hilbert_map = ehm.HilbertMap(batch_rays=0)
+    hilbert_map = ehm.HilbertMap(**settings, batch_rays=0)
     for scan in parts[:-1]:
         hilbert_map.integrate_scan(scan)
     hilbert_map.raycast(origins, directions, MAX_RANGE)  # the planner's earlier cast
@@ -89,18 +99,20 @@ def after_update(scans: list[Scan], origins, directions) -> tuple[np.ndarray, fl
     return distance, seconds[0], hilbert_map.timings_["grids"], seconds[1]
 
 
-def compile_kernels() -> None:
+def compile_kernels(settings: dict) -> None:
     """Cast a few rays through a small map, so that no timing below includes compiling."""
-    room = ehm.HilbertMap().fit(virtual_room().scans)
+    room = ehm.HilbertMap(**settings).fit(virtual_room().scans)
     room.raycast(np.zeros(3), np.eye(3), 5.0)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rays", type=int, default=100_000)
+    add_settings_argument(parser)
     args = parser.parse_args()
+    settings = settings_of(args)
     rng = np.random.default_rng(0)
-    compile_kernels()
+    compile_kernels(settings)
     data_sets = {"warehouse": lambda: warehouse()}
     data_sets["octomap_scan"] = lambda: load_dataset("octomap_scan")
     for name, load in data_sets.items():
@@ -120,7 +132,7 @@ def main() -> None:
                 ]
             )
             against = "exact surface"
-        hilbert_map = ehm.HilbertMap().fit(scans)
+        hilbert_map = ehm.HilbertMap(**settings).fit(scans)
         octomap = octomap_mapper(scans[0], RESOLUTION)
         for scan in scans[1:]:
             octomap.insert(scan)
@@ -140,7 +152,7 @@ def main() -> None:
             row("EHM raycast, first call (makes the grid)", ours, reference, first_s[0], base)
         )
         rows.append(row("EHM raycast, grid kept", ours, reference, ours_s[0], base))
-        after, after_s, grids_s, again_s = after_update(scans, origins, directions)
+        after, after_s, grids_s, again_s = after_update(scans, origins, directions, settings)
         rows.append(
             row(
                 f"EHM scan by scan: raycast right after an update (that kept the grid in "
@@ -152,6 +164,7 @@ def main() -> None:
             label = "passing unknown" if ignore else "stopping at unknown"
             rows.append(row(f"OctoMap castRay, {label}", cast, reference, seconds, base))
         detail = f"{len(origins):,} of its rays, errors against the {against}"
+        detail += settings_text(settings)
         print(heading(f"Ray casting: {name}", detail))
         columns = ["method", "rays that hit", "median error m", "90 % error m", "seconds"]
         print(markdown_table([*columns, "time / OctoMap's"], rows))
