@@ -69,8 +69,9 @@ RAY_CELLS_PER_RADIUS = 4.0
 # log-odds from its start, in cluster radii (voxels of the grid), where the grid is the point
 # queries' own model (features 'support'). Where a surface is sharper than a voxel, the grid,
 # interpolated between voxel centres, crosses early: on TUM's fourth frame 769 of the 4,691
-# rays it guided crossed 2.25-2.5 radii beyond it. With 'nearest' the grid sums kernels the
-# queries leave out, and looking further gained no time on the warehouse and the sample scan.
+# rays it guided found no crossing within two radii of it, and those looked at crossed 2.25-2.5
+# radii beyond. With 'nearest' the grid sums kernels the queries leave out, and looking
+# further gained no time on the warehouse and the sample scan.
 RAY_GUESS_BEHIND = 4.0
 
 
