@@ -592,8 +592,9 @@ class HilbertMap:
             # RAY_GUESS_BEHIND voxels after.
             low = np.maximum(guess[guided] - 2.0 * radius, 0.0)
             high = np.minimum(guess[guided] + 2.0 * radius, max_range[guided])
-            behind = RAY_GUESS_BEHIND if self.config.features == "support" else 2.0
-            further = np.minimum(guess[guided] + behind * radius, max_range[guided])
+            further = None
+            if self.config.features == "support":
+                further = np.minimum(guess[guided] + RAY_GUESS_BEHIND * radius, max_range[guided])
             distance[guided] = refine_guesses(
                 log_odds,
                 origins[guided],

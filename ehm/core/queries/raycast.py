@@ -151,13 +151,12 @@ def refine_guesses(
     below the threshold up to high looks on up to further, in a second round."""
     distance = np.full(len(low), np.nan)
     below = np.flatnonzero(log_odds(origins + directions * low[:, None]) <= threshold)
-    crossed = _ladder_from(log_odds, origins, directions, below, low, high, threshold, step,
-                           tolerance, distance)  # fmt: skip
+    rays = (log_odds, origins, directions)
+    crossed = _ladder_from(*rays, below, low, high, threshold, step, tolerance, distance)
     if further is not None:
         on = below[~crossed]
         on = on[further[on] > high[on]]
-        _ladder_from(log_odds, origins, directions, on, high, further, threshold, step,
-                     tolerance, distance)  # fmt: skip
+        _ladder_from(*rays, on, high, further, threshold, step, tolerance, distance)
     return distance
 
 

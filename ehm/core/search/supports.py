@@ -307,15 +307,25 @@ def _rebuild(
 
 
 @numba.njit(cache=True, inline="always")
+def _slot_of(points, i, scale, table):  # pragma: no cover - compiled
+    """The table slot of point i's cell of `scale` (0 fine, 1 coarse; the empty slot where the
+    cell lists none), whether it lists any, and the index of the point's sub-cell in it.
+    table: SupportHash._arguments()."""
+    keys, _, _, _, _, sub_sides, divisions, bits = table
+    key, index = _cell_of(points, i, sub_sides[scale], divisions, bits, scale)
+    s = hash_slot(keys, key)
+    return s, keys[s] != EMPTY_KEY, index
+
+
+@numba.njit(cache=True, inline="always")
 def _block(points, i, scale, table):  # pragma: no cover - compiled
     """(first, last + 1) positions in the pool of the kernels listed in point i's cell of
     `scale` (0 fine, 1 coarse), empty where the cell lists none, and the bit of the point's
     sub-cell in their masks. table: SupportHash._arguments()."""
-    keys, starts, counts, _, _, sub_sides, divisions, bits = table
-    key, index = _cell_of(points, i, sub_sides[scale], divisions, bits, scale)
+    starts, counts = table[1], table[2]
+    s, listed, index = _slot_of(points, i, scale, table)
     bit = np.uint64(1) << np.uint64(index)
-    s = hash_slot(keys, key)
-    if keys[s] == EMPTY_KEY:
+    if not listed:
         return 0, 0, bit
     return starts[s], starts[s] + counts[s], bit
 
@@ -325,19 +335,15 @@ def _sub_cell_keys(points, table):  # pragma: no cover - compiled
     """(n,) int64 >= 0, equal for points whose sub-cells list the same kernels at both scales:
     each scale's table slot and sub-cell index (index 0 where the cell lists none), the fine
     one's times the number the coarse one's can take."""
-    keys, sub_sides, divisions, bits = table[0], table[5], table[6], table[7]
     n = points.shape[0]
     sub_cells = np.int64(1) << SUBCELL_BITS
-    per_scale = np.int64(len(keys)) * sub_cells
+    per_scale = np.int64(len(table[0])) * sub_cells
     found = np.empty(n, dtype=np.int64)
     for i in numba.prange(n):
         key = np.int64(0)
         for scale in range(2):
-            cell, index = _cell_of(points, i, sub_sides[scale], divisions, bits, scale)
-            s = hash_slot(keys, cell)
-            if keys[s] == EMPTY_KEY:
-                index = 0
-            key = key * per_scale + s * sub_cells + index
+            s, listed, index = _slot_of(points, i, scale, table)
+            key = key * per_scale + s * sub_cells + (index if listed else 0)
         found[i] = key
     return found
 
