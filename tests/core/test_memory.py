@@ -17,6 +17,8 @@ from ehm.core.observations.memory import (
     batch_entries_reference,
     merge_entries,
     merge_entries_reference,
+    visit_rows,
+    visit_rows_reference,
 )
 from ehm.core.observations.memory_keys import (
     SUB_BITS,
@@ -24,6 +26,8 @@ from ehm.core.observations.memory_keys import (
     cell_corners_reference,
     memory_keys,
     memory_keys_reference,
+    reached_regions,
+    region_table,
 )
 from ehm.core.observations.samples import TrainingSamples
 from ehm.errors import InputError
@@ -64,6 +68,32 @@ def test_memory_keys_agree_with_their_twin_on_the_sides_of_cells(rng, dim):
     for sides in ((0.03, 0.2), (0.12 / 4, 0.6 / 3)):
         keys = memory_keys(points, kinds, sides)
         np.testing.assert_array_equal(keys, memory_keys_reference(points, kinds, sides))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_visit_finds_the_entries_of_a_batch_as_its_numpy_twin_does(rng, dim):
+    """A memory of scattered evidence of every kind, and a batch half of whose cells it holds:
+    each sample's entry and the entries of every region around the batch agree with a search
+    of the memory's sorted keys."""
+    memory = EvidenceMemory(dim, True, SIDES)
+    kinds = rng.integers(0, 3, 3000)
+    kept = rng.uniform(-20.0, 20.0, (3000, dim))
+    occupied, at_surface = sample_flags(kinds)
+    insert(memory, TrainingSamples(kept, occupied, at_surface))
+    points = np.concatenate([kept[:500], rng.uniform(-25.0, 25.0, (500, dim))])
+    keys = memory_keys(points, kinds[:1000], SIDES)
+    reached = reached_regions(
+        np.concatenate([points, points]), np.repeat([False, True], 1000), SIDES
+    )
+    table = region_table(memory.regions)
+    entries, near = visit_rows(
+        *table, memory.region_first(), memory.region_sizes, memory.cells, keys, reached
+    )
+    want_entries, want_near = visit_rows_reference(memory.keys(), keys, reached)
+    assert np.all(entries[:500] >= 0) and 0 < np.sum(entries[500:] >= 0) < 500
+    assert len(near) > 1000
+    np.testing.assert_array_equal(entries, want_entries)
+    np.testing.assert_array_equal(near, want_near)
 
 
 def test_points_beyond_the_reach_of_memory_keys_are_refused():

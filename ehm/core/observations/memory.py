@@ -50,7 +50,9 @@ from ehm.core.observations.memory_keys import (
     cell_corners_reference,
     key_sides,
     memory_keys,
-    region_ranges,
+    reached_regions,
+    region_row,
+    region_table,
 )
 from ehm.core.observations.samples import TrainingSamples
 
@@ -77,6 +79,51 @@ def _in_ranges(keys: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarra
     start, stop = np.searchsorted(keys, low), np.searchsorted(keys, high)
     lengths = stop - start
     return np.repeat(start - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
+
+
+@numba.njit(cache=True, nogil=True)
+def visit_rows(
+    table_keys, table_rows, region_first, region_sizes, cells, keys, reached
+):  # pragma: no cover - compiled
+    """Where a batch falls in a memory (its regions' table from region_table, region_first
+    (R,), region_sizes (R,) and cells (m,) from EvidenceMemory): keys (n,) int64 of the
+    batch's cells, reached (k,) int64 regions around them (reached_regions). Returns (entries
+    (n,) int64, the row of each key's entry, -1 where there is none; near (c,) int64 sorted,
+    the rows of every entry in the reached regions)."""
+    entries = np.full(len(keys), -1, dtype=np.int64)
+    for i in range(len(keys)):
+        r = region_row(table_keys, table_rows, keys[i] >> REGION_BITS)
+        if r < 0:
+            continue
+        cell = keys[i] & ((1 << REGION_BITS) - 1)
+        for e in range(region_first[r], region_first[r] + region_sizes[r]):
+            if cells[e] >= cell:
+                if cells[e] == cell:
+                    entries[i] = e
+                break
+    marked = np.zeros(len(region_sizes), dtype=np.bool_)
+    count = 0
+    for region in reached:
+        r = region_row(table_keys, table_rows, region)
+        if r >= 0 and not marked[r]:
+            marked[r] = True
+            count += region_sizes[r]
+    near = np.empty(count, dtype=np.int64)
+    k = 0
+    for r in range(len(region_sizes)):
+        if marked[r]:
+            for e in range(region_first[r], region_first[r] + region_sizes[r]):
+                near[k] = e
+                k += 1
+    return entries, near
+
+
+def visit_rows_reference(
+    memory_keys: np.ndarray, keys: np.ndarray, reached: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `visit_rows`, from the memory's sorted keys (m,) int64."""
+    low = np.unique(reached) << REGION_BITS
+    return _find(memory_keys, keys), _in_ranges(memory_keys, low, low + (1 << REGION_BITS))
 
 
 @numba.njit(cache=True)
@@ -317,10 +364,18 @@ class EvidenceMemory:
         n = len(samples)
         # The regions of both kinds around every sample.
         points = np.concatenate([samples.points, samples.points])
-        along_ray = np.repeat([False, True], n)
-        low, high = region_ranges(points, along_ray, self.sides)
-        kept = self.keys()
-        return Visit(samples, keys, _find(kept, keys), _in_ranges(kept, low, high), kept)
+        reached = reached_regions(points, np.repeat([False, True], n), self.sides)
+        table_keys, table_rows = region_table(self.regions)
+        entries, near = visit_rows(
+            table_keys,
+            table_rows,
+            self.region_first(),
+            self.region_sizes,
+            self.cells,
+            keys,
+            reached,
+        )
+        return Visit(samples, keys, entries, near, self.keys())
 
     def pending(self, visit: Visit) -> PendingSamples:
         """The entries that formed no cluster yet, in the cells of the visit's samples (none

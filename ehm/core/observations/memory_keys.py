@@ -20,7 +20,7 @@ from ehm.core.observations.evidence import (
     FREE_AT_SURFACE,
     KIND_BITS,
 )
-from ehm.core.search.hashing import unique_keys
+from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 from ehm.errors import InputError
 
 # Bits of a key for the cell within its region (FINE_CELLS_PER_RADIUS ** 3 of them at most),
@@ -96,15 +96,36 @@ def memory_keys_reference(
     return _region_keys(regions, along_ray) | (kinds.astype(np.int64) << SUB_BITS) | sub
 
 
-def region_ranges(
+@numba.njit(cache=True, nogil=True)
+def region_table(regions):  # pragma: no cover - compiled
+    """Open-addressing table (ehm.core.search.hashing) of a memory's regions (`regions` (R,)
+    int64, EvidenceMemory.regions: a key shifted right by REGION_BITS): keys (size,) int64
+    and the row of each in `regions` (size,) int64."""
+    keys = np.full(table_size(len(regions)), EMPTY_KEY, dtype=np.int64)
+    rows = np.zeros(len(keys), dtype=np.int64)
+    for r in range(len(regions)):
+        s = hash_slot(keys, regions[r])
+        keys[s] = regions[r]
+        rows[s] = r
+    return keys, rows
+
+
+@numba.njit(cache=True, inline="always")
+def region_row(table_keys, table_rows, region):  # pragma: no cover - compiled
+    """The row of `region` (a key shifted right by REGION_BITS) in region_table's table
+    (table_keys, table_rows), -1 where the memory has no such region."""
+    s = hash_slot(table_keys, region)
+    return table_rows[s] if table_keys[s] != EMPTY_KEY else -1
+
+
+def reached_regions(
     points: np.ndarray, along_ray: np.ndarray, sides: tuple[float, float]
-) -> tuple[np.ndarray, np.ndarray]:
-    """The key ranges [low, high) of the regions holding (n, d) points: of the regions along
-    rays where along_ray (n,) bool, else of the regions around hits; one per distinct region."""
+) -> np.ndarray:
+    """(n,) int64: the region holding each of (n, d) points (a key shifted right by
+    REGION_BITS), of the regions along rays where along_ray (n,) bool, else of the regions
+    around hits."""
     kinds = np.where(along_ray, FREE_ALONG_RAY, FREE_AT_SURFACE)
-    keys = memory_keys(points, kinds, sides) >> REGION_BITS << REGION_BITS
-    low = unique_keys(keys)
-    return low, low + (1 << REGION_BITS)
+    return memory_keys(points, kinds, sides) >> REGION_BITS
 
 
 def _region_keys(regions: np.ndarray, along_ray: np.ndarray) -> np.ndarray:

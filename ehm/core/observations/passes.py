@@ -33,11 +33,10 @@ from scipy.spatial import cKDTree
 from ehm.core.model.eigen import eigen_in_place
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
-from ehm.core.observations.memory_keys import SUB_BITS, region_bits
+from ehm.core.observations.memory_keys import SUB_BITS, region_bits, region_row, region_table
 from ehm.core.observations.planes import LINEAR_SPREAD, group_spreads, plane_normals
 from ehm.core.observations.samples import ScanRays
 from ehm.core.search.grid_walk import walk_setup, walk_step
-from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 from ehm.core.search.index import PARALLEL_SEARCH_POINTS
 
 # How close a ray must come to an entry's mean to pass it, in fine evidence cells (3 cm at 5 cm
@@ -74,21 +73,6 @@ PASS_PARTS = 8
 # tests each region it walks in the bitmap and looks up only those it holds (on a TUM frame,
 # 7 % of 2.5 million steps). A box of more regions goes without, and every step is looked up.
 BITMAP_REGIONS = 1 << 28
-
-
-@numba.njit(cache=True, nogil=True)
-def region_table(regions):  # pragma: no cover - compiled
-    """Open-addressing table (ehm.core.search.hashing) of the memory's regions around hits
-    (`regions` (R,) int64, EvidenceMemory.regions, whose lowest bit marks regions along rays):
-    keys (size,) int64 and the row of each in `regions` (size,) int64."""
-    keys = np.full(table_size(len(regions)), EMPTY_KEY, dtype=np.int64)
-    rows = np.zeros(len(keys), dtype=np.int64)
-    for r in range(len(regions)):
-        if regions[r] & 1 == 0:
-            s = hash_slot(keys, regions[r])
-            keys[s] = regions[r]
-            rows[s] = r
-    return keys, rows
 
 
 @numba.njit(cache=True, nogil=True)
@@ -304,9 +288,8 @@ def pass_kernel(
             key = np.int64(0)
             for a in range(d):
                 key = (key << bits) | (region[a] + half)
-            s = hash_slot(table_keys, key << 1)
-            row = table_rows[s]
-            if table_keys[s] != EMPTY_KEY and _crosses(normals[row], directions[r], grazing_cos):
+            row = region_row(table_keys, table_rows, key << 1)  # the region around hits
+            if row >= 0 and _crosses(normals[row], directions[r], grazing_cos):
                 for k in range(occupied_starts[row], occupied_starts[row + 1]):
                     position = positions[k]
                     along = 0.0
