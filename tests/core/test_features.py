@@ -117,6 +117,14 @@ def test_group_by_cell_groups_points_sharing_a_cell():
     assert group_by_cell(np.zeros((0, 2)), 0.1).centres.shape == (0, 2)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_spread_of_groups_agrees_with_its_numpy_twin(rng, dim):
+    points = rng.uniform(-3.0, 3.0, (5000, dim))
+    groups = group_by_cell(points, 0.4)
+    assert groups.spread(points) == pytest.approx(groups.spread_reference(points), rel=1e-15)
+    assert 0.0 < groups.spread(points) <= 0.4 * np.sqrt(dim)
+
+
 def test_training_features_are_the_kernels_of_each_groups_neighbours(room_map, rng):
     clusters = room_map.clusters_
     index = ClusterIndex.of(clusters)

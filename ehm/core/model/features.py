@@ -51,8 +51,29 @@ class PointGroups:
         (0 for no points)."""
         if len(points) == 0:
             return 0.0
+        return float(np.sqrt(_squared_offsets(points, self.group_of_point, self.centres).max()))
+
+    def spread_reference(self, points: np.ndarray) -> float:
+        """Plain NumPy twin of `spread`."""
+        if len(points) == 0:
+            return 0.0
         offsets = points - np.take(self.centres, self.group_of_point, axis=0)
         return float(np.sqrt(np.einsum("ij,ij->i", offsets, offsets).max()))
+
+
+@numba.njit(cache=True, parallel=True)
+def _squared_offsets(points, group_of_point, centres):  # pragma: no cover - compiled
+    """(n,) squared distance, m^2, from each of points (n, d) to its group's centre."""
+    n, d = points.shape
+    squared = np.empty(n)
+    for i in numba.prange(n):
+        g = group_of_point[i]
+        total = 0.0
+        for a in range(d):
+            gap = points[i, a] - centres[g, a]
+            total += gap * gap
+        squared[i] = total
+    return squared
 
 
 def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
