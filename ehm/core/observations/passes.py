@@ -195,58 +195,6 @@ def _layout_kernel(
     return starts, entries, positions
 
 
-def occupied_boxes(layout: OccupiedLayout) -> np.ndarray:
-    """(R, 2, d) float64: the least and the greatest corner of the box of each region's
-    occupied entries' means, metres (inf and -inf for regions without any)."""
-    starts, _, positions = layout
-    return _boxes_kernel(starts, positions)
-
-
-@numba.njit(cache=True, parallel=True)
-def _boxes_kernel(starts, positions):  # pragma: no cover - compiled
-    """occupied_boxes of an OccupiedLayout's starts and positions."""
-    d = positions.shape[1]
-    boxes = np.empty((len(starts) - 1, 2, d))
-    for r in numba.prange(len(starts) - 1):
-        for a in range(d):
-            low, high = np.inf, -np.inf
-            for k in range(starts[r], starts[r + 1]):
-                low = min(low, positions[k, a])
-                high = max(high, positions[k, a])
-            boxes[r, 0, a] = low
-            boxes[r, 1, a] = high
-    return boxes
-
-
-def occupied_boxes_reference(layout: OccupiedLayout) -> np.ndarray:
-    """Plain NumPy twin of `occupied_boxes`."""
-    starts, _, positions = layout
-    region = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
-    boxes = np.empty((len(starts) - 1, 2, positions.shape[1]))
-    boxes[:, 0], boxes[:, 1] = np.inf, -np.inf
-    np.minimum.at(boxes[:, 0], region, positions)
-    np.maximum.at(boxes[:, 1], region, positions)
-    return boxes
-
-
-@numba.njit(cache=True, inline="always")
-def _meets_box(origin, direction, first, last, box, reach):  # pragma: no cover - compiled
-    """Whether the ray origin + t direction ((d,) metres, unit), t in [first, last], comes
-    within `reach` metres along every axis of `box` (2, d) (the slab test): false only where
-    no point of the box lies within `reach` of that part of the ray."""
-    for a in range(len(origin)):
-        low, high = box[0, a] - reach, box[1, a] + reach
-        if direction[a] == 0.0:
-            if origin[a] < low or origin[a] > high:
-                return False
-            continue
-        t_low = (low - origin[a]) / direction[a]
-        t_high = (high - origin[a]) / direction[a]
-        first = max(first, min(t_low, t_high))
-        last = min(last, max(t_low, t_high))
-    return first <= last
-
-
 @numba.njit(cache=True, inline="always")
 def _crosses(normal, direction, grazing_cos):  # pragma: no cover - compiled
     """Whether a ray along unit `direction` (d,) crosses a region whose occupied entries lie
@@ -296,7 +244,6 @@ def pass_kernel(
     occupied_starts,
     occupied_entries,
     positions,
-    boxes,
     normals,
     grazing_cos,
     fine_side,
@@ -310,9 +257,7 @@ def pass_kernel(
     rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
     metres, ScanRays) through the memory's entries: table_keys, table_rows from
     `region_table`; occupied_starts, occupied_entries and positions from `occupied_layout`;
-    boxes (R, 2, d) from `occupied_boxes`: a ray tests the entries of a region only where it
-    comes within `reach` of their box; normals (R, d) from `region_normals`, and rays whose
-    direction meets a region's at a cosine
+    normals (R, d) from `region_normals`, and rays whose direction meets a region's at a cosine
     below `grazing_cos` pass none of its entries; `bits` an axis of a region key; bitmap:
     occupied_bitmap's (low, extent, words), the regions to look up. From solid_start
     (n,) on, a ray passes only entries farther than `plane_gap` metres from the plane through
@@ -344,11 +289,7 @@ def pass_kernel(
             for a in range(d):
                 key = (key << bits) | (region[a] + half)
             row = region_row(table_keys, table_rows, key << 1)  # the region around hits
-            if (
-                row >= 0
-                and _crosses(normals[row], directions[r], grazing_cos)
-                and _meets_box(origins[r], directions[r], free_start[r], t_end, boxes[row], reach)
-            ):
+            if row >= 0 and _crosses(normals[row], directions[r], grazing_cos):
                 for k in range(occupied_starts[row], occupied_starts[row + 1]):
                     position = positions[k]
                     along = 0.0
@@ -471,7 +412,6 @@ def occupied_passes(
         keys,
         rows,
         *layout,
-        occupied_boxes(layout),
         region_normals(memory, layout),
         np.cos(np.radians(GRAZING_DEGREES)),
         fine_side,
