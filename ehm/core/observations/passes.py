@@ -18,7 +18,7 @@ orientation gives at its range (REGISTRATION_SLACK): a surface seen from a pose 
 stands beside where it stood, and the rays past its edge go through its old place.
 Each ray walks the regions it crosses (a 3D DDA on the grid of regions,
 ehm.core.search.grid_walk), tests each in a bitmap of the regions that hold occupied entries,
-and looks up only those in a table of the memory's regions around hits.
+and looks up only those in the table of the memory's regions.
 """
 
 from __future__ import annotations
