@@ -1,12 +1,17 @@
 """Stochastic gradient descent on the logistic loss (Eq. 2-3)."""
 
+from types import SimpleNamespace
+
 import numba
 import numpy as np
 import pytest
+from numpy.random import default_rng
 
+from ehm.config import MapConfig
 from ehm.core.model.features import SparseFeatures
 from ehm.core.weights.sgd import (
     BORDER,
+    TWO_SIDED_MIN_SAMPLES,
     blocked_order,
     loss_weights,
     sample_sides,
@@ -14,6 +19,7 @@ from ehm.core.weights.sgd import (
     sgd_rounds,
     sgd_rounds_reference,
     space_sides,
+    train_weights,
     visiting_plan,
     visiting_plan_reference,
 )
@@ -92,14 +98,58 @@ def test_space_sides_split_the_features_at_a_plane_and_never_share_a_cluster(rng
         np.concatenate(reached),
         np.ones(sum(len(r) for r in reached)),
     )
-    sides = space_sides(features, means)
+    sides, cluster_side = space_sides(features, means)
+    np.testing.assert_array_equal(cluster_side, means[:, 0] > 4.5)
     assert np.all(np.abs(x[sides == BORDER] - 4.5) <= 1.5)
     for side in (0, 1):
         touched = np.concatenate([reached[i] for i in np.flatnonzero(sides == side)])
         assert len(np.unique(means[touched, 0] > 4.5)) == 1
     assert 0.3 < np.mean(sides == 0) < 0.5 and 0.3 < np.mean(sides == 1) < 0.5
     empty = SparseFeatures(np.zeros(4, dtype=np.int64), np.zeros(0, np.int64), np.zeros(0))
-    np.testing.assert_array_equal(space_sides(empty, means), [BORDER] * 3)
+    np.testing.assert_array_equal(space_sides(empty, means)[0], [BORDER] * 3)
+
+
+def test_training_with_each_sides_clusters_stored_together_gives_the_same_weights(rng):
+    """Clusters on a line, stored in random order, each sample reaching five neighbouring
+    ones: train_weights, which stores each side's clusters together while they learn, ends
+    with the weights of the same passes over the clusters where they lie."""
+    n, n_clusters = TWO_SIDED_MIN_SAMPLES + 5000, 60
+    place = rng.permutation(n_clusters)  # cluster i lies at x = place[i]
+    means = np.column_stack([place.astype(float), np.zeros((n_clusters, 2))])
+    first = rng.integers(0, n_clusters - 5, n)
+    rows = np.argsort(place)[(first[:, None] + np.arange(5)).ravel()]
+    features = SparseFeatures(np.arange(0, 5 * n + 1, 5), rows, rng.uniform(0.1, 1.0, 5 * n))
+    occupied = rng.random(n) < 0.4
+    sample_weights = rng.uniform(0.5, 2.0, n)
+    config = MapConfig(epochs=2)
+    start = (rng.normal(size=n_clusters), rng.uniform(0.1, 1.0, n_clusters))
+    clusters = SimpleNamespace(means=means, weights=start[0].copy(), grad_sq=start[1].copy())
+    bias = np.array([0.1, 0.5])
+    train_weights(features, occupied, sample_weights, clusters, bias, config, default_rng(7))
+    sides, _ = space_sides(features, means)
+    assert np.mean(sides != BORDER) > 0.8
+    weights, grad_sq, want_bias = start[0].copy(), start[1].copy(), np.array([0.1, 0.5])
+    order_rng = default_rng(7)
+    for _ in range(2):
+        visits, starts = visiting_plan(blocked_order(n, order_rng), sides)
+        sgd_rounds(
+            features.indptr,
+            features.rows,
+            features.values,
+            occupied.astype(float),
+            sample_weights,
+            visits,
+            starts,
+            weights,
+            grad_sq,
+            want_bias,
+            config.learning_rate,
+            config.l2,
+        )
+    np.testing.assert_array_equal(clusters.weights, weights)
+    np.testing.assert_array_equal(clusters.grad_sq, grad_sq)
+    np.testing.assert_array_equal(bias, want_bias)
+    assert not np.allclose(weights, start[0])
 
 
 def test_sgd_separates_two_classes():

@@ -68,31 +68,42 @@ def train_weights(
     bias_state in place. Batches of fewer than TWO_SIDED_MIN_SAMPLES samples run on one.
     """
     labels = occupied.astype(np.float64)
+    rows, weights, grad_sq = features.rows, clusters.weights, clusters.grad_sq
+    stored = None
     if len(labels) >= TWO_SIDED_MIN_SAMPLES:
-        sides = space_sides(features, clusters.means)
+        sides, cluster_side = space_sides(features, clusters.means)
+        # Each side's clusters stored together while they learn, so that the two threads
+        # seldom write to one cache line (an epoch of TUM's fourth frame: 15 ms against 19-20).
+        stored = np.argsort(cluster_side, kind="stable")
+        rows = np.argsort(stored)[rows]
+        weights, grad_sq = weights[stored], grad_sq[stored]
     else:
         sides = np.full(len(labels), BORDER, dtype=np.int64)
     for _ in range(config.epochs):
         visits, starts = visiting_plan(blocked_order(len(labels), rng), sides)
         sgd_rounds(
             features.indptr,
-            features.rows,
+            rows,
             features.values,
             labels,
             sample_weights,
             visits,
             starts,
-            clusters.weights,
-            clusters.grad_sq,
+            weights,
+            grad_sq,
             bias_state,
             config.learning_rate,
             config.l2,
         )
+    if stored is not None:
+        clusters.weights[stored] = weights
+        clusters.grad_sq[stored] = grad_sq
 
 
-def space_sides(features: SparseFeatures, means: np.ndarray) -> np.ndarray:
-    """(n,) int64 side of each sample: 0 or 1 when all the clusters its features reach lie on
-    that side of a plane across the clusters, BORDER when they lie on both or it has none.
+def space_sides(features: SparseFeatures, means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The side of each sample, (n,) int64: 0 or 1 when all the clusters its features reach
+    lie on that side of a plane across the clusters, BORDER when they lie on both or it has
+    none; and the side of each of the clusters (M,) int64, at `means` (M, d) metres.
 
     The plane is normal to the axis along which the reached clusters spread most, at the
     median of their coordinates weighted by how often the features reach them, so both sides
@@ -100,7 +111,7 @@ def space_sides(features: SparseFeatures, means: np.ndarray) -> np.ndarray:
     so the two sides can be stepped at once (sgd_rounds)."""
     n = len(features.indptr) - 1
     if len(features.rows) == 0:
-        return np.full(n, BORDER, dtype=np.int64)
+        return np.full(n, BORDER, dtype=np.int64), np.zeros(len(means), dtype=np.int64)
     reached = np.bincount(features.rows, minlength=len(means)).astype(np.float64)
     used = np.flatnonzero(reached)
     axis = int(np.argmax(np.ptp(means[used], axis=0)))
@@ -109,7 +120,7 @@ def space_sides(features: SparseFeatures, means: np.ndarray) -> np.ndarray:
     cumulative = np.cumsum(reached[used][order])
     middle = coordinate[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])]
     cluster_side = (means[:, axis] > middle).astype(np.int64)
-    return sample_sides(features.indptr, features.rows, cluster_side)
+    return sample_sides(features.indptr, features.rows, cluster_side), cluster_side
 
 
 @numba.njit(cache=True, parallel=True)
