@@ -28,7 +28,7 @@ COMPILED_SECONDS = 10.0
 
 def _prepare_kernels() -> None:
     """Compile the map's kernels (the first run after install: about a minute) or load them
-    from Numba's cache (a second or two), on a tiny scan, saying which, so that the timings
+    from Numba's cache (a second or two), on two small scans, saying which, so that the timings
     shown next are the algorithm's."""
     from ehm.eval.runner import warm_up
 

@@ -60,22 +60,28 @@ RECORD_KEYS = tuple(f.name for f in fields(EvalRecord))
 _warmed_up: set[tuple[str, int]] = set()
 
 
-# Rays of the scan a warm-up learns, and their length, metres: enough samples that the
-# evidence is gathered in parts and SGD steps two sides, as a LiDAR sweep's are.
-WARM_UP_RAYS = 12_000
+# Rays of each of the two scans a warm-up learns, and their length, metres: a batch's worth
+# (MapConfig.batch_rays), so the second is learned with the first's evidence in the memory,
+# and enough samples that the evidence is gathered in parts and SGD steps two sides, as a
+# LiDAR sweep's are.
+WARM_UP_RAYS = 20_000
 WARM_UP_RANGE = 6.0
 
 
 def warm_up(method: str, dim: int) -> None:
-    """Build and query `method` once on a small scan, untimed (compiles Numba kernels)."""
+    """Build and query `method` once on two small scans, untimed (compiles Numba kernels,
+    those that learn a scan with the evidence of the one before too)."""
     if (method, dim) in _warmed_up:
         return
     rng = np.random.default_rng(0)
     directions = rng.normal(size=(WARM_UP_RAYS, dim))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    scan = Scan(WARM_UP_RANGE * directions, np.zeros(dim))
+    scans = [
+        Scan(WARM_UP_RANGE * directions + origin, origin)
+        for origin in (np.zeros(dim), np.full(dim, 0.5))
+    ]
     mapper = make_mapper(method, DEFAULT_RESOLUTION, 0)
-    mapper.build([scan])
+    mapper.build(scans)
     mapper.occupancy(directions)
     _warmed_up.add((method, dim))
 
