@@ -6,6 +6,8 @@ from ehm.core.search.hashing import (
     group_by_key,
     group_rows,
     hash_bits,
+    row_of,
+    row_table,
     table_size,
     unique_keys,
 )
@@ -58,3 +60,13 @@ def test_hash_bits_are_the_top_bits_of_the_golden_ratio_hash_and_spread_neighbou
     np.testing.assert_array_equal(got, want.astype(np.int64))
     assert got.min() >= 0 and got.max() < 4096
     assert len(np.unique(got)) > 0.6 * len(keys)
+
+
+def test_a_row_table_finds_the_row_of_every_key_and_none_of_the_others(rng):
+    keys = rng.choice(10**9, 3000, replace=False).astype(np.int64)
+    table, rows = row_table(keys)
+    assert len(table) >= 2 * len(keys)
+    found = [row_of(table, rows, key) for key in keys]
+    np.testing.assert_array_equal(found, np.arange(len(keys)))
+    others = np.setdiff1d(rng.integers(0, 10**9, 3000), keys)
+    assert all(row_of(table, rows, key) == -1 for key in others)

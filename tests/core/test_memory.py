@@ -27,7 +27,6 @@ from ehm.core.observations.memory_keys import (
     memory_keys,
     memory_keys_reference,
     reached_regions,
-    region_table,
 )
 from ehm.core.observations.samples import TrainingSamples
 from ehm.errors import InputError
@@ -85,7 +84,8 @@ def test_a_visit_finds_the_entries_of_a_batch_as_its_numpy_twin_does(rng, dim):
     reached = reached_regions(
         np.concatenate([points, points]), np.repeat([False, True], 1000), SIDES
     )
-    table = region_table(memory.regions)
+    table = memory.region_table()
+    assert memory.region_table() is table  # made once for the regions as they stand
     entries, near = visit_rows(
         *table, memory.region_first(), memory.region_sizes, memory.cells, keys, reached
     )

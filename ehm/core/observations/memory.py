@@ -51,10 +51,9 @@ from ehm.core.observations.memory_keys import (
     key_sides,
     memory_keys,
     reached_regions,
-    region_row,
-    region_table,
 )
 from ehm.core.observations.samples import TrainingSamples
+from ehm.core.search.hashing import row_of, row_table
 
 # Steps of an entry's place along each side of its cell.
 OFFSET_STEPS = 255
@@ -85,14 +84,14 @@ def _in_ranges(keys: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarra
 def visit_rows(
     table_keys, table_rows, region_first, region_sizes, cells, keys, reached
 ):  # pragma: no cover - compiled
-    """Where a batch falls in a memory (its regions' table from region_table, region_first
-    (R,), region_sizes (R,) and cells (m,) from EvidenceMemory): keys (n,) int64 of the
+    """Where a batch falls in a memory (its regions' table, EvidenceMemory.region_table;
+    region_first (R,), region_sizes (R,) and cells (m,) from it): keys (n,) int64 of the
     batch's cells, reached (k,) int64 regions around them (reached_regions). Returns (entries
     (n,) int64, the row of each key's entry, -1 where there is none; near (c,) int64 sorted,
     the rows of every entry in the reached regions)."""
     entries = np.full(len(keys), -1, dtype=np.int64)
     for i in range(len(keys)):
-        r = region_row(table_keys, table_rows, keys[i] >> REGION_BITS)
+        r = row_of(table_keys, table_rows, keys[i] >> REGION_BITS)
         if r < 0:
             continue
         cell = keys[i] & ((1 << REGION_BITS) - 1)
@@ -104,7 +103,7 @@ def visit_rows(
     marked = np.zeros(len(region_sizes), dtype=np.bool_)
     count = 0
     for region in reached:
-        r = region_row(table_keys, table_rows, region)
+        r = row_of(table_keys, table_rows, region)
         if r >= 0 and not marked[r]:
             marked[r] = True
             count += region_sizes[r]
@@ -321,6 +320,7 @@ class EvidenceMemory:
         self.place = np.zeros((0, dim), dtype=np.uint8)
         self.flags = np.zeros(0, dtype=np.uint8)
         self.seen = np.zeros(0)
+        self._forget_region_table()
 
     @classmethod
     def of_config(cls, dim: int, config: MapConfig) -> EvidenceMemory:
@@ -339,6 +339,19 @@ class EvidenceMemory:
         """(R,) int64: the row of each region's first entry."""
         return np.cumsum(self.region_sizes, dtype=np.int64) - self.region_sizes
 
+    def region_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """The table (ehm.core.search.hashing.row_table) that finds each region's row from its
+        key shifted right by REGION_BITS; made once for the regions as they stand, for a
+        batch's visit and its passes alike."""
+        if self._table_of is not self.regions:
+            self._table, self._table_of = row_table(self.regions), self.regions
+        return self._table
+
+    def _forget_region_table(self) -> None:
+        """Let go of the regions' table: it is kept from a batch's visit to its insert only."""
+        self._table: tuple[np.ndarray, np.ndarray] = (np.zeros(0, np.int64),) * 2
+        self._table_of: np.ndarray | None = None
+
     def keys(self) -> np.ndarray:
         """(n,) int64 sorted: the key of every entry."""
         regions = np.repeat(self.regions, self.region_sizes)
@@ -351,6 +364,7 @@ class EvidenceMemory:
         self.regions = regions[starts]
         self.region_sizes = np.diff(np.r_[starts, len(keys)]).astype(np.uint8)
         self.cells = (keys & (2**REGION_BITS - 1)).astype(np.uint8)
+        self._forget_region_table()
 
     # -------------------------------------------------------------- learning
     def visit(self, samples: TrainingSamples) -> Visit:
@@ -365,7 +379,7 @@ class EvidenceMemory:
         # The regions of both kinds around every sample.
         points = np.concatenate([samples.points, samples.points])
         reached = reached_regions(points, np.repeat([False, True], n), self.sides)
-        table_keys, table_rows = region_table(self.regions)
+        table_keys, table_rows = self.region_table()
         entries, near = visit_rows(
             table_keys,
             table_rows,

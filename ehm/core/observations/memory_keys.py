@@ -20,7 +20,6 @@ from ehm.core.observations.evidence import (
     FREE_AT_SURFACE,
     KIND_BITS,
 )
-from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 from ehm.errors import InputError
 
 # Bits of a key for the cell within its region (FINE_CELLS_PER_RADIUS ** 3 of them at most),
@@ -94,28 +93,6 @@ def memory_keys_reference(
     for axis in range(points.shape[1]):
         sub = sub * FINE_CELLS_PER_RADIUS + (cells[:, axis] - regions[:, axis] * per_region)
     return _region_keys(regions, along_ray) | (kinds.astype(np.int64) << SUB_BITS) | sub
-
-
-@numba.njit(cache=True, nogil=True)
-def region_table(regions):  # pragma: no cover - compiled
-    """Open-addressing table (ehm.core.search.hashing) of a memory's regions (`regions` (R,)
-    int64, EvidenceMemory.regions: a key shifted right by REGION_BITS): keys (size,) int64
-    and the row of each in `regions` (size,) int64."""
-    keys = np.full(table_size(len(regions)), EMPTY_KEY, dtype=np.int64)
-    rows = np.zeros(len(keys), dtype=np.int64)
-    for r in range(len(regions)):
-        s = hash_slot(keys, regions[r])
-        keys[s] = regions[r]
-        rows[s] = r
-    return keys, rows
-
-
-@numba.njit(cache=True, inline="always")
-def region_row(table_keys, table_rows, region):  # pragma: no cover - compiled
-    """The row of `region` (a key shifted right by REGION_BITS) in region_table's table
-    (table_keys, table_rows), -1 where the memory has no such region."""
-    s = hash_slot(table_keys, region)
-    return table_rows[s] if table_keys[s] != EMPTY_KEY else -1
 
 
 def reached_regions(

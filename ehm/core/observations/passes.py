@@ -33,10 +33,11 @@ from scipy.spatial import cKDTree
 from ehm.core.model.eigen import eigen_in_place
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
-from ehm.core.observations.memory_keys import SUB_BITS, region_bits, region_row, region_table
+from ehm.core.observations.memory_keys import SUB_BITS, region_bits
 from ehm.core.observations.planes import LINEAR_SPREAD, group_spreads, plane_normals
 from ehm.core.observations.samples import ScanRays
 from ehm.core.search.grid_walk import walk_setup, walk_step
+from ehm.core.search.hashing import row_of
 from ehm.core.search.index import PARALLEL_SEARCH_POINTS
 
 # How close a ray must come to an entry's mean to pass it, in fine evidence cells (3 cm at 5 cm
@@ -256,14 +257,14 @@ def pass_kernel(
     """Append to `found` (capacity,) int64, from `used` on, the occupied entry of every pass of
     rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
     metres, ScanRays) through the memory's entries: table_keys, table_rows from
-    `region_table`; occupied_starts, occupied_entries and positions from `occupied_layout`;
-    normals (R, d) from `region_normals`, and rays whose direction meets a region's at a cosine
-    below `grazing_cos` pass none of its entries; `bits` an axis of a region key; bitmap:
-    occupied_bitmap's (low, extent, words), the regions to look up. From solid_start
-    (n,) on, a ray passes only entries farther than `plane_gap` metres from the plane through
-    its hit, hit_points (n, d), of normal hit_normals (n, d) (NaN: none, and it passes none
-    there). Stops before a ray that might overfill `found`; returns (the next ray, entries
-    found)."""
+    EvidenceMemory.region_table; occupied_starts, occupied_entries and positions from
+    `occupied_layout`; normals (R, d) from `region_normals`, and rays whose direction meets a
+    region's at a cosine below `grazing_cos` pass none of its entries; `bits` an axis of a
+    region key; bitmap: occupied_bitmap's (low, extent, words), the regions to look up. From
+    solid_start (n,) on, a ray passes only entries farther than `plane_gap` metres from the
+    plane through its hit, hit_points (n, d), of normal hit_normals (n, d) (NaN: none, and it
+    passes none there). Stops before a ray that might overfill `found`; returns (the next ray,
+    entries found)."""
     d = origins.shape[1]
     bitmap_low, bitmap_extent, bitmap_words = bitmap
     side = fine_side * FINE_CELLS_PER_RADIUS
@@ -288,7 +289,7 @@ def pass_kernel(
             key = np.int64(0)
             for a in range(d):
                 key = (key << bits) | (region[a] + half)
-            row = region_row(table_keys, table_rows, key << 1)  # the region around hits
+            row = row_of(table_keys, table_rows, key << 1)  # the region around hits
             if row >= 0 and _crosses(normals[row], directions[r], grazing_cos):
                 for k in range(occupied_starts[row], occupied_starts[row + 1]):
                     position = positions[k]
@@ -396,7 +397,7 @@ def occupied_passes(
     none = np.zeros(0, dtype=np.int64)
     if len(memory) == 0 or len(rays) == 0:
         return none, none
-    keys, rows = region_table(memory.regions)
+    keys, rows = memory.region_table()
     layout = occupied_layout(memory)
     fine_side = memory.sides[0]
     solid_start, hit_points = _solid_band(rays, depth)

@@ -56,21 +56,37 @@ def unique_keys(keys):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def row_table(keys):  # pragma: no cover - compiled
+    """A table of distinct `keys` (n,) int64 >= 0 and the row of each: (table keys (size,)
+    int64, EMPTY_KEY where a slot is free; the row in `keys` of the key in each slot (size,)
+    int64), read by `row_of`."""
+    table = np.full(table_size(len(keys)), EMPTY_KEY, dtype=np.int64)
+    rows = np.zeros(len(table), dtype=np.int64)
+    for r in range(len(keys)):
+        s = hash_slot(table, keys[r])
+        table[s] = keys[r]
+        rows[s] = r
+    return table, rows
+
+
+@numba.njit(cache=True, inline="always")
+def row_of(table, rows, key):  # pragma: no cover - compiled
+    """The row of `key` (>= 0) in a `row_table` (table, rows), -1 where it is not there."""
+    s = hash_slot(table, key)
+    return rows[s] if table[s] != EMPTY_KEY else -1
+
+
+@numba.njit(cache=True, nogil=True)
 def group_by_key(keys):  # pragma: no cover - compiled
     """Rows of `keys` (n,) int64 >= 0 grouped by key: (distinct (u,) int64, sorted; starts
     (u + 1,) int64, where each key's rows begin in `order`, and its end; order (n,) int64, the
     rows, key by key and in their own order within a key), as a stable argsort of the keys
     gives them."""
     distinct = unique_keys(keys)
-    table = np.full(table_size(len(distinct)), EMPTY_KEY, dtype=np.int64)
-    rank = np.empty(len(table), dtype=np.int64)
-    for r in range(len(distinct)):
-        s = hash_slot(table, distinct[r])
-        table[s] = distinct[r]
-        rank[s] = r
+    table, rank = row_table(distinct)
     row_rank = np.empty(len(keys), dtype=np.int64)
     for i in range(len(keys)):
-        row_rank[i] = rank[hash_slot(table, keys[i])]
+        row_rank[i] = row_of(table, rank, keys[i])
     return (distinct, *_rows_by_rank(row_rank, len(distinct)))
 
 
