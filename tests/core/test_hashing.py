@@ -8,15 +8,16 @@ from ehm.core.search.hashing import (
     hash_bits,
     row_of,
     row_table,
+    sorted_distinct,
     table_size,
-    unique_keys,
 )
 
 
-def test_unique_keys_is_np_unique(rng):
+def test_sorted_distinct_is_np_unique(rng):
     keys = rng.integers(0, 50, 1000).astype(np.int64) * 1_000_003
-    np.testing.assert_array_equal(unique_keys(keys), np.unique(keys))
-    assert len(unique_keys(np.zeros(0, dtype=np.int64))) == 0
+    np.testing.assert_array_equal(sorted_distinct(keys), np.unique(keys))
+    np.testing.assert_array_equal(sorted_distinct(np.array([7, -3, 7, 0, -3])), [-3, 0, 7])
+    assert len(sorted_distinct(np.zeros(0, dtype=np.int64))) == 0
 
 
 def test_rows_grouped_by_key_as_a_stable_argsort_groups_them(rng):

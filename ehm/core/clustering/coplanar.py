@@ -19,6 +19,7 @@ from ehm.config import MapConfig
 from ehm.core.clustering.merging import anisotropic_distances, merge_pooled
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.kernels import cluster_normals, covariance_square_roots
+from ehm.core.search.hashing import sorted_distinct
 
 # Nearest planar centres of the same kind each cluster considers as partners.
 CANDIDATES = 8
@@ -63,7 +64,7 @@ def coplanar_pairs(
     usable = first != second
     first, second = first[usable], second[usable]
     # Normals of the clusters in play only: a pass stays local to the update.
-    nearby = np.unique(np.concatenate([first, second]))
+    nearby = sorted_distinct(np.concatenate([first, second]))
     normals = cluster_normals(clusters.covariances[nearby])
     first_normals = normals[np.searchsorted(nearby, first)]
     second_normals = normals[np.searchsorted(nearby, second)]
@@ -72,7 +73,7 @@ def coplanar_pairs(
     first, second = first[aligned], second[aligned]
     if len(first) == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    involved = np.unique(np.concatenate([first, second]))
+    involved = sorted_distinct(np.concatenate([first, second]))
     roots = covariance_square_roots(clusters.covariances[involved], min_std)
     slot_first, slot_second = np.searchsorted(involved, first), np.searchsorted(involved, second)
     means = clusters.means[involved]

@@ -15,6 +15,7 @@ from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.eigen import symmetric_eigen
 from ehm.core.model.features import SparseFeatures
 from ehm.core.model.kernels import Eigen, covariance_square_roots, transform_square_roots
+from ehm.core.search.hashing import sorted_distinct
 from ehm.core.search.index import ClusterIndex
 
 
@@ -77,7 +78,7 @@ def absorb_clusters(
         added.occupied,
         config.prior_precision,
     )
-    merged, appended = np.unique(targets[merging]), np.arange(start, len(clusters))
+    merged, appended = sorted_distinct(targets[merging]), np.arange(start, len(clusters))
     clusters.refresh(merged, config)
     clusters.refresh(appended, config, tuple(part[~merging] for part in new_eigen))
     return Absorbed(np.concatenate([merged, appended]), len(added), int(merging.sum()))
@@ -208,7 +209,7 @@ def merge_pooled(
     """Merge new clusters into `targets` with the exact pooled mean and covariance of the
     union of their samples (each side's statistics weighted by its sample count)."""
     d = clusters.dim
-    rows = np.unique(targets)
+    rows = sorted_distinct(targets)
     n_old = clusters.counts[rows]
     old_mean = clusters.means[rows]
     # Sufficient statistics about the old mean, so the pooled update is order-free and exact.

@@ -53,7 +53,7 @@ from ehm.core.observations.memory_keys import (
     reached_regions,
 )
 from ehm.core.observations.samples import TrainingSamples
-from ehm.core.search.hashing import row_of, row_table
+from ehm.core.search.hashing import row_of, row_table, sorted_distinct
 
 # Steps of an entry's place along each side of its cell.
 OFFSET_STEPS = 255
@@ -394,7 +394,7 @@ class EvidenceMemory:
     def pending(self, visit: Visit) -> PendingSamples:
         """The entries that formed no cluster yet, in the cells of the visit's samples (none
         whose evidence was all retracted)."""
-        entries = np.unique(visit.entries[visit.entries >= 0])
+        entries = sorted_distinct(visit.entries[visit.entries >= 0])
         entries = entries[(self.flags[entries] & CLUSTERED == 0) & (self.weight[entries] > 0)]
         return PendingSamples(self._samples_at(entries, visit.memory_keys), entries)
 
@@ -510,7 +510,7 @@ class EvidenceMemory:
     def occupied_near(self, entries: np.ndarray) -> np.ndarray:
         """(m,) int64 sorted: the occupied entries in the regions of `entries` (k,) int64."""
         first = self.region_first()
-        regions = np.unique(np.searchsorted(first, entries, side="right") - 1)
+        regions = sorted_distinct(np.searchsorted(first, entries, side="right") - 1)
         sizes = self.region_sizes[regions].astype(np.int64)
         rows = np.repeat(first[regions] - np.cumsum(sizes) + sizes, sizes) + np.arange(sizes.sum())
         return rows[self.cells[rows] >> SUB_BITS == OCCUPIED]

@@ -39,20 +39,14 @@ def hash_bits(key, bits):  # pragma: no cover - compiled
     return np.int64((np.uint64(key) * _HASH_MULTIPLIER) >> np.uint64(64 - bits))
 
 
-@numba.njit(cache=True, nogil=True)
-def unique_keys(keys):  # pragma: no cover - compiled
-    """Sorted distinct values of `keys` (n,) int64 >= 0: np.unique, with the duplicates
-    dropped in one pass over a table before the sort, so only distinct keys are sorted."""
-    table = np.full(table_size(len(keys)), EMPTY_KEY, dtype=np.int64)
-    distinct = np.empty(len(keys), dtype=np.int64)
-    n = 0
-    for key in keys:
-        s = hash_slot(table, key)
-        if table[s] == EMPTY_KEY:
-            table[s] = key
-            distinct[n] = key
-            n += 1
-    return np.sort(distinct[:n])
+def sorted_distinct(values: np.ndarray) -> np.ndarray:
+    """Sorted distinct values of (n,) integers, as np.unique gives them, through NumPy's sort:
+    np.unique alone (no inverse, no counts) takes a hash table that ran 30-40x slower than a
+    sort on 665,000 int64 keys (NumPy 2.4, BENCHMARKS.md)."""
+    ordered = np.sort(values)
+    if len(ordered) == 0:
+        return ordered
+    return ordered[np.concatenate(([True], ordered[1:] != ordered[:-1]))]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -76,18 +70,23 @@ def row_of(table, rows, key):  # pragma: no cover - compiled
     return rows[s] if table[s] != EMPTY_KEY else -1
 
 
-@numba.njit(cache=True, nogil=True)
-def group_by_key(keys):  # pragma: no cover - compiled
+def group_by_key(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows of `keys` (n,) int64 >= 0 grouped by key: (distinct (u,) int64, sorted; starts
     (u + 1,) int64, where each key's rows begin in `order`, and its end; order (n,) int64, the
     rows, key by key and in their own order within a key), as a stable argsort of the keys
     gives them."""
-    distinct = unique_keys(keys)
+    distinct = sorted_distinct(keys)
+    return (distinct, *_rows_by_rank(_ranks(distinct, keys), len(distinct)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _ranks(distinct, keys):  # pragma: no cover - compiled
+    """(n,) int64 the place of each of `keys` among the `distinct` keys (all of them there)."""
     table, rank = row_table(distinct)
-    row_rank = np.empty(len(keys), dtype=np.int64)
+    ranks = np.empty(len(keys), dtype=np.int64)
     for i in range(len(keys)):
-        row_rank[i] = row_of(table, rank, keys[i])
-    return (distinct, *_rows_by_rank(row_rank, len(distinct)))
+        ranks[i] = row_of(table, rank, keys[i])
+    return ranks
 
 
 @numba.njit(cache=True, nogil=True)

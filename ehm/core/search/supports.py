@@ -41,7 +41,7 @@ from ehm.core.model.kernels import (
     kernels_of_codes_serial,
     projected_radii,
 )
-from ehm.core.search.hashing import EMPTY_KEY, group_rows, hash_slot
+from ehm.core.search.hashing import EMPTY_KEY, group_rows, hash_slot, sorted_distinct
 from ehm.errors import InputError
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
@@ -607,7 +607,7 @@ class SupportHash:
         metres, transforms (M, d, d) 1/m, planar (M,) bool kernel, coarse (M,) bool scale, for
         every kernel of the map (M at least as many as ever listed)."""
         self._grow_kernels(len(means))
-        rows = np.unique(np.asarray(rows, dtype=np.int64))
+        rows = sorted_distinct(np.asarray(rows, dtype=np.int64))
         listed = rows[self._listed[rows]]
         keys, starts, counts, _ = self._table
         _remove(
