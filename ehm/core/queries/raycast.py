@@ -1,10 +1,10 @@
 """Casting rays through a continuous map: the distance along each ray to the first point whose
-log-odds rise above a level, found by marching in even steps and bisecting the step that
+log-odds rise above a level, found by marching in even steps and narrowing the step that
 crosses.
 
 A map's log-odds on a grid (local grids, Sec. 3.5, far cheaper a point than queries) tell each
 ray where to look: `grid_crossings` marches the grid, interpolated, and `refine_guesses`
-finds the exact log-odds' crossing around the grid's and bisects it. Rays the grid misleads or
+finds the exact log-odds' crossing around the grid's and narrows it. Rays the grid misleads or
 sees no crossing on march the exact log-odds (`first_crossings`). Most of such a ray crosses
 space where the log-odds cannot reach the level: a kernel is at most 1, so at any point the
 log-odds are at most the intercept plus the sum of the positive weights of the kernels that
@@ -100,7 +100,7 @@ def first_crossings(
     (m, d) points) exceeds `threshold`; inf where it does not within the ray's max_range.
     origins (n, d), metres; directions (n, d), unit; max_range (n,), metres. Points are
     `step` apart within the runs of `cells` the ray crosses (None: all along the ray); the
-    crossing is located within `tolerance` (the midpoint of the last interval bisected)."""
+    crossing is located within `tolerance` (the midpoint of the last interval narrowed to it)."""
     n = len(origins)
     distance = np.full(n, np.inf)
     inside = log_odds(origins) > threshold
@@ -115,7 +115,7 @@ def first_crossings(
     ladder = step * np.arange(1, STEPS_PER_ROUND + 1)
     while active.size:
         t = np.minimum(reached[active, None] + ladder, run_end[active, None])
-        crossed, found = _ladder_crossings(
+        crossed, found, _ = _ladder_crossings(
             log_odds, origins[active], directions[active], reached[active], t, threshold, tolerance
         )
         distance[active[crossed]] = found[crossed]
@@ -145,16 +145,19 @@ def refine_guesses(
     further: np.ndarray | None = None,
 ) -> np.ndarray:
     """(n,) distance, metres, of the first crossing of `threshold` between `low` and `high`
-    (n,) along each ray: samples `step` apart from low, the step that crosses bisected to
-    `tolerance`; NaN where the log-odds are above the threshold at low already or never
-    within [low, high] (the guess was wrong). With `further` (n,), metres, a ray that stays
-    below the threshold up to high looks on up to further, in a second round."""
+    (n,) along each ray: samples `step` apart from low, read in one call with low itself, the
+    step that crosses narrowed to `tolerance`; NaN where the log-odds are above the threshold
+    at low already or never within [low, high] (the guess was wrong). With `further` (n,),
+    metres, a ray that stays below the threshold up to high looks on up to further, in a
+    second round."""
     distance = np.full(len(low), np.nan)
-    below = np.flatnonzero(log_odds(origins + directions * low[:, None]) <= threshold)
     rays = (log_odds, origins, directions)
-    crossed = _ladder_from(*rays, below, low, high, threshold, step, tolerance, distance)
+    every = np.arange(len(low))
+    below, crossed = _ladder_from(
+        *rays, every, low, high, threshold, step, tolerance, distance, from_start=True
+    )
     if further is not None:
-        on = below[~crossed]
+        on = every[below & ~crossed]
         on = on[further[on] > high[on]]
         _ladder_from(*rays, on, high, further, threshold, step, tolerance, distance)
     return distance
@@ -171,17 +174,20 @@ def _ladder_from(
     step: float,
     tolerance: float,
     distance: np.ndarray,
-) -> np.ndarray:
+    from_start: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
     """Sample `rays` (k,) int64 `step` apart from start to end ((n,) metres; the log-odds at
-    start at most the threshold) and write the crossing of those that cross into `distance`
-    (n,); returns (k,) bool, which crossed."""
+    start at most the threshold, or with from_start read there too, in the same call) and
+    write the crossing of those that cross into `distance` (n,); returns ((k,) bool, which
+    are below the threshold at start; (k,) bool, which crossed)."""
     count = int(np.ceil(np.max(end[rays] - start[rays], initial=0.0) / step))
-    t = np.minimum(start[rays, None] + step * np.arange(1, count + 1), end[rays, None])
-    crossed, found = _ladder_crossings(
-        log_odds, origins[rays], directions[rays], start[rays], t, threshold, tolerance
+    ladder = step * np.arange(0 if from_start else 1, count + 1)
+    t = np.minimum(start[rays, None] + ladder, end[rays, None])
+    crossed, found, below = _ladder_crossings(
+        log_odds, origins[rays], directions[rays], start[rays], t, threshold, tolerance, from_start
     )
     distance[rays[crossed]] = found[crossed]
-    return crossed
+    return below, crossed
 
 
 def _ladder_crossings(
@@ -192,27 +198,41 @@ def _ladder_crossings(
     t: np.ndarray,
     threshold: float,
     tolerance: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Rays sampled at distances t (n, k), metres, beyond `start` (n,), where the log-odds
-    are at most the threshold: (n,) bool, whether a sample is above it, and (n,) the
-    crossing bisected to `tolerance` between the first such sample and the one before (or
-    `start`); NaN where none is."""
+    from_start: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rays sampled at distances t (n, k), metres, from `start` (n,) on: t's first column is
+    start itself when from_start, else beyond it, where the log-odds are known to be at most
+    the threshold. Returns (n,) bool, whether a sample is above it (and, from_start, not the
+    first: a ray above at its start crosses nowhere); (n,) the crossing narrowed to
+    `tolerance` between the first such sample and the one before (or `start`), NaN where none
+    is; (n,) bool, whether the log-odds at start are at most the threshold."""
     found = np.full(len(t), np.nan)
+    below = np.ones(len(t), dtype=bool)
     if t.size == 0:
-        return np.zeros(len(t), dtype=bool), found
+        return np.zeros(len(t), dtype=bool), found, below
     points = origins[:, None, :] + directions[:, None, :] * t[:, :, None]
     above = log_odds(points.reshape(-1, origins.shape[1])).reshape(t.shape) > threshold
+    if from_start:
+        below = ~above[:, 0]
+        above[~below] = False
     crossed = above.any(axis=1)
     first = np.argmax(above, axis=1)[crossed]
     rows = np.flatnonzero(crossed)
     low = np.where(first > 0, t[rows, np.maximum(first - 1, 0)], start[rows])
-    found[rows] = _bisect(
+    found[rows] = _narrow(
         log_odds, origins[rows], directions[rows], low, t[rows, first], threshold, tolerance
     )
-    return crossed, found
+    return crossed, found, below
 
 
-def _bisect(
+# Points an interval that holds a crossing is cut at in one call of the log-odds (at most;
+# fewer where fewer reach the tolerance): one call narrows a step of cluster_radius / 2 to
+# the tolerance of cluster_radius / 10, which halving the interval took three calls for, each
+# of as many points scattered over the rays and so searched alone.
+SECTION_POINTS = 4
+
+
+def _narrow(
     log_odds: Callable[[np.ndarray], np.ndarray],
     origins: np.ndarray,
     directions: np.ndarray,
@@ -221,13 +241,22 @@ def _bisect(
     threshold: float,
     tolerance: float,
 ) -> np.ndarray:
-    """Midpoints of intervals [low, high] along rays, halved until shorter than `tolerance`,
-    keeping log_odds <= threshold at low and > threshold at high."""
-    while len(low) and np.max(high - low) > tolerance:
-        middle = 0.5 * (low + high)
-        above = log_odds(origins + directions * middle[:, None]) > threshold
-        high = np.where(above, middle, high)
-        low = np.where(above, low, middle)
+    """Midpoints of intervals [low, high] along rays, log_odds at most the threshold at low
+    and above it at high, narrowed until no longer than `tolerance`: each round cuts every
+    interval into equal parts (SECTION_POINTS + 1 at most) at points read in one call and
+    keeps the first part that crosses."""
+    rows = np.arange(len(low))
+    while len(low):
+        longest = np.max(high - low) / tolerance
+        if longest <= 1.0 + 1e-9:
+            break
+        parts = min(SECTION_POINTS + 1, int(np.ceil(longest - 1e-9)))
+        t = low[:, None] + (high - low)[:, None] * (np.arange(1, parts) / parts)
+        points = origins[:, None, :] + directions[:, None, :] * t[:, :, None]
+        above = log_odds(points.reshape(-1, origins.shape[1])).reshape(t.shape) > threshold
+        part = np.where(above.any(axis=1), np.argmax(above, axis=1), parts - 1)
+        edges = np.column_stack([low, t, high])
+        low, high = edges[rows, part], edges[rows, part + 1]
     return 0.5 * (low + high)
 
 
@@ -239,7 +268,7 @@ def first_crossings_reference(
     threshold: float,
     step: float,
 ) -> np.ndarray:
-    """Plain twin of `first_crossings` without bisection: every ray sampled `step` apart from
+    """Plain twin of `first_crossings` without narrowing: every ray sampled `step` apart from
     its origin to its max_range, the first sample above `threshold` (inf where none)."""
     distance = np.full(len(origins), np.inf)
     for i in range(len(origins)):
