@@ -2,8 +2,8 @@
 signed distance field), kept on a grid of its log-odds as the map learns.
 
 The surface is a set of surfels (ehm.core.queries.surfels), one per voxel it passes. Every
-voxel keeps the voxel of the surfel nearest its centre (a feature transform,
-scipy.ndimage.distance_transform_edt, exact between centres). A point's distance is the least
+voxel keeps the voxel of the surfel nearest its centre (a feature transform, exact between
+centres: ehm.core.queries.nearest_sites). A point's distance is the least
 distance from it to the surfels that the eight voxel centres around it keep, each surfel a
 disc of half a voxel's radius (a flat surface between two surfels reads its plane, not the
 dimples between two points). It is positive in free and unknown space, negative inside
@@ -22,6 +22,7 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
+from ehm.core.queries.nearest_sites import nearest_sites
 from ehm.core.queries.surfels import (
     KNOWN_SCORE,
     Surfels,
@@ -144,15 +145,11 @@ class DistanceField:
         if not np.any(inside):
             self.nearest[box] = -1
             return
-        from scipy import ndimage  # only maps asked for distances load it (about 0.1 s)
-
-        free_of_surfels = np.ones(tuple(seen_high - seen_low), dtype=bool)
-        free_of_surfels[tuple((index[inside] - seen_low).T)] = False
-        found = ndimage.distance_transform_edt(
-            free_of_surfels, return_distances=False, return_indices=True
-        )
+        sites = np.zeros(tuple(seen_high - seen_low), dtype=bool)
+        sites[tuple((index[inside] - seen_low).T)] = True
+        found = nearest_sites(sites)
         part = tuple(slice(a, b) for a, b in zip(low - seen_low, high - seen_low, strict=True))
-        write_keys(found[(slice(None), *part)], seen_low, np.array(self.shape), self.nearest[box])
+        write_keys(found[part], seen_low, np.array(sites.shape), shape, self.nearest[box])
 
     def distances(
         self, points: np.ndarray, scores: np.ndarray, with_gradient: bool
@@ -240,21 +237,27 @@ def _grown(box: np.ndarray, voxels: int, shape: np.ndarray) -> tuple[np.ndarray,
 
 
 @numba.njit(cache=True, parallel=True)
-def write_keys(found, offset, shape, out):  # pragma: no cover - compiled
-    """out[i, j, k] = the flat index, in a grid of `shape`, of voxel found[:, i, j, k] +
-    `offset` (voxel indices of a feature transform of a box whose low corner is `offset`)."""
+def write_keys(found, offset, box_shape, shape, out):  # pragma: no cover - compiled
+    """out[i, j, k] = the flat index, in a grid of `shape`, of the voxel whose flat index in a
+    box of `box_shape` with low corner `offset` in that grid is found[i, j, k] (a feature
+    transform of the box, ehm.core.queries.nearest_sites)."""
     for i in numba.prange(out.shape[0]):
         for j in range(out.shape[1]):
             for k in range(out.shape[2]):
-                a = found[0, i, j, k] + offset[0]
-                b = found[1, i, j, k] + offset[1]
-                c = found[2, i, j, k] + offset[2]
+                flat = found[i, j, k]
+                c = flat % box_shape[2] + offset[2]
+                flat //= box_shape[2]
+                b = flat % box_shape[1] + offset[1]
+                a = flat // box_shape[1] + offset[0]
                 out[i, j, k] = (a * shape[1] + b) * shape[2] + c
 
 
-def write_keys_reference(found: np.ndarray, offset: np.ndarray, shape: np.ndarray) -> np.ndarray:
+def write_keys_reference(
+    found: np.ndarray, offset: np.ndarray, box_shape: np.ndarray, shape: np.ndarray
+) -> np.ndarray:
     """Plain NumPy twin of `write_keys`: the flat indices it writes, int64."""
-    return np.ravel_multi_index(tuple(found[axis] + offset[axis] for axis in range(3)), shape)
+    index = np.unravel_index(found, tuple(box_shape))
+    return np.ravel_multi_index(tuple(index[axis] + offset[axis] for axis in range(3)), shape)
 
 
 @numba.njit(cache=True, inline="always")
