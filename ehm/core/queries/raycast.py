@@ -210,8 +210,7 @@ def _ladder_crossings(
     below = np.ones(len(t), dtype=bool)
     if t.size == 0:
         return np.zeros(len(t), dtype=bool), found, below
-    points = origins[:, None, :] + directions[:, None, :] * t[:, :, None]
-    above = log_odds(points.reshape(-1, origins.shape[1])).reshape(t.shape) > threshold
+    above = _above_at(log_odds, origins, directions, t, threshold)
     if from_start:
         below = ~above[:, 0]
         above[~below] = False
@@ -223,6 +222,27 @@ def _ladder_crossings(
         log_odds, origins[rows], directions[rows], low, t[rows, first], threshold, tolerance
     )
     return crossed, found, below
+
+
+def _above_at(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    t: np.ndarray,
+    threshold: float,
+) -> np.ndarray:
+    """(n, k) bool: whether the log-odds exceed `threshold` at distances t (n, k), metres,
+    ascending along each ray (origins, directions (n, d)), each distance of a row read once: a
+    ladder capped at its end repeats it (4-8 % of the points of TUM's and the street's rays)."""
+    fresh = np.ones(t.shape, dtype=bool)
+    fresh[:, 1:] = t[:, 1:] != t[:, :-1]
+    rows, columns = np.nonzero(fresh)
+    points = origins[rows] + directions[rows] * t[rows, columns][:, None]
+    above = np.zeros(t.shape, dtype=bool)
+    above[rows, columns] = log_odds(points) > threshold
+    # A repeat reads as the first of its run.
+    first = np.maximum.accumulate(np.where(fresh, np.arange(t.shape[1]), 0), axis=1)
+    return np.take_along_axis(above, first, axis=1)
 
 
 # Points an interval that holds a crossing is cut at in one call of the log-odds (at most;
@@ -252,8 +272,7 @@ def _narrow(
             break
         parts = min(SECTION_POINTS + 1, int(np.ceil(longest - 1e-9)))
         t = low[:, None] + (high - low)[:, None] * (np.arange(1, parts) / parts)
-        points = origins[:, None, :] + directions[:, None, :] * t[:, :, None]
-        above = log_odds(points.reshape(-1, origins.shape[1])).reshape(t.shape) > threshold
+        above = _above_at(log_odds, origins, directions, t, threshold)
         part = np.where(above.any(axis=1), np.argmax(above, axis=1), parts - 1)
         edges = np.column_stack([low, t, high])
         low, high = edges[rows, part], edges[rows, part + 1]
