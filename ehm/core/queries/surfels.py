@@ -152,24 +152,33 @@ def box_surfels(
     (X, Y, Z float64, log-odds less the `intercept`) with voxel (0, 0, 0)'s low corner at
     `origin` ((3,) metres) and sides of `resolution` metres, for the surface where the log-odds
     reach `threshold` (see the module)."""
-    box = high - low
-    counts = np.zeros(tuple(box), dtype=np.int64)
-    positions = np.zeros((*box, 3))
-    normals = np.zeros((*box, 3))
+    shape = np.array(scores.shape)
+    # Whether each voxel of the box and of its rim within the grid is an obstacle.
+    rim_low, rim_high = np.maximum(low - 1, 0), np.minimum(high + 1, shape)
+    obstacle = _obstacles(
+        scores, intercept, threshold, unknown_is_occupied, rim_low, rim_high - rim_low
+    )
+    per_plane = _crossings_per_plane(obstacle, low - rim_low, high - low)
+    starts = np.concatenate([[0], np.cumsum(per_plane)])
+    keys = np.empty(starts[-1], dtype=np.int64)
+    positions, normals = np.empty((starts[-1], 3)), np.empty((starts[-1], 3))
     _box_surfels(
         scores,
+        obstacle,
+        rim_low,
         intercept,
         threshold,
-        unknown_is_occupied,
         origin,
         resolution,
         low,
-        counts,
+        high - low,
+        starts,
+        keys,
         positions,
         normals,
         _STEPS,
     )
-    return _compressed(counts, positions, normals, low, scores.shape)
+    return Surfels(keys, positions, normals)
 
 
 def _compressed(
@@ -198,28 +207,81 @@ def is_obstacle(score, intercept, threshold, unknown_is_occupied):  # pragma: no
 
 
 @numba.njit(cache=True, parallel=True)
+def _obstacles(
+    scores, intercept, threshold, unknown_is_occupied, low, box
+):  # pragma: no cover - compiled
+    """(box) bool: whether each voxel of the box of `box` voxels from `low` ((3,) int64) of
+    the grid of `scores` is an obstacle (is_obstacle)."""
+    obstacle = np.empty((box[0], box[1], box[2]), dtype=np.bool_)
+    for bi in numba.prange(box[0]):
+        for bj in range(box[1]):
+            for bk in range(box[2]):
+                score = scores[low[0] + bi, low[1] + bj, low[2] + bk]
+                obstacle[bi, bj, bk] = is_obstacle(score, intercept, threshold, unknown_is_occupied)
+    return obstacle
+
+
+@numba.njit(cache=True, inline="always")
+def _crosses(obstacle, i, j, k):  # pragma: no cover - compiled
+    """Whether voxel (i, j, k) of `obstacle` differs from one of its six neighbours there."""
+    here = obstacle[i, j, k]
+    return (
+        (i > 0 and obstacle[i - 1, j, k] != here)
+        or (i + 1 < obstacle.shape[0] and obstacle[i + 1, j, k] != here)
+        or (j > 0 and obstacle[i, j - 1, k] != here)
+        or (j + 1 < obstacle.shape[1] and obstacle[i, j + 1, k] != here)
+        or (k > 0 and obstacle[i, j, k - 1] != here)
+        or (k + 1 < obstacle.shape[2] and obstacle[i, j, k + 1] != here)
+    )
+
+
+@numba.njit(cache=True, parallel=True)
+def _crossings_per_plane(obstacle, offset, box):  # pragma: no cover - compiled
+    """(box[0],) int64: the voxels of each plane (first axis) of the box of `box` voxels,
+    `offset` ((3,) int64) into `obstacle` (the box and its rim in the grid), with a crossing
+    on one of their edges."""
+    counts = np.zeros(box[0], dtype=np.int64)
+    for bi in numba.prange(box[0]):
+        for bj in range(box[1]):
+            for bk in range(box[2]):
+                if _crosses(obstacle, offset[0] + bi, offset[1] + bj, offset[2] + bk):
+                    counts[bi] += 1
+    return counts
+
+
+@numba.njit(cache=True, parallel=True)
 def _box_surfels(
     scores,
+    obstacle,
+    rim_low,
     intercept,
     threshold,
-    unknown_is_occupied,
     origin,
     resolution,
     low,
-    counts,
+    box,
+    starts,
+    keys,
     positions,
     normals,
     steps,
 ):  # pragma: no cover - compiled
+    """The surfels of the box of `box` voxels from `low` ((3,) int64), plane by plane (first
+    axis) from starts[plane] on in keys, positions and normals, in the order of their keys;
+    obstacle: is_obstacle of the box and its rim, whose low corner is rim_low."""
     shape = scores.shape
-    for bi in numba.prange(counts.shape[0]):
+    for bi in numba.prange(box[0]):
+        out = starts[bi]
         i = low[0] + bi
-        for bj in range(counts.shape[1]):
+        for bj in range(box[1]):
             j = low[1] + bj
-            for bk in range(counts.shape[2]):
+            for bk in range(box[2]):
                 k = low[2] + bk
+                oi, oj, ok = i - rim_low[0], j - rim_low[1], k - rim_low[2]
+                if not _crosses(obstacle, oi, oj, ok):
+                    continue
                 score = scores[i, j, k]
-                here = is_obstacle(score, intercept, threshold, unknown_is_occupied)
+                here = obstacle[oi, oj, ok]
                 known_here = abs(score) > KNOWN_SCORE
                 n = 0
                 px = py = pz = 0.0  # the crossings' offsets from the centre, summed
@@ -228,10 +290,10 @@ def _box_surfels(
                     a, b, c = i + steps[s, 0], j + steps[s, 1], k + steps[s, 2]
                     if a < 0 or b < 0 or c < 0 or a >= shape[0] or b >= shape[1] or c >= shape[2]:
                         continue
-                    there_score = scores[a, b, c]
-                    there = is_obstacle(there_score, intercept, threshold, unknown_is_occupied)
+                    there = obstacle[a - rim_low[0], b - rim_low[1], c - rim_low[2]]
                     if there == here:
                         continue
+                    there_score = scores[a, b, c]
                     # t: share of the edge from the obstacle's centre to the crossing.
                     t = 0.5
                     if known_here and abs(there_score) > KNOWN_SCORE:
@@ -248,12 +310,10 @@ def _box_surfels(
                     ey += outward * steps[s, 1]
                     ez += outward * steps[s, 2]
                     n += 1
-                if n == 0:
-                    continue
-                counts[bi, bj, bk] = n
-                positions[bi, bj, bk, 0] = origin[0] + (i + 0.5) * resolution + px / n
-                positions[bi, bj, bk, 1] = origin[1] + (j + 0.5) * resolution + py / n
-                positions[bi, bj, bk, 2] = origin[2] + (k + 0.5) * resolution + pz / n
+                keys[out] = (i * shape[1] + j) * shape[2] + k
+                positions[out, 0] = origin[0] + (i + 0.5) * resolution + px / n
+                positions[out, 1] = origin[1] + (j + 0.5) * resolution + py / n
+                positions[out, 2] = origin[2] + (k + 0.5) * resolution + pz / n
                 gx = _slope(scores, i, j, k, 0, resolution)
                 gy = _slope(scores, i, j, k, 1, resolution)
                 gz = _slope(scores, i, j, k, 2, resolution)
@@ -266,9 +326,10 @@ def _box_surfels(
                     if norm == 0.0:  # crossings on opposite faces only: no direction wins
                         norm = 1.0
                     nx, ny, nz = ex / norm, ey / norm, ez / norm
-                normals[bi, bj, bk, 0] = nx
-                normals[bi, bj, bk, 1] = ny
-                normals[bi, bj, bk, 2] = nz
+                normals[out, 0] = nx
+                normals[out, 1] = ny
+                normals[out, 2] = nz
+                out += 1
 
 
 @numba.njit(cache=True, inline="always")
