@@ -45,7 +45,7 @@ def test_support_half_widths_agree_with_their_twin(rng, dim):
         support_half_widths_reference(transforms, planar),
         rtol=1e-10,
     )
-    # A kernel 10 cm across along x and 1 m along y reaches 10 cm and 1 m (and a box the same).
+    # A kernel reaching 10 cm along x and 1 m along the other axes (a ball or a box alike).
     narrow = np.diag([10.0, 1.0, 1.0][:dim])[None]
     for kind in (False, True):
         np.testing.assert_allclose(
