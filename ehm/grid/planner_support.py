@@ -97,10 +97,13 @@ class PlannerSupport:
             self._grid = self._log_odds = None
             self._fields = {}
             return
-        self._log_odds = GridLogOdds(
-            self._grid.scores + self._grid.intercept, self._grid.origin, self.resolution
-        )
+        self._log_odds = self._grid_log_odds()
         self._fields = {key: self._new_field(*key) for key in self._fields}
+
+    def _grid_log_odds(self) -> GridLogOdds:
+        """The grid's log-odds as rays march them: its scores (not copied) and intercept."""
+        grid = self._grid
+        return GridLogOdds(grid.scores, grid.intercept, grid.origin, self.resolution)
 
     def cells(
         self, take_snapshot: Callable[[], MapSnapshot], threshold: float
@@ -245,7 +248,7 @@ class PlannerSupport:
             return
         changed = self._changed_voxels(old, snapshot)
         self._grid.update(snapshot)
-        np.add(self._grid.scores, self._grid.intercept, out=self._log_odds.values)
+        self._log_odds = self._grid_log_odds()
         peaks = self._peaks() if self._fields else np.zeros((0, 3))
         for field in self._fields.values():
             field.update(
@@ -271,7 +274,7 @@ class PlannerSupport:
             arrays = (kept.means, kept.transforms, kept.weights, kept.precision)
             total += sum(array.nbytes for array in arrays)
         if self._grid is not None:
-            total += self._grid.scores.nbytes + self._log_odds.values.nbytes
+            total += self._grid.scores.nbytes
         if self._cover is not None:
             total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
         total += sum(field.nbytes for field in self._fields.values())

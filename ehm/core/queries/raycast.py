@@ -442,10 +442,12 @@ def next_run_reference(
 
 
 class GridLogOdds(NamedTuple):
-    """A map's log-odds at voxel centres: values (d-dimensional, float64, C order), the grid's
-    low corner `origin` (d,) and voxel side `resolution`, metres."""
+    """A map's log-odds at voxel centres: the kernels' summed scores there (d-dimensional,
+    float64, C order; the grid's own array, not a copy) plus the `intercept`, the grid's low
+    corner `origin` (d,) and voxel side `resolution`, metres."""
 
-    values: np.ndarray
+    scores: np.ndarray
+    intercept: float
     origin: np.ndarray
     resolution: float
 
@@ -457,10 +459,11 @@ class GridLogOdds(NamedTuple):
         threshold: float,
         step: float,
     ) -> np.ndarray:
-        """(n,) the first sample along each ray where they exceed `threshold` (grid_crossings)."""
+        """(n,) the first sample along each ray where they exceed `threshold` (grid_crossings,
+        of the scores against the threshold less the intercept)."""
         return grid_crossings(
-            origins, directions, max_range, self.values, self.origin, self.resolution, threshold,
-            step,
+            origins, directions, max_range, self.scores, self.origin, self.resolution,
+            threshold - self.intercept, step,
         )  # fmt: skip
 
 
