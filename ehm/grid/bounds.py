@@ -78,15 +78,13 @@ def support_bounds(snapshot: MapSnapshot) -> np.ndarray:
 
 def support_half_widths(transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
     """(M, d) metres: half-widths of the axis-aligned box around each kernel's support, for
-    kernel transforms (M, d, d) 1/m and planar (M,) bool.
+    kernel transforms (M, d, d) 1/m (d 2 or 3, as maps are) and planar (M,) bool.
 
     The support {mu + T^-1 u} with |u| < 1 (ball) reaches |row a of T^-1| along world axis a;
-    with max_b |u_b| < 1 (box, where `planar`) it reaches the sum of |row a of T^-1|. In 2D
-    and 3D each T^-1 is the adjugate over the determinant, in one compiled pass on both cores
-    (batched np.linalg.inv took 60 of 80-95 ms for 108,000 kernels)."""
+    with max_b |u_b| < 1 (box, where `planar`) it reaches the sum of |row a of T^-1|. Each
+    T^-1 is the adjugate over the determinant, in one compiled pass on both cores (batched
+    np.linalg.inv took 60 of 80-95 ms for 108,000 kernels)."""
     transforms = np.ascontiguousarray(transforms, dtype=np.float64)
-    if transforms.ndim != 3 or transforms.shape[1] not in (2, 3):
-        return support_half_widths_reference(transforms, planar)
     return _half_widths(transforms, np.ascontiguousarray(planar, dtype=np.bool_))
 
 
@@ -122,6 +120,6 @@ def _half_widths(transforms, planar):  # pragma: no cover - compiled
 
 
 def support_half_widths_reference(transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
-    """Plain NumPy twin of `support_half_widths` (any d)."""
+    """Plain NumPy twin of `support_half_widths`."""
     inverse = np.linalg.inv(transforms)
     return np.where(planar[:, None], np.abs(inverse).sum(axis=2), np.linalg.norm(inverse, axis=2))

@@ -266,8 +266,8 @@ class PlannerSupport:
 
     @property
     def nbytes(self) -> int:
-        """Bytes kept: the map's kernels they count, the grid's fields and log-odds, the cover
-        and the cells' keys."""
+        """Bytes kept: the map's kernels they count, the grid's scores (rays march them with
+        the intercept) and fields, the cover and the cells' keys."""
         total = 0
         if self._kernels is not None and self.follows:
             kept = self._kernels

@@ -474,7 +474,8 @@ def grid_crossings(
     """(n,) distance of the first sample, `step` apart along each ray from its origin, where
     a grid's log-odds (scores, `d`-dimensional, voxels of `resolution` metres from corner
     grid_origin) interpolated linearly between voxel centres exceed `threshold`; inf where
-    none does within max_range. Outside the voxel centres' box the log-odds count as 0."""
+    none does within max_range. Samples outside the voxel centres' box are not read: no
+    crossing is found there."""
     n, d = origins.shape
     shape = np.array(scores.shape)
     flat = scores.ravel()

@@ -1,6 +1,7 @@
 """Open addressing for tables of int64 keys, shared by the compiled kernels that look up cells
 of space: a table is an (size,) int64 array of keys, size a power of 2, EMPTY_KEY where a slot
-is free; values live in arrays of the same size, indexed by slot."""
+is free; values live in arrays of the same size, indexed by slot. Distinct keys, sorted, come
+from NumPy's sort (`sorted_distinct`), which `group_by_key` ranks keys against."""
 
 from __future__ import annotations
 
