@@ -9,7 +9,6 @@ import pytest
 import ehm
 from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
-from ehm.core.model.features import SparseFeatures
 from ehm.eval.datasets import floor_plan_2d, virtual_room
 from ehm.eval.datasets.real import DataMissingError
 
@@ -104,8 +103,10 @@ def sparse_batch():
         neighbours = np.array([rng.choice(n_clusters, k, replace=False) for _ in range(n_groups)])
         neighbours[3, 2:] = -1
         labels = (rng.random(n) < 0.4).astype(float)
-        features = SparseFeatures.of_groups(group_of_point, neighbours, values)
-        return features.indptr, features.rows, features.values, labels
+        clusters = neighbours[group_of_point]
+        kept = (clusters >= 0) & (values != 0.0)
+        indptr = np.concatenate([[0], np.cumsum(kept.sum(axis=1))])
+        return indptr, clusters[kept], values[kept], labels
 
     return make
 

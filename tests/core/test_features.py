@@ -9,16 +9,16 @@ from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.features import (
     PointGroups,
     SparseFeatures,
-    compress_rows_reference,
     decision_values,
     decision_values_reference,
+    features_of_codes_reference,
     group_by_cell,
     group_neighbours,
     kernel_values,
     kernel_values_reference,
     training_features,
 )
-from ehm.core.model.kernels import kernel_transforms
+from ehm.core.model.kernels import INSIDE_BOX, OUTSIDE, kernel_transforms
 from ehm.core.search.index import ClusterIndex
 
 
@@ -45,15 +45,20 @@ def test_kernel_values_match_reference(rng):
         assert np.any(compiled == 1.0) and np.any((compiled > 0) & (compiled < 1))
 
 
-def test_compressed_rows_match_reference(rng):
-    points, group_of_point, neighbours, means, transforms, planar = _random_problem(rng, 3)
-    values = kernel_values(points, group_of_point, neighbours, means, transforms, planar)
-    compiled = SparseFeatures.of_groups(group_of_point, neighbours, values)
-    reference = compress_rows_reference(group_of_point, neighbours, values)
-    for name in ("indptr", "rows", "values"):
-        np.testing.assert_array_equal(getattr(compiled, name), getattr(reference, name))
-    assert 0 < len(compiled.rows) < values.size and np.all(compiled.values != 0)
-    assert not np.isin(-1, compiled.rows)
+def test_features_of_codes_match_reference(rng):
+    n, k = 400, 7
+    codes = rng.uniform(0.0, 1.0, (n, k))
+    codes[rng.random((n, k)) < 0.3] = OUTSIDE
+    codes[rng.random((n, k)) < 0.1] = INSIDE_BOX
+    clusters = rng.integers(0, 50, (n, k))
+    clusters[codes == OUTSIDE] = -1
+    compiled = SparseFeatures.of_codes(clusters, codes)
+    reference = features_of_codes_reference(clusters, codes)
+    np.testing.assert_array_equal(compiled.indptr, reference.indptr)
+    np.testing.assert_array_equal(compiled.rows, reference.rows)
+    np.testing.assert_allclose(compiled.values, reference.values, rtol=1e-12, atol=1e-15)
+    assert 0 < len(compiled.rows) < codes.size and np.all(compiled.values > 0)
+    assert not np.isin(-1, compiled.rows) and np.any(compiled.values == 1.0)
 
 
 @pytest.mark.parametrize("chunk", [65_536, 64])
@@ -156,10 +161,11 @@ def test_training_features_are_the_kernels_of_each_groups_neighbours(room_map, r
         clusters.transforms,
         clusters.planar_kernel,
     )
-    want = SparseFeatures.of_groups(groups.group_of_point, neighbours, expected)
-    np.testing.assert_array_equal(features.indptr, want.indptr)
-    np.testing.assert_array_equal(features.rows, want.rows)
-    np.testing.assert_allclose(features.values, want.values, atol=1e-12)
+    clusters_of_point = neighbours[groups.group_of_point]
+    kept = (clusters_of_point >= 0) & (expected != 0.0)
+    np.testing.assert_array_equal(np.diff(features.indptr), kept.sum(axis=1))
+    np.testing.assert_array_equal(features.rows, clusters_of_point[kept])
+    np.testing.assert_allclose(features.values, expected[kept], atol=1e-12)
     assert np.all(features.values != 0) and len(features.values) > 0.2 * expected.size
 
 

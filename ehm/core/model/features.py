@@ -21,6 +21,7 @@ from ehm.core.model.kernels import (
     kernel_code,
     kernels_of_codes,
     projected_radii,
+    sparse_kernel_reference,
 )
 from ehm.core.search.cells import cell_keys
 from ehm.core.search.index import ClusterIndex
@@ -112,55 +113,50 @@ class SparseFeatures:
         return len(self.indptr) - 1
 
     @classmethod
-    def of_groups(
-        cls, group_of_point: np.ndarray, neighbours: np.ndarray, values: np.ndarray
-    ) -> SparseFeatures:
-        """From kernel values (n, k) of each point at its group's clusters neighbours (G, k)
-        (-1: none), keeping the non-zeros."""
-        group_of_point = np.asarray(group_of_point, dtype=np.int64)
-        neighbours = np.asarray(neighbours, dtype=np.int64)
-        indptr = np.zeros(len(values) + 1, dtype=np.int64)
-        np.cumsum(_nonzero_counts(group_of_point, neighbours, values), out=indptr[1:])
-        return cls(indptr, *_compress_rows(group_of_point, neighbours, values, indptr))
+    def of_codes(cls, clusters: np.ndarray, codes: np.ndarray) -> SparseFeatures:
+        """The kernels not zero of n points, from their codes (n, k) float64 at clusters
+        (n, k) int64 (ehm.core.model.kernels.kernel_code; OUTSIDE where the kernel is zero or
+        there is no cluster). Both are read in order, and only the kept codes are evaluated."""
+        indptr = np.zeros(len(codes) + 1, dtype=np.int64)
+        np.cumsum(_inside_counts(codes), out=indptr[1:])
+        rows, values = _compress_codes(clusters, codes, indptr)
+        kernels_of_codes(values)
+        return cls(indptr, rows, values)
 
 
-def compress_rows_reference(
-    group_of_point: np.ndarray, neighbours: np.ndarray, values: np.ndarray
-) -> SparseFeatures:
-    """Plain NumPy twin of SparseFeatures.of_groups."""
-    clusters = neighbours[group_of_point]
-    kept = (clusters >= 0) & (values != 0.0)
-    indptr = np.zeros(len(values) + 1, dtype=np.int64)
+def features_of_codes_reference(clusters: np.ndarray, codes: np.ndarray) -> SparseFeatures:
+    """Plain NumPy twin of SparseFeatures.of_codes."""
+    kept = codes < OUTSIDE
+    inside = codes[kept]
+    values = np.where(inside < 0.0, 1.0, sparse_kernel_reference(np.sqrt(np.abs(inside))))
+    indptr = np.zeros(len(codes) + 1, dtype=np.int64)
     np.cumsum(kept.sum(axis=1), out=indptr[1:])
-    return SparseFeatures(indptr, clusters[kept].astype(np.int64), values[kept])
+    return SparseFeatures(indptr, clusters[kept].astype(np.int64), values)
 
 
 @numba.njit(cache=True, parallel=True)
-def _nonzero_counts(group_of_point, neighbours, values):  # pragma: no cover - compiled
-    """(n,) int64 non-zero values of each point at a cluster (not -1)."""
-    n, k = values.shape
+def _inside_counts(codes):  # pragma: no cover - compiled
+    """(n,) int64 codes below OUTSIDE in each row of codes (n, k)."""
+    n, k = codes.shape
     counts = np.zeros(n, dtype=np.int64)
     for i in numba.prange(n):
-        g = group_of_point[i]
         for j in range(k):
-            if neighbours[g, j] >= 0 and values[i, j] != 0.0:
-                counts[i] += 1
+            counts[i] += codes[i, j] < OUTSIDE
     return counts
 
 
 @numba.njit(cache=True, parallel=True)
-def _compress_rows(group_of_point, neighbours, values, indptr):  # pragma: no cover - compiled
-    """Cluster rows and values of the non-zeros, point i's from indptr[i] on."""
-    n, k = values.shape
+def _compress_codes(clusters, codes, indptr):  # pragma: no cover - compiled
+    """Clusters and codes of the codes below OUTSIDE, row i's from indptr[i] on."""
+    n, k = codes.shape
     rows = np.empty(indptr[n], dtype=np.int64)
     kept = np.empty(indptr[n])
     for i in numba.prange(n):
-        g = group_of_point[i]
         out = indptr[i]
         for j in range(k):
-            if neighbours[g, j] >= 0 and values[i, j] != 0.0:
-                rows[out] = neighbours[g, j]
-                kept[out] = values[i, j]
+            if codes[i, j] < OUTSIDE:
+                rows[out] = clusters[i, j]
+                kept[out] = codes[i, j]
                 out += 1
     return rows, kept
 
@@ -177,30 +173,38 @@ def training_features(
     neighbours = group_neighbours(
         index, points, groups, config.neighbours, config.coarse_neighbours
     )
-    values = kernel_values(
+    # Each point's clusters written beside its codes: compressing them then reads both in
+    # order, not the neighbours of each point's group again (the sample scan: 63 ms to 12).
+    of_point = np.empty((len(points), neighbours.shape[1]), dtype=np.int64)
+    codes = _kernel_codes(
         points,
         groups.group_of_point,
         neighbours,
         clusters.means,
         clusters.transforms,
         clusters.planar_kernel,
+        of_point,
     )
-    return SparseFeatures.of_groups(groups.group_of_point, neighbours, values)
+    return SparseFeatures.of_codes(of_point, codes)
 
 
 @numba.njit(cache=True, parallel=True)
 def _kernel_codes(
-    points, group_of_point, group_neighbours, means, transforms, planar
+    points, group_of_point, group_neighbours, means, transforms, planar, clusters
 ):  # pragma: no cover - compiled
     """(n, k) float64 kernel codes (ehm.core.model.kernels.kernel_code) of each point at its
-    group's k clusters, OUTSIDE where there is none."""
+    group's k clusters, OUTSIDE where there is none; where clusters is (n, k) int64, not
+    (0, k), those clusters (-1 for none) are written into it."""
     n = points.shape[0]
     k = group_neighbours.shape[1]
     codes = np.empty((n, k))
+    keep_clusters = clusters.shape[0] == n
     for i in numba.prange(n):
         g = group_of_point[i]
         for j in range(k):
             cluster = group_neighbours[g, j]
+            if keep_clusters:
+                clusters[i, j] = cluster
             if cluster >= 0:
                 r2, r_max = projected_radii(points, i, cluster, means, transforms)
                 codes[i, j] = kernel_code(r2, r_max, planar[cluster])
@@ -219,7 +223,10 @@ def kernel_values(
 ) -> np.ndarray:
     """(n, k) float64 kernel values of each of `points` (n, d), metres, at its group's k
     clusters group_neighbours (G, k) (0 where -1)."""
-    values = _kernel_codes(points, group_of_point, group_neighbours, means, transforms, planar)
+    unkept = np.empty((0, group_neighbours.shape[1]), dtype=np.int64)
+    values = _kernel_codes(
+        points, group_of_point, group_neighbours, means, transforms, planar, unkept
+    )
     kernels_of_codes(values.reshape(-1))
     return values
 
