@@ -174,7 +174,8 @@ def training_features(
         index, points, groups, config.neighbours, config.coarse_neighbours
     )
     # Each point's clusters written beside its codes: compressing them then reads both in
-    # order, not the neighbours of each point's group again (the sample scan: 63 ms to 12).
+    # order, not the neighbours of each point's group again: after the neighbour searches, 71 ms
+    # to 58 on the sample scan, 36 to 30 on a TUM frame (BENCHMARKS.md).
     of_point = np.empty((len(points), neighbours.shape[1]), dtype=np.int64)
     codes = _kernel_codes(
         points,
