@@ -78,10 +78,10 @@ def followed():
 
 def test_a_map_that_takes_back_passed_evidence_forgets_what_left(followed):
     keeps, forgets = followed[0.0], followed[0.5]
-    # The cart's surface, three and four scans after rays began to pass through it: 144 and
-    # 141 of 191 voxels read occupied where all evidence is kept, 49 and 35 where it is taken
-    # back. (Over seeds 0-3 of this sparse room, 18 % and 11 % on average, against 14 % and 8 %
-    # with each hit's free sample along its ray, MapConfig.front_stretch False.)
+    # The cart's surface, three and four scans after rays began to pass through it: 137 and
+    # 135 of 191 voxels read occupied where all evidence is kept, 44 and 15 where it is taken
+    # back. (Over seeds 0-5 of this sparse room, 23 % and 10 % on average, each seed 11-38 %
+    # and 4-20 %.)
     assert keeps[1].share(3) > 0.7 and keeps[1].share(4) > 0.7
     assert forgets[1].share(3) < 0.3 and forgets[1].share(4) < 0.2
     # The person's trail: 18.3 % against 25.6 % (its rays end on the wall behind within the
@@ -92,7 +92,7 @@ def test_a_map_that_takes_back_passed_evidence_forgets_what_left(followed):
 def test_what_stayed_and_what_arrived_are_kept(followed):
     keeps, forgets = followed[0.0], followed[0.5]
     assert forgets[0]["near F1"] == pytest.approx(keeps[0]["near F1"], abs=0.01)
-    # The crate two scans after it was first seen: 109 of 120 voxels against 104. (Seeds 0-3:
-    # 0.885 and 0.873 on average, against 0.925 and 0.917 with MapConfig.front_stretch False:
-    # the free samples in front of the floor it stands on lie up to a margin above it.)
-    assert forgets[2].share(2) > 0.9 and keeps[2].share(2) > 0.85
+    # The crate two scans after it was first seen: 101 of 120 voxels against 102. (Seeds 0-5:
+    # 0.908 and 0.908 on average, each seed 0.84-0.96: the free samples in front of the floor
+    # it stands on lie up to a margin above it.)
+    assert forgets[2].share(2) > 0.8 and keeps[2].share(2) > 0.8
