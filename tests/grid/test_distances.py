@@ -86,10 +86,13 @@ def test_distances_agree_with_dense_sampling_of_the_map(rng):
     assert np.percentile(error, 95) < 0.1
     assert error[0] < 0.03
     assert gradient.shape == (5001, 2)
-    # At the origin: away from the nearest point at the level.
+    # At the origin: away from a point at the level no more than a voxel (5 cm) farther than
+    # the nearest. The level is an arc with bumps (1.37 m away at 36 degrees, 1.41 at 18),
+    # and the field, whose surfels come from the grid's voxels, may take either.
     obstacles = raster[at_level(hilbert_map, raster)]
-    nearest = obstacles[np.argmin(np.linalg.norm(obstacles, axis=1))]
-    assert gradient[0] @ (nearest / np.linalg.norm(nearest)) < -0.98
+    reach = np.linalg.norm(obstacles, axis=1)
+    near = obstacles[reach < reach.min() + 0.05] / reach[reach < reach.min() + 0.05, None]
+    assert np.min(near @ gradient[0]) < -0.98
 
 
 def test_distances_in_3d_agree_with_dense_sampling_of_the_map(room_map, rng):
