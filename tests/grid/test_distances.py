@@ -91,8 +91,8 @@ def test_distances_agree_with_dense_sampling_of_the_map(rng):
     # and the field, whose surfels come from the grid's voxels, may take either.
     obstacles = raster[at_level(hilbert_map, raster)]
     reach = np.linalg.norm(obstacles, axis=1)
-    near = obstacles[reach < reach.min() + 0.05] / reach[reach < reach.min() + 0.05, None]
-    assert np.min(near @ gradient[0]) < -0.98
+    near = reach < reach.min() + 0.05
+    assert np.min(obstacles[near] / reach[near, None] @ gradient[0]) < -0.98
 
 
 def test_distances_in_3d_agree_with_dense_sampling_of_the_map(room_map, rng):
