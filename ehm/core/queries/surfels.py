@@ -181,23 +181,6 @@ def box_surfels(
     return Surfels(keys, positions, normals)
 
 
-def _compressed(
-    counts: np.ndarray,
-    positions: np.ndarray,
-    normals: np.ndarray,
-    low: np.ndarray,
-    shape: tuple[int, ...],
-) -> Surfels:
-    """The voxels of a box with a crossing (counts > 0) as Surfels keyed in the whole grid."""
-    local = np.flatnonzero(counts.ravel() > 0)
-    index = np.column_stack(np.unravel_index(local, counts.shape)) + low
-    keys = np.ravel_multi_index(tuple(index.T), shape).astype(np.int64)
-    order = np.argsort(keys, kind="stable")
-    return Surfels(
-        keys[order], positions.reshape(-1, 3)[local][order], normals.reshape(-1, 3)[local][order]
-    )
-
-
 @numba.njit(cache=True, inline="always")
 def is_obstacle(score, intercept, threshold, unknown_is_occupied):  # pragma: no cover - compiled
     """A voxel of `score` (log-odds less `intercept`) is an obstacle (see the module)."""
@@ -347,6 +330,23 @@ def _slope(scores, i, j, k, axis, resolution):  # pragma: no cover - compiled
     else:
         rise = scores[i, j, hi] - scores[i, j, lo]
     return rise / ((hi - lo) * resolution)
+
+
+def _compressed(
+    counts: np.ndarray,
+    positions: np.ndarray,
+    normals: np.ndarray,
+    low: np.ndarray,
+    shape: tuple[int, ...],
+) -> Surfels:
+    """The voxels of a box with a crossing (counts > 0) as Surfels keyed in the whole grid."""
+    local = np.flatnonzero(counts.ravel() > 0)
+    index = np.column_stack(np.unravel_index(local, counts.shape)) + low
+    keys = np.ravel_multi_index(tuple(index.T), shape).astype(np.int64)
+    order = np.argsort(keys, kind="stable")
+    return Surfels(
+        keys[order], positions.reshape(-1, 3)[local][order], normals.reshape(-1, 3)[local][order]
+    )
 
 
 def box_surfels_reference(
