@@ -27,10 +27,16 @@ def _sorted(samples):
 
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("box", [False, True])
-@pytest.mark.parametrize("thinning, front_reach", [(1, 1.0), (3, 2.0)])
-def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reach):
+@pytest.mark.parametrize(
+    "thinning, front_reach, pooling", [(1, 1.0, 1), (3, 2.0, 1), (1, 1.0, 2), (2, 2.0, 3)]
+)
+def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reach, pooling):
     config = MapConfig(
-        free_spacing=0.3, max_free_samples=12, free_thinning=thinning, front_reach=front_reach
+        free_spacing=0.3,
+        max_free_samples=12,
+        free_thinning=thinning,
+        front_reach=front_reach,
+        surface_pooling=pooling,
     )
     if box:
         config = config.replace(learn_box=(-2.0,) * dim + (3.0,) * dim)
@@ -48,10 +54,11 @@ def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reac
     np.testing.assert_array_equal(got.at_surface, want.at_surface)
 
 
-def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng):
+@pytest.mark.parametrize("pooling", [1, 2])
+def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng, pooling):
     """Per kind, the weights add up to those of the samples drawn, and their weighted means
-    and scatter are the samples' own."""
-    config = MapConfig()
+    and scatter are the samples' own; with surface_pooling, in fewer cells around hits."""
+    config = MapConfig(surface_pooling=pooling)
     scan = _scan(rng, 3000, 3, spread=2.0)
     rays = scan_rays([scan], config)
     randoms = ray_randoms(len(rays), np.random.default_rng(2))
@@ -73,6 +80,21 @@ def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng):
         np.testing.assert_allclose(total, want)
 
 
+def test_surface_pooling_gathers_a_walls_samples_around_hits_in_fewer_cells(rng):
+    """A depth camera's 4,000 hits on a wall 1 m square, 1.5 m away: pooled in cells twice as
+    wide, the samples behind and in front of them fill under a third of the cells (a slab's
+    cells shrink with the square of the side), and the hits keep theirs."""
+    ends = np.column_stack([rng.uniform(-0.5, 0.5, (4000, 2)), np.full(4000, 1.5)])
+    scan = Scan(ends, np.zeros(3))
+    cells = {}
+    for pooling in (1, 2):
+        config = MapConfig(surface_pooling=pooling)
+        samples = gather_evidence(scan_rays([scan], config), config, np.random.default_rng(1))
+        cells[pooling] = samples.at_surface.sum()
+    hit_cells = len(np.unique(np.floor(ends / (MapConfig().cluster_radius / 4)), axis=0))
+    assert cells[2] - hit_cells < 0.35 * (cells[1] - hit_cells)
+
+
 def test_a_batch_with_more_cells_than_rays_grows_its_table(rng):
     """The table starts at the number of rays: 40 long rays with dense free samples fill it
     many times over, and the pass goes on in larger ones without losing a cell."""
@@ -90,15 +112,15 @@ def test_a_batch_with_more_cells_than_rays_grows_its_table(rng):
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_cell_corners_are_read_back_from_the_keys(rng, dim):
-    """The low corner of a cell, read from its key, is the one the key was made from: fine
-    cells for the kinds around hits, coarse ones along rays, on both sides of the origin."""
+    """The low corner of a cell, read from its key, is the one the key was made from: cells of
+    each kind's side, on both sides of the origin."""
     points = rng.uniform(-50.0, 50.0, (500, dim))
-    kinds = rng.integers(0, 3, len(points))
-    fine, coarse = 0.03, 0.2
-    sides = np.where(kinds == evidence.FREE_ALONG_RAY, coarse, fine)
+    kinds = rng.integers(0, 4, len(points))
+    kind_sides = np.array([0.2, 0.06, 0.03, 0.06])
+    sides = kind_sides[kinds]
     keys = packed_cell_keys(points, sides, kinds, evidence.KIND_BITS)
     corners = np.empty((len(points), dim))
-    evidence.cell_corners(keys, fine, coarse, (63 - evidence.KIND_BITS) // dim, corners)
+    evidence.cell_corners(keys, kind_sides, (63 - evidence.KIND_BITS) // dim, corners)
     np.testing.assert_array_equal(corners, np.floor(points / sides[:, None]) * sides[:, None])
 
 

@@ -17,7 +17,10 @@ along rays in coarse cells (`cell_sides`). Free samples along a ray are stratifi
 each `spacing` of its length from a random offset, so a ray of length L gives L / spacing of
 them in expectation, as independent draws would, with less noise. The cells are small against
 the kernels they train (a quarter of a cluster radius, a third of a free cluster's): cells of
-half a radius lost 0.005-0.016 held-out F1 in one batch (BENCHMARKS.md).
+half a radius lost 0.005-0.016 held-out F1 in one batch (BENCHMARKS.md). With
+`surface_pooling`, the samples behind and in front of hits, which fill a slab around the
+surface where the hits fill its face, are gathered in cells that many times as wide
+(`kind_sides`).
 """
 
 from __future__ import annotations
@@ -43,11 +46,14 @@ from ehm.core.observations.samples import (
 )
 from ehm.core.search.cells import packed_cell_keys
 from ehm.core.search.hashing import EMPTY_KEY, hash_bits, hash_slot, table_size
+from ehm.core.sensor.boxes import points_in_box
 from ehm.errors import InputError
 
 # Kinds of samples, in the order the compiled pass numbers them: free samples along rays (in
-# coarse cells), free samples in front of hits and occupied samples (in fine cells).
-FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED = 0, 1, 2
+# coarse cells), free samples in front of hits, occupied samples (hits, in fine cells) and,
+# with `surface_pooling` above 1, occupied samples behind hits in cells of their own (the
+# kinds OCCUPIED_BEHIND and OCCUPIED are one kind of sample, in cells of two sides).
+FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED, OCCUPIED_BEHIND = 0, 1, 2, 3
 # Bits of a cell key that hold the kind, and their mask.
 KIND_BITS = 2
 KIND_MASK = (1 << KIND_BITS) - 1
@@ -156,8 +162,8 @@ def gather_kernel(
     margin,
     front_reach,
     front_stretch,
-    fine_side,
-    coarse_side,
+    sides,
+    behind_kind,
     bits,
     table,
     used,
@@ -174,8 +180,9 @@ def gather_kernel(
     behind the hit, depth in front, offset of the free samples
     (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around
     hits outside it are left out; front_stretch (n,): how many times as far along its ray each
-    hit's free sample lies (ehm.core.observations.samples.front_stretches); bits: bits per
-    axis of a key.
+    hit's free sample lies (ehm.core.observations.samples.front_stretches); sides (4,)
+    metres: the cell side of each kind (kind_sides); behind_kind: the kind of the occupied
+    sample behind each hit (OCCUPIED or OCCUPIED_BEHIND); bits: bits per axis of a key.
 
     Each sample is added where it is made, in one place of this loop: the same work in a
     helper taking the table's arrays, called once per sample, took five times as long
@@ -199,22 +206,23 @@ def gather_kernel(
         for j in range(around_hit + far_counts[r] + dense_counts[r]):
             # The j-th sample of the ray: its depth along the ray, kind, weight and cell side.
             if j < around_hit:
-                side, weight = fine_side, 1.0
+                weight = 1.0
                 if j == 0:
                     depth, kind = lengths[r], OCCUPIED
                 elif j == 1:
-                    depth, kind = lengths[r] + occupied_depth * random[r, 0], OCCUPIED
+                    depth, kind = lengths[r] + occupied_depth * random[r, 0], behind_kind
                 else:
                     front = front_stretch[r] * _front_depth(margin, front_reach, random[r, 1])
                     depth, kind = lengths[r] - min(front, lengths[r]), FREE_AT_SURFACE
             elif j < around_hit + far_counts[r]:
                 k = j - around_hit
                 depth = free_start[r] + (k + random[r, 2]) * thinning * spacing[r]
-                side, weight, kind = coarse_side, float(thinning), FREE_ALONG_RAY
+                weight, kind = float(thinning), FREE_ALONG_RAY
             else:
                 k = j - around_hit - far_counts[r]
                 depth = dense_start[r] + (k + random[r, 2]) * spacing[r]
-                side, weight, kind = coarse_side, 1.0, FREE_ALONG_RAY
+                weight, kind = 1.0, FREE_ALONG_RAY
+            side = sides[kind]
             inside = True
             key = np.int64(0)
             for a in range(d):
@@ -274,15 +282,30 @@ def cell_sides(config: MapConfig) -> tuple[float, float]:
     )
 
 
+def kind_sides(config: MapConfig) -> np.ndarray:
+    """(4,) float64 metres: the side of the cells of each kind, in the order of the kinds:
+    coarse along rays, fine for hits, `surface_pooling` times fine in front of and behind
+    them."""
+    fine, coarse = cell_sides(config)
+    pooled = config.surface_pooling * fine
+    return np.array([coarse, pooled, fine, pooled])
+
+
+def behind_kind(config: MapConfig) -> int:
+    """The kind of the occupied samples behind hits: OCCUPIED, in the hits' cells, unless
+    `surface_pooling` gathers them in wider cells of their own."""
+    return OCCUPIED if config.surface_pooling == 1 else OCCUPIED_BEHIND
+
+
 def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
     """The evidence of the `rays` of a batch of scans (ehm.core.observations.samples.scan_rays):
     their training samples, one weighted sample per cell and kind, with its scatter, in the
     order the cells were met, part by part."""
     randoms = ray_randoms(len(rays), rng)
-    fine, coarse = cell_sides(config)
+    sides = kind_sides(config)
     dim = rays.directions.shape[1]
     bits = (63 - KIND_BITS) // dim
-    _check_reach(rays, config, fine, bits)
+    _check_reach(rays, config, sides.min(), bits)
     box = learn_box(config, dim) if config.learn_box else np.zeros((0, dim))
     far, dense, dense_start = free_sample_counts(rays, randoms, config)
     arguments = (
@@ -302,8 +325,8 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         config.surface_margin,
         config.front_reach,
         front_stretches(rays, config),
-        fine,
-        coarse,
+        sides,
+        behind_kind(config),
         bits,
     )
     samples_to = np.cumsum(far + dense + 3 * rays.hits)  # samples of the rays up to each
@@ -328,7 +351,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
             (points[first:last], weight[first:last], scatter[first:last])
             for first, last in pairwise(firsts)
         ]
-        list(run(_cell_samples_of, tables, kept, outputs, repeat((fine, coarse, bits))))
+        list(run(_cell_samples_of, tables, kept, outputs, repeat((sides, bits))))
     keys = [table.key[: table.used][rows] for table, rows in zip(tables, kept, strict=True)]
     occupied, at_surface = sample_flags(np.concatenate(keys) & KIND_MASK)
     return TrainingSamples(points, occupied, at_surface, weight, scatter)
@@ -356,11 +379,11 @@ def _cell_samples_of(
     table: _CellTable,
     kept: np.ndarray,
     outputs: tuple[np.ndarray, np.ndarray, np.ndarray],
-    cells: tuple[float, float, int],
+    cells: tuple[np.ndarray, int],
 ) -> None:
     """Write the weighted samples of the `kept` (used,) bool cells of `table` to `outputs`
-    (points, weight, scatter; see _cell_samples); cells: the (fine, coarse) sides, metres,
-    and the bits per axis of the table's keys."""
+    (points, weight, scatter; see _cell_samples); cells: the side of each kind's cells (4,),
+    metres, and the bits per axis of the table's keys."""
     used = table.used
     corners = np.empty((used, table.dim))
     cell_corners(table.key[:used], *cells, corners)
@@ -368,15 +391,15 @@ def _cell_samples_of(
 
 
 @numba.njit(cache=True, nogil=True)
-def cell_corners(keys, fine_side, coarse_side, bits, corners):  # pragma: no cover - compiled
+def cell_corners(keys, sides, bits, corners):  # pragma: no cover - compiled
     """Write the low corner, metres, of the cell of each of `keys` (c,) int64 (gather_kernel's:
-    `bits` per axis, then the kind; FREE_ALONG_RAY cells are `coarse_side` wide, the others
-    `fine_side`) to corners (c, d)."""
+    `bits` per axis, then the kind; a kind's cells are sides[kind] (4,) metres wide) to
+    corners (c, d)."""
     d = corners.shape[1]
     half = np.int64(1) << (bits - 1)
     mask = (np.int64(1) << bits) - 1
     for row in range(len(keys)):
-        side = coarse_side if keys[row] & KIND_MASK == FREE_ALONG_RAY else fine_side
+        side = sides[keys[row] & KIND_MASK]
         packed = keys[row] >> KIND_BITS
         for a in range(d - 1, -1, -1):
             corners[row, a] = ((packed & mask) - half) * side
@@ -410,7 +433,7 @@ def _cell_samples(stats, corner, kept, points, weight, scatter):  # pragma: no c
 
 def sample_flags(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(occupied, at_surface) (n,) bool of samples of `kinds` (n,) int64."""
-    return kinds == OCCUPIED, kinds != FREE_ALONG_RAY
+    return kinds >= OCCUPIED, kinds != FREE_ALONG_RAY
 
 
 def kinds_of(samples: TrainingSamples) -> np.ndarray:
@@ -438,11 +461,14 @@ def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -
     """Plain NumPy twin of `gather_evidence` for given rays and randoms, from the samples
     ehm.core.observations.samples draws, grouped by cell and kind (in the order of their keys, where
     the compiled pass gives them in the order it meets them)."""
-    samples = samples_of_rays(rays, randoms, config)
+    samples = samples_of_rays(rays, randoms, config.replace(learn_box=()))
     kind = kinds_of(samples)
-    fine, coarse = cell_sides(config)
-    side = np.where(samples.at_surface, fine, coarse)
-    keys = packed_cell_keys(samples.points, side, kind, KIND_BITS)
+    kind[1 : 3 * int(rays.hits.sum()) : 3] = behind_kind(config)  # each hit's second sample
+    if config.learn_box:  # the samples around hits outside the box
+        box = learn_box(config, rays.directions.shape[1])
+        inside = ~samples.at_surface | points_in_box(samples.points, box)
+        samples, kind = samples.subset(inside), kind[inside]
+    keys = packed_cell_keys(samples.points, kind_sides(config)[kind], kind, KIND_BITS)
     _, cell = np.unique(keys, return_inverse=True)
     cell = cell.ravel()
     weight = np.bincount(cell, samples.weight)
