@@ -70,10 +70,12 @@ class MapConfig:
     street, 0.75 of the points inside posts read occupied against 0.80 (BENCHMARKS.md)."""
     surface_pooling: int = 1
     """The samples behind and in front of hits are gathered in cells this many times as wide
-    as the hits' own (ehm.core.observations.evidence; a quarter of a cluster radius). 2 gathers
-    a depth camera's frame into about half as many samples and learns it about a fifth faster
-    (a LiDAR sweep a tenth), and makes surfaces a little thicker: near-surface precision
-    0.007-0.009 lower on four of eleven data sets, held-out F1 within 0.003 (BENCHMARKS.md)."""
+    as the hits' own (ehm.core.observations.evidence; a quarter of a cluster radius). Where
+    hits crowd, as a depth camera's do, 2 gathers a frame into about half as many samples
+    and learns a TUM frame a quarter faster; where they lie apart it gains nothing (OctoMap's
+    sample scan learns 6-18 % slower). Surfaces grow a little thicker: near-surface precision
+    up to 0.015 lower (the virtual room, the warehouse, the dense rooms; six seeds), held-out
+    F1 within 0.002 on every data set (BENCHMARKS.md)."""
     surface_margin: float = 0.05
     """Margin in front of each hit, metres: free samples along the ray stop this far before
     it, and one free sample is drawn from a quarter of it to `front_reach` times it in front
