@@ -57,7 +57,7 @@ def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reac
 @pytest.mark.parametrize("pooling", [1, 2])
 def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng, pooling):
     """Per kind, the weights add up to those of the samples drawn, and their weighted means
-    and scatter are the samples' own; with surface_pooling, in fewer cells around hits."""
+    and scatter are the samples' own, with surface_pooling as without."""
     config = MapConfig(surface_pooling=pooling)
     scan = _scan(rng, 3000, 3, spread=2.0)
     rays = scan_rays([scan], config)
@@ -82,8 +82,8 @@ def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng, pooling):
 
 def test_surface_pooling_gathers_a_walls_samples_around_hits_in_fewer_cells(rng):
     """A depth camera's 4,000 hits on a wall 1 m square, 1.5 m away: pooled in cells twice as
-    wide, the samples behind and in front of them fill under a third of the cells (a slab's
-    cells shrink with the square of the side), and the hits keep theirs."""
+    wide, the samples behind and in front of them fill under a third of the cells they filled
+    (a slab's cells shrink with the square of the side), the hits' own cells set aside."""
     ends = np.column_stack([rng.uniform(-0.5, 0.5, (4000, 2)), np.full(4000, 1.5)])
     scan = Scan(ends, np.zeros(3))
     cells = {}
