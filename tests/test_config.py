@@ -50,6 +50,8 @@ def test_overrides_and_validation():
         ("max_range", float("inf"), "max_range must be a finite number"),
         ("max_free_samples", 0, "max_free_samples must be an integer >= 1"),
         ("free_thinning", 0, "free_thinning must be an integer >= 1"),
+        ("surface_pooling", 0, "surface_pooling must be an integer >= 1, got 0"),
+        ("surface_pooling", 1.5, "surface_pooling must be an integer >= 1, got 1.5"),
         ("front_reach", 0.5, "front_reach must be >= 1, got 0.5"),
         ("front_reach", float("nan"), "front_reach must be a finite number, got nan"),
         ("front_stretch", 1, "front_stretch must be True or False, got 1"),
