@@ -283,9 +283,8 @@ def cell_sides(config: MapConfig) -> tuple[float, float]:
 
 
 def kind_sides(config: MapConfig) -> np.ndarray:
-    """(4,) float64 metres: the side of the cells of each kind, in the order of the kinds:
-    coarse along rays, fine for hits, `surface_pooling` times fine in front of and behind
-    them."""
+    """(4,) float64 metres, indexed by kind: the side of its cells. FREE_ALONG_RAY coarse,
+    OCCUPIED (hits) fine, FREE_AT_SURFACE and OCCUPIED_BEHIND `surface_pooling` times fine."""
     fine, coarse = cell_sides(config)
     pooled = config.surface_pooling * fine
     return np.array([coarse, pooled, fine, pooled])
