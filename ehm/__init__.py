@@ -7,8 +7,16 @@ comparison, ehm.eval), and the errors raised for bad input: EhmError and its kin
 instant, and the evaluation is never loaded by a program that does not ask for it.
 """
 
+import os
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
+
+# Numba's parallel loops run on GNU OpenMP, whose threads spin after each loop, waiting for
+# the next, for 300,000 turns unless told otherwise. Learning runs many short loops with Python
+# work between them, which spinning threads slow on a machine of few cores; they wait 3,000
+# turns here and then sleep, unless the environment sets the count. Set before any loop starts
+# OpenMP (BENCHMARKS.md, "The real-time issue, thirteenth step").
+os.environ.setdefault("GOMP_SPINCOUNT", "3000")
 
 if TYPE_CHECKING:
     from ehm.changes import diff

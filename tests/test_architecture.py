@@ -1,6 +1,7 @@
 """The package's layers: imports only go down, with no cycles, and `import ehm` stays light."""
 
 import ast
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -113,6 +114,20 @@ def loaded_after(statement: str) -> set[str]:
         [sys.executable, "-c", script], capture_output=True, text=True, check=True
     )
     return set(result.stdout.split())
+
+
+def test_importing_ehm_shortens_openmps_spinning_unless_the_environment_sets_it():
+    script = "import os, ehm; print(os.environ['GOMP_SPINCOUNT'])"
+    environment = {k: v for k, v in os.environ.items() if k != "GOMP_SPINCOUNT"}
+
+    def spin_count(env: dict[str, str]) -> str:
+        run = subprocess.run(
+            [sys.executable, "-c", script], capture_output=True, text=True, check=True, env=env
+        )
+        return run.stdout.strip()
+
+    assert spin_count(environment) == "3000"
+    assert spin_count({**environment, "GOMP_SPINCOUNT": "77"}) == "77"
 
 
 def test_the_public_api_is_loaded_on_first_use():
