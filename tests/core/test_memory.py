@@ -17,10 +17,13 @@ from ehm.core.observations.memory import (
     batch_entries_reference,
     merge_entries,
     merge_entries_reference,
+    region_layout,
+    region_layout_reference,
     visit_rows,
     visit_rows_reference,
 )
 from ehm.core.observations.memory_keys import (
+    REGION_BITS,
     SUB_BITS,
     cell_corners,
     cell_corners_reference,
@@ -205,9 +208,11 @@ def test_a_batchs_entries_agree_with_their_numpy_twin(rng, dim):
 def test_merging_entries_agrees_with_its_numpy_twin(rng):
     m, n = 400, 300
     keys = np.sort(rng.choice(2000, m, replace=False)).astype(np.int64)
+    weight = rng.uniform(1, 5, m).astype(np.float32)
+    weight[rng.random(m) < 0.2] = 0.0  # emptied entries: gone unless new evidence comes
     memory = (
         keys,
-        rng.uniform(1, 5, m).astype(np.float32),
+        weight,
         rng.integers(0, OFFSET_STEPS + 1, (m, 3)).astype(np.uint8),
         rng.integers(0, 4, m).astype(np.uint8),
     )
@@ -217,9 +222,27 @@ def test_merging_entries_agrees_with_its_numpy_twin(rng):
     formed = rng.random(n) < 0.5
     merged = merge_entries(*memory, *batch, formed)
     expected = merge_entries_reference(*memory, *batch, formed)
-    assert len(merged[0]) == len(np.union1d(keys, new_keys))
+    emptied = keys[weight == 0.0]
+    gone = np.setdiff1d(emptied, new_keys)
+    assert 0 < len(gone) < len(emptied)  # some emptied entries get new evidence, some not
+    np.testing.assert_array_equal(merged[0], np.setdiff1d(np.union1d(keys, new_keys), gone))
     for got, want in zip(merged, expected, strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+def test_the_region_layout_agrees_with_its_numpy_twin(rng):
+    regions = np.sort(rng.choice(10**6, 300, replace=False)).astype(np.int64)
+    cells = [
+        np.sort(rng.choice(2**REGION_BITS, rng.integers(1, 60), replace=False)) for _ in regions
+    ]
+    keys = np.concatenate([(r << REGION_BITS) | c for r, c in zip(regions, cells, strict=True)])
+    got, want = region_layout(keys), region_layout_reference(keys)
+    for compiled, reference in zip(got, want, strict=True):
+        assert compiled.dtype == reference.dtype
+        np.testing.assert_array_equal(compiled, reference)
+    np.testing.assert_array_equal(got[0], regions)
+    np.testing.assert_array_equal(got[1], [len(c) for c in cells])
+    assert [len(a) for a in region_layout(np.zeros(0, dtype=np.int64))] == [0, 0, 0]
 
 
 def test_a_memory_of_format_13_keeps_its_entries(rng):

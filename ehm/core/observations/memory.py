@@ -126,36 +126,73 @@ def visit_rows_reference(
 
 
 @numba.njit(cache=True)
+def region_layout(keys):  # pragma: no cover - compiled
+    """Sorted keys (n,) int64, one per entry, as the memory keeps them: the distinct regions
+    (R,) int64 (keys shifted right by REGION_BITS), the entries of each (R,) uint8 and each
+    entry's cell in its region (n,) uint8 (the key's low REGION_BITS)."""
+    n = len(keys)
+    count = 0
+    for i in range(n):
+        count += i == 0 or keys[i] >> REGION_BITS != keys[i - 1] >> REGION_BITS
+    regions = np.empty(count, dtype=np.int64)
+    sizes = np.zeros(count, dtype=np.uint8)
+    cells = np.empty(n, dtype=np.uint8)
+    r = -1
+    for i in range(n):
+        region = keys[i] >> REGION_BITS
+        if i == 0 or region != regions[r]:
+            r += 1
+            regions[r] = region
+        sizes[r] += 1
+        cells[i] = keys[i] & ((1 << REGION_BITS) - 1)
+    return regions, sizes, cells
+
+
+def region_layout_reference(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `region_layout`."""
+    regions, sizes = np.unique(keys >> REGION_BITS, return_counts=True)
+    return regions, sizes.astype(np.uint8), (keys & (2**REGION_BITS - 1)).astype(np.uint8)
+
+
+@numba.njit(cache=True)
 def merge_entries(
     keys, weight, place, flags, new_keys, new_weight, place_sums, formed
 ):  # pragma: no cover - compiled
     """The entries (keys (m,) sorted, weight (m,) float32, place (m, d) uint8, flags (m,)
     uint8) with new evidence added in one pass: new_keys (n,) sorted distinct, new_weight (n,)
-    its weight, place_sums (n, d) the sum of weight times place of its samples (in
+    its weight (> 0), place_sums (n, d) the sum of weight times place of its samples (in
     OFFSET_STEPS), formed (n,) bool. An entry given new evidence is CLUSTERED where it formed
     part of a cluster before or now, and no longer PASSED. Returns the four arrays, with an
-    entry for every key."""
+    entry for every key but those of weight 0 (all their evidence taken back or faded) that
+    get no new evidence."""
     m, n, d = len(keys), len(new_keys), place.shape[1]
-    missing = 0
+    size = 0
     i = 0
     for j in range(n):
         while i < m and keys[i] < new_keys[j]:
+            size += weight[i] != 0.0
             i += 1
-        if i == m or keys[i] != new_keys[j]:
-            missing += 1
-    size = m + missing
+        if i < m and keys[i] == new_keys[j]:
+            i += 1
+        size += 1
+    for rest in range(i, m):
+        size += weight[rest] != 0.0
     out_keys = np.empty(size, dtype=np.int64)
     out_weight = np.empty(size, dtype=np.float32)
     out_place = np.empty((size, d), dtype=np.uint8)
     out_flags = np.empty(size, dtype=np.uint8)
-    i = j = 0
-    for o in range(size):
+    i = j = o = 0
+    while i < m or j < n:
         take_new = i == m or (j < n and new_keys[j] <= keys[i])
+        if not take_new and weight[i] == 0.0:  # emptied, and nothing new comes to it
+            i += 1
+            continue
         old_w = 0.0
         if i < m and (not take_new or keys[i] == new_keys[j]):
             out_keys[o] = keys[i]
             out_weight[o] = weight[i]
-            out_place[o] = place[i]
+            for a in range(d):
+                out_place[o, a] = place[i, a]
             out_flags[o] = flags[i]
             old_w = np.float64(weight[i])
             i += 1
@@ -170,6 +207,7 @@ def merge_entries(
             out_weight[o] = total
             out_flags[o] = (out_flags[o] & CLUSTERED) | (CLUSTERED if formed[j] else 0)
             j += 1
+        o += 1
     return out_keys, out_weight, out_place, out_flags
 
 
@@ -254,7 +292,8 @@ def merge_entries_reference(
     place[rows] = np.clip(value, 0.0, OFFSET_STEPS)
     weight[rows] = total
     flags[rows] = (flags[rows] & CLUSTERED) | np.where(formed, CLUSTERED, 0).astype(np.uint8)
-    return keys, weight, place, flags
+    kept = weight != 0.0
+    return keys[kept], weight[kept], place[kept], flags[kept]
 
 
 @dataclass(frozen=True)
@@ -359,11 +398,7 @@ class EvidenceMemory:
 
     def _keep_keys(self, keys: np.ndarray) -> None:
         """Keep sorted `keys` (n,) int64, one per entry, region by region."""
-        regions = keys >> REGION_BITS
-        starts = np.flatnonzero(np.r_[True, regions[1:] != regions[:-1]]) if len(keys) else keys
-        self.regions = regions[starts]
-        self.region_sizes = np.diff(np.r_[starts, len(keys)]).astype(np.uint8)
-        self.cells = (keys & (2**REGION_BITS - 1)).astype(np.uint8)
+        self.regions, self.region_sizes, self.cells = region_layout(keys)
         self._forget_region_table()
 
     # -------------------------------------------------------------- learning
@@ -457,11 +492,6 @@ class EvidenceMemory:
             place_sums,
             formed,
         )
-        emptied = self.weight == 0
-        if emptied.any():  # entries whose evidence was all retracted
-            kept = ~emptied
-            keys, self.weight = keys[kept], self.weight[kept]
-            self.place, self.flags = self.place[kept], self.flags[kept]
         regions = self.regions
         self._keep_keys(keys)
         if self.timed:
