@@ -262,6 +262,24 @@ def test_a_memory_of_format_13_keeps_its_entries(rng):
         np.testing.assert_array_equal(getattr(loaded, name), array, err_msg=name)
 
 
+@pytest.mark.parametrize(("m", "n"), [(0, 50), (50, 0), (3, 40), (40, 3), (5000, 4000)])
+def test_merging_in_parts_agrees_with_its_numpy_twin_for_any_sizes(rng, m, n):
+    """Fewer entries than parts, no entries, no new keys, and many of both: the parts of the
+    merge meet where the NumPy twin's one merge has them."""
+    keys = np.sort(rng.choice(20 * (m + n), m, replace=False)).astype(np.int64)
+    weight = rng.uniform(1, 5, m).astype(np.float32)
+    weight[rng.random(m) < 0.2] = 0.0
+    memory = (keys, weight, rng.integers(0, OFFSET_STEPS + 1, (m, 2)).astype(np.uint8))
+    memory += (rng.integers(0, 4, m).astype(np.uint8),)
+    new_keys = np.sort(rng.choice(20 * (m + n), n, replace=False)).astype(np.int64)
+    new_weight = rng.uniform(1, 5, n)
+    batch = (new_keys, new_weight, new_weight[:, None] * rng.uniform(0, OFFSET_STEPS, (n, 2)))
+    formed = rng.random(n) < 0.5
+    merged = merge_entries(*memory, *batch, formed)
+    for got, want in zip(merged, merge_entries_reference(*memory, *batch, formed), strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_merging_keeps_clustered_and_clears_passed_where_new_evidence_comes():
     keys = np.array([10, 20], dtype=np.int64)
     flags = np.array([CLUSTERED | PASSED, PASSED], dtype=np.uint8)

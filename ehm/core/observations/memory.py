@@ -154,60 +154,81 @@ def region_layout_reference(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return regions, sizes.astype(np.uint8), (keys & (2**REGION_BITS - 1)).astype(np.uint8)
 
 
-@numba.njit(cache=True)
+# Parts a merge is split into, by ranges of keys, for the threads to share.
+MERGE_PARTS = 8
+
+
+@numba.njit(cache=True, parallel=True)
 def merge_entries(
     keys, weight, place, flags, new_keys, new_weight, place_sums, formed
 ):  # pragma: no cover - compiled
     """The entries (keys (m,) sorted, weight (m,) float32, place (m, d) uint8, flags (m,)
-    uint8) with new evidence added in one pass: new_keys (n,) sorted distinct, new_weight (n,)
-    its weight (> 0), place_sums (n, d) the sum of weight times place of its samples (in
-    OFFSET_STEPS), formed (n,) bool. An entry given new evidence is CLUSTERED where it formed
-    part of a cluster before or now, and no longer PASSED. Returns the four arrays, with an
-    entry for every key but those of weight 0 (all their evidence taken back or faded) that
-    get no new evidence."""
+    uint8) with new evidence added: new_keys (n,) sorted distinct, new_weight (n,) its weight
+    (> 0), place_sums (n, d) the sum of weight times place of its samples (in OFFSET_STEPS),
+    formed (n,) bool. An entry given new evidence is CLUSTERED where it formed part of a
+    cluster before or now, and no longer PASSED. Returns the four arrays, with an entry for
+    every key but those of weight 0 (all their evidence taken back or faded) that get no new
+    evidence. The keys are merged in MERGE_PARTS ranges side by side: part p takes the entries
+    from row p m / MERGE_PARTS on and the new keys from the first not below that row's key."""
     m, n, d = len(keys), len(new_keys), place.shape[1]
-    size = 0
-    i = 0
-    for j in range(n):
-        while i < m and keys[i] < new_keys[j]:
-            size += weight[i] != 0.0
-            i += 1
-        if i < m and keys[i] == new_keys[j]:
-            i += 1
-        size += 1
-    for rest in range(i, m):
-        size += weight[rest] != 0.0
-    out_keys = np.empty(size, dtype=np.int64)
-    out_weight = np.empty(size, dtype=np.float32)
-    out_place = np.empty((size, d), dtype=np.uint8)
-    out_flags = np.empty(size, dtype=np.uint8)
-    i = j = o = 0
-    while i < m or j < n:
-        take_new = i == m or (j < n and new_keys[j] <= keys[i])
-        if not take_new and weight[i] == 0.0:  # emptied, and nothing new comes to it
-            i += 1
-            continue
-        old_w = 0.0
-        if i < m and (not take_new or keys[i] == new_keys[j]):
-            out_keys[o] = keys[i]
-            out_weight[o] = weight[i]
-            for a in range(d):
-                out_place[o, a] = place[i, a]
-            out_flags[o] = flags[i]
-            old_w = np.float64(weight[i])
-            i += 1
+    first_old = np.empty(MERGE_PARTS + 1, dtype=np.int64)
+    first_new = np.empty(MERGE_PARTS + 1, dtype=np.int64)
+    for p in range(MERGE_PARTS):
+        first_old[p] = p * m // MERGE_PARTS
+        if p == 0 or m == 0:  # an empty memory: every new key to the first part
+            first_new[p] = 0 if p == 0 else n
         else:
-            out_keys[o] = new_keys[j]
-            out_flags[o] = 0
-        if take_new:
-            total = old_w + new_weight[j]
-            for a in range(d):
-                value = np.rint((old_w * out_place[o, a] + place_sums[j, a]) / total)
-                out_place[o, a] = min(max(value, 0.0), OFFSET_STEPS)
-            out_weight[o] = total
-            out_flags[o] = (out_flags[o] & CLUSTERED) | (CLUSTERED if formed[j] else 0)
-            j += 1
-        o += 1
+            first_new[p] = np.searchsorted(new_keys, keys[first_old[p]])
+    first_old[MERGE_PARTS], first_new[MERGE_PARTS] = m, n
+    sizes = np.zeros(MERGE_PARTS + 1, dtype=np.int64)
+    for p in numba.prange(MERGE_PARTS):
+        i, end = first_old[p], first_old[p + 1]
+        size = 0
+        for j in range(first_new[p], first_new[p + 1]):
+            while i < end and keys[i] < new_keys[j]:
+                size += weight[i] != 0.0
+                i += 1
+            if i < end and keys[i] == new_keys[j]:
+                i += 1
+            size += 1
+        for rest in range(i, end):
+            size += weight[rest] != 0.0
+        sizes[p + 1] = size
+    out_first = np.cumsum(sizes)
+    out_keys = np.empty(out_first[-1], dtype=np.int64)
+    out_weight = np.empty(out_first[-1], dtype=np.float32)
+    out_place = np.empty((out_first[-1], d), dtype=np.uint8)
+    out_flags = np.empty(out_first[-1], dtype=np.uint8)
+    for p in numba.prange(MERGE_PARTS):
+        i, end = first_old[p], first_old[p + 1]
+        j, new_end = first_new[p], first_new[p + 1]
+        o = out_first[p]
+        while i < end or j < new_end:
+            take_new = i == end or (j < new_end and new_keys[j] <= keys[i])
+            if not take_new and weight[i] == 0.0:  # emptied, and nothing new comes to it
+                i += 1
+                continue
+            old_w = 0.0
+            if i < end and (not take_new or keys[i] == new_keys[j]):
+                out_keys[o] = keys[i]
+                out_weight[o] = weight[i]
+                for a in range(d):
+                    out_place[o, a] = place[i, a]
+                out_flags[o] = flags[i]
+                old_w = np.float64(weight[i])
+                i += 1
+            else:
+                out_keys[o] = new_keys[j]
+                out_flags[o] = 0
+            if take_new:
+                total = old_w + new_weight[j]
+                for a in range(d):
+                    value = np.rint((old_w * out_place[o, a] + place_sums[j, a]) / total)
+                    out_place[o, a] = min(max(value, 0.0), OFFSET_STEPS)
+                out_weight[o] = total
+                out_flags[o] = (out_flags[o] & CLUSTERED) | (CLUSTERED if formed[j] else 0)
+                j += 1
+            o += 1
     return out_keys, out_weight, out_place, out_flags
 
 
