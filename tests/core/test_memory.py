@@ -205,6 +205,23 @@ def test_a_batchs_entries_agree_with_their_numpy_twin(rng, dim):
     assert np.all((want[2] >= 0) & (want[2] <= OFFSET_STEPS * want[1][:, None] * (1 + 1e-12)))
 
 
+@pytest.mark.parametrize("repeats", [(1, 1, 1), (5, 3), (400, 2, 1, 300)])
+def test_a_batchs_entries_in_parts_agree_with_their_numpy_twin(rng, repeats):
+    """Fewer samples than parts, and cells whose samples span several parts' ranges: each
+    cell's samples are summed in one range, as the NumPy twin sums them."""
+    keys = np.repeat(np.sort(rng.choice(10**6, len(repeats), replace=False)), repeats)
+    n = len(keys)
+    order = rng.permutation(n)
+    batch = (keys.astype(np.int64), order, rng.uniform(0.5, 4.0, n), rng.uniform(-3, 3, (n, 3)))
+    clustered = rng.random(n) < 0.3
+    got = batch_entries(*batch, clustered, *SIDES)
+    want = batch_entries_reference(*batch, clustered, *SIDES)
+    np.testing.assert_array_equal(got[0], np.unique(keys))
+    np.testing.assert_array_equal(got[3], want[3])
+    for compiled, reference in zip(got[1:3], want[1:3], strict=True):
+        np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-9)
+
+
 def test_merging_entries_agrees_with_its_numpy_twin(rng):
     m, n = 400, 300
     keys = np.sort(rng.choice(2000, m, replace=False)).astype(np.int64)

@@ -232,7 +232,7 @@ def merge_entries(
     return out_keys, out_weight, out_place, out_flags
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def batch_entries(
     keys, order, weight, points, clustered, fine_side, coarse_side
 ):  # pragma: no cover - compiled
@@ -240,31 +240,43 @@ def batch_entries(
     `order` (n,) int64 (rows of weight (n,), points (n, d) metres and clustered (n,) bool).
     Returns the distinct keys (c,), the weight of each (c,), the sum of weight times place of
     its samples (c, d) (in OFFSET_STEPS of the cell's side from its corner) and whether any of
-    them formed part of a cluster (c,) bool: merge_entries' new evidence."""
+    them formed part of a cluster (c,) bool: merge_entries' new evidence. The keys are summed
+    in MERGE_PARTS ranges side by side, each from a change of key on, so a cell's samples are
+    added in their order in one range."""
     n, d = points.shape
-    cells = 0
-    for t in range(n):
-        if t == 0 or keys[t] != keys[t - 1]:
-            cells += 1
+    first = np.empty(MERGE_PARTS + 1, dtype=np.int64)
+    for p in range(MERGE_PARTS):
+        t = p * n // MERGE_PARTS
+        while 0 < t < n and keys[t] == keys[t - 1]:
+            t += 1
+        first[p] = t
+    first[MERGE_PARTS] = n
+    counts = np.zeros(MERGE_PARTS + 1, dtype=np.int64)
+    for p in numba.prange(MERGE_PARTS):
+        for t in range(first[p], first[p + 1]):
+            counts[p + 1] += t == 0 or keys[t] != keys[t - 1]
+    cell_first = np.cumsum(counts)
+    cells = cell_first[-1]
     new_keys = np.empty(cells, dtype=np.int64)
     new_weight = np.zeros(cells)
     place_sums = np.zeros((cells, d))
     formed = np.zeros(cells, dtype=np.bool_)
-    c = -1
-    for t in range(n):
-        if t == 0 or keys[t] != keys[t - 1]:
-            c += 1
-            new_keys[c] = keys[t]
-        i = order[t]
-        new_weight[c] += weight[i]
-        for a in range(d):
-            place_sums[c, a] += weight[i] * points[i, a]
-        formed[c] |= clustered[i]
-    corner = np.empty(d)
-    for c in range(cells):
-        steps = OFFSET_STEPS / cell_corner(new_keys[c], fine_side, coarse_side, corner)
-        for a in range(d):
-            place_sums[c, a] = (place_sums[c, a] - new_weight[c] * corner[a]) * steps
+    for p in numba.prange(MERGE_PARTS):
+        c = cell_first[p] - 1
+        for t in range(first[p], first[p + 1]):
+            if t == 0 or keys[t] != keys[t - 1]:
+                c += 1
+                new_keys[c] = keys[t]
+            i = order[t]
+            new_weight[c] += weight[i]
+            for a in range(d):
+                place_sums[c, a] += weight[i] * points[i, a]
+            formed[c] |= clustered[i]
+        corner = np.empty(d)
+        for c in range(cell_first[p], cell_first[p + 1]):
+            steps = OFFSET_STEPS / cell_corner(new_keys[c], fine_side, coarse_side, corner)
+            for a in range(d):
+                place_sums[c, a] = (place_sums[c, a] - new_weight[c] * corner[a]) * steps
     return new_keys, new_weight, place_sums, formed
 
 
