@@ -154,7 +154,8 @@ def region_layout_reference(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return regions, sizes.astype(np.uint8), (keys & (2**REGION_BITS - 1)).astype(np.uint8)
 
 
-# Parts a merge is split into, by ranges of keys, for the threads to share.
+# Parts a merge, and a batch's sums per cell, are split into by ranges of keys, for the
+# threads to share.
 MERGE_PARTS = 8
 
 
@@ -171,14 +172,12 @@ def merge_entries(
     evidence. The keys are merged in MERGE_PARTS ranges side by side: part p takes the entries
     from row p m / MERGE_PARTS on and the new keys from the first not below that row's key."""
     m, n, d = len(keys), len(new_keys), place.shape[1]
-    first_old = np.empty(MERGE_PARTS + 1, dtype=np.int64)
-    first_new = np.empty(MERGE_PARTS + 1, dtype=np.int64)
-    for p in range(MERGE_PARTS):
+    first_old = np.zeros(MERGE_PARTS + 1, dtype=np.int64)
+    first_new = np.zeros(MERGE_PARTS + 1, dtype=np.int64)
+    for p in range(1, MERGE_PARTS):
         first_old[p] = p * m // MERGE_PARTS
-        if p == 0 or m == 0:  # an empty memory: every new key to the first part
-            first_new[p] = 0 if p == 0 else n
-        else:
-            first_new[p] = np.searchsorted(new_keys, keys[first_old[p]])
+        # An empty memory: every new key to the first part.
+        first_new[p] = n if m == 0 else np.searchsorted(new_keys, keys[first_old[p]])
     first_old[MERGE_PARTS], first_new[MERGE_PARTS] = m, n
     sizes = np.zeros(MERGE_PARTS + 1, dtype=np.int64)
     for p in numba.prange(MERGE_PARTS):
