@@ -91,6 +91,35 @@ def test_on_level_moves_surfels_onto_the_exact_level():
     assert len(on_level(surfels, lambda p: np.full(len(p), 5.0), 0.0, RESOLUTION).keys) == 0
 
 
+def test_on_level_reads_from_the_surfel_outwards_and_takes_the_nearest_crossing():
+    # Three surfels on the x axis, normals along +x, each with the level crossed (in to out)
+    # at these offsets: half a voxel holds the first, the second lies beyond it, the third
+    # has one crossing on either side, both beyond half a voxel.
+    centres_x = np.array([0.0, 1.0, 2.0])
+    surfels = Surfels(
+        np.arange(3, dtype=np.int64),
+        np.column_stack([centres_x, np.zeros(3), np.zeros(3)]),
+        np.tile([1.0, 0.0, 0.0], (3, 1)),
+    )
+
+    def log_odds(points):
+        offset = points[:, 0] - np.round(points[:, 0])
+        surfel = np.round(points[:, 0]).astype(int)
+        single = np.where(surfel == 0, 0.02, 0.08) - offset
+        # The third: inside behind -0.07, out to 0.03, inside again to 0.08, then out.
+        double = np.where((offset < -0.07) | ((offset > 0.03) & (offset < 0.08)), 1.0, -1.0)
+        return np.where(surfel == 2, double, 20.0 * single)
+
+    asked = []
+    moved = on_level(surfels, lambda p: asked.append(len(p)) or log_odds(p), 0.0, RESOLUTION)
+    # Three points for every surfel, then the outer pair for the two the first do not settle.
+    assert asked[:2] == [9, 4]
+    np.testing.assert_array_equal(moved.keys, [0, 1, 2])
+    np.testing.assert_allclose(moved.positions[:2, 0], [0.02, 1.08], atol=1e-12)
+    # Of the two crossings as near, the one behind the surfel.
+    assert 2.0 - 0.1 <= moved.positions[2, 0] <= 2.0 - 0.05
+
+
 def test_distances_to_a_ball_are_exact_to_a_few_millimetres(rng):
     scores = ball_log_odds(centres())
     field = field_of(scores, ball_log_odds)

@@ -2,7 +2,14 @@
 
 import numpy as np
 
-from ehm.core.search.index import ClusterIndex, KernelRanking, kernel_radii, kernel_radii_reference
+from ehm.core.search.index import (
+    ClusterIndex,
+    KernelRanking,
+    kernel_radii,
+    kernel_radii_reference,
+    tree_rows_into,
+    tree_rows_reference,
+)
 
 
 def test_index_returns_nearest_fine_then_nearest_coarse_clusters(rng):
@@ -25,6 +32,20 @@ def test_index_pads_missing_clusters_and_drops_an_absent_scale():
     np.testing.assert_array_equal(found, [[0, 1, -1]])
     found = ClusterIndex(centres, np.array([False, True])).nearest(np.zeros((1, 3)), 2, 2)
     np.testing.assert_array_equal(found, [[0, -1, 1, -1]])
+
+
+def test_tree_rows_match_reference(rng):
+    rows = rng.permutation(50)[:20]
+    tree_index = rng.integers(0, 21, (300, 6))  # 20: the tree found none
+    for k in (6, 9):
+        found = np.empty((300, k), dtype=np.int64)
+        tree_rows_into(found, tree_index, rows)
+        np.testing.assert_array_equal(found, tree_rows_reference(tree_index, rows, k))
+        assert np.all(found[:, 6:] == -1)
+        assert np.all((found[:, :6] == -1) == (tree_index == 20))
+    columns = np.empty((300, 10), dtype=np.int64)  # written into a view of some columns
+    tree_rows_into(columns[:, 2:8], tree_index, rows)
+    np.testing.assert_array_equal(columns[:, 2:8], tree_rows_reference(tree_index, rows, 6))
 
 
 def test_kernel_radii_match_reference(rng, random_clusters):

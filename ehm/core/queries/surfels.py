@@ -71,7 +71,7 @@ class Surfels(NamedTuple):
 
 
 # Where on_level looks for the level along a surfel's normal: this many voxels to either side,
-# at this many points, and how many steps then locate it.
+# at this many points (odd: one at the surfel), and how many steps then locate it.
 LEVEL_SPAN = 1.0
 LEVEL_STEPS = 5
 LEVEL_REFINEMENTS = 2
@@ -111,19 +111,41 @@ def on_level(
     """`surfels` each moved along its normal to the crossing of `threshold` by `log_odds`
     ((n, 3) metres -> (n,) log-odds, as point queries read them) nearest its position, within
     LEVEL_SPAN voxels of `resolution` metres to either side: bracketed between LEVEL_STEPS
-    points, then located by LEVEL_REFINEMENTS steps of false position. Surfels with no crossing
-    there are left out: the grid's voxel centres saw a surface the map's own log-odds do not
-    have."""
+    points (read from the surfel outwards until one pair brackets a crossing), then located
+    by LEVEL_REFINEMENTS steps of false position. Surfels with no crossing there are left
+    out: the grid's voxel centres saw a surface the map's own log-odds do not have."""
     count = len(surfels.keys)
     if count == 0:
         return surfels
     along = np.linspace(-LEVEL_SPAN, LEVEL_SPAN, LEVEL_STEPS) * resolution
-    points = surfels.positions[:, None, :] + along[None, :, None] * surfels.normals[:, None, :]
-    above = log_odds(points.reshape(-1, 3)).reshape(count, LEVEL_STEPS) - threshold
-    # Crossings out of the obstacle (behind the surfel, against its normal) into free space.
-    crossing = (above[:, :-1] >= 0.0) & (above[:, 1:] < 0.0)
-    nearest = np.argmin(np.where(crossing, np.abs(along[:-1] + along[1:]), np.inf), axis=1)
-    rows = np.flatnonzero(crossing[np.arange(count), nearest])
+    # Read from the middle out: the points nearest the surfel first, then the next pair out
+    # only for the surfels whose points read so far bracket no crossing. The crossing nearest
+    # the surfel is the same; most surfels need three points, not five.
+    above = np.full((count, LEVEL_STEPS), np.nan)
+    middle = LEVEL_STEPS // 2
+    nearest = np.zeros(count, dtype=np.int64)
+    found = np.zeros(count, dtype=bool)
+    for half_width in range(1, middle + 1):
+        rows = np.flatnonzero(~found)
+        if len(rows) == 0:
+            break
+        columns = [middle - half_width, middle + half_width]
+        if half_width == 1:
+            columns.insert(1, middle)
+        points = (
+            surfels.positions[rows, None, :]
+            + along[None, columns, None] * surfels.normals[rows, None, :]
+        )
+        read = log_odds(points.reshape(-1, 3)).reshape(len(rows), len(columns)) - threshold
+        above[rows[:, None], columns] = read
+        # Crossings out of the obstacle (behind the surfel, against its normal) into free
+        # space, in the intervals just opened: the inner one on the side behind first.
+        for interval in (middle - half_width, middle + half_width - 1):
+            crossing = (above[rows, interval] >= 0.0) & (above[rows, interval + 1] < 0.0)
+            fresh = rows[crossing & ~found[rows]]
+            nearest[fresh] = interval
+            found[fresh] = True
+    rows = np.flatnonzero(found)
     start, normals = surfels.positions[rows], surfels.normals[rows]
     # The bracket [inner, outer] along the normal, the level minus the log-odds at its ends.
     inner, outer = along[nearest[rows]], along[nearest[rows] + 1]

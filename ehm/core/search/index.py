@@ -87,6 +87,30 @@ def kernel_radii_reference(
     return np.where(candidates >= 0, radii, np.inf)
 
 
+@numba.njit(cache=True, parallel=True)
+def tree_rows_into(found, tree_index, rows):  # pragma: no cover - compiled
+    """Write into found (n, k) int64 the cluster rows of a kd-tree's answer tree_index
+    (n, kk) int64, positions in `rows` (len(rows) where there was none), -1 for none and past
+    column kk."""
+    n, k = found.shape
+    kk = min(k, tree_index.shape[1])
+    for i in numba.prange(n):
+        for j in range(kk):
+            position = tree_index[i, j]
+            found[i, j] = rows[position] if position < rows.shape[0] else -1
+        for j in range(kk, k):
+            found[i, j] = -1
+
+
+def tree_rows_reference(tree_index: np.ndarray, rows: np.ndarray, k: int) -> np.ndarray:
+    """Plain NumPy twin of `tree_rows_into`: the (n, k) rows it writes."""
+    missing = tree_index >= len(rows)
+    found = np.full((len(tree_index), k), -1, dtype=np.int64)
+    kk = min(k, tree_index.shape[1])
+    found[:, :kk] = np.where(missing, -1, rows[np.where(missing, 0, tree_index)])[:, :kk]
+    return found
+
+
 class ClusterIndex:
     """Search structures over (M, d) cluster centres, metres, world frame: per scale a kd-tree
     or, with anchor layers, an AnchorTree.
@@ -152,11 +176,19 @@ class ClusterIndex:
         spread: metres; the search serves points up to this far from each of `points`, and
         skips clusters whose kernels reach none of them (inf: no pruning).
         """
-        n = len(points)
-        found = np.full((n, k), -1, dtype=np.int64)
+        found = np.empty((len(points), k), dtype=np.int64)
+        self._nearest_into(found, points, coarse, spread)
+        return found
+
+    def _nearest_into(
+        self, found: np.ndarray, points: np.ndarray, coarse: bool, spread: float
+    ) -> None:
+        """Write nearest_of_scale's (n, k) rows into `found` (a view of that shape)."""
+        n, k = found.shape
         rows, tree = self._rows[int(coarse)], self._trees[int(coarse)]
         if tree is None or n == 0 or k == 0:
-            return found
+            found[:] = -1
+            return
         wanted = k * (self._ranking.factor if self._ranking is not None else 1)
         bound = (self._reach[int(coarse)] + spread) * (1.0 + 1e-9)
         if isinstance(tree, AnchorTree):
@@ -166,13 +198,16 @@ class ClusterIndex:
             workers = -1 if n >= PARALLEL_SEARCH_POINTS else 1
             _, idx = tree.query(points, k=kk, workers=workers, distance_upper_bound=bound)
             idx = np.asarray(idx).reshape(n, kk)
-            missing = idx >= len(rows)
-            candidates = np.where(missing, -1, rows[np.where(missing, 0, idx)])
+            if self._ranking is None:  # the tree's rows straight into `found`
+                tree_rows_into(found, idx, rows)
+                return
+            candidates = np.empty((n, kk), dtype=np.int64)
+            tree_rows_into(candidates, idx, rows)
         if self._ranking is not None:
             candidates = self._ranking.best(points, candidates, k)
         kk = min(k, candidates.shape[1])
         found[:, :kk] = candidates[:, :kk]
-        return found
+        found[:, kk:] = -1
 
     def nearest(
         self, points: np.ndarray, k_fine: int, k_coarse: int, spread: float = np.inf
@@ -182,12 +217,10 @@ class ClusterIndex:
         fewer. The coarse columns are left out when the map has no coarse clusters."""
         if self._trees[1] is None:
             k_coarse = 0
-        return np.hstack(
-            [
-                self.nearest_of_scale(points, False, k_fine, spread),
-                self.nearest_of_scale(points, True, k_coarse, spread),
-            ]
-        )
+        found = np.empty((len(points), k_fine + k_coarse), dtype=np.int64)
+        self._nearest_into(found[:, :k_fine], points, False, spread)
+        self._nearest_into(found[:, k_fine:], points, True, spread)
+        return found
 
     @property
     def nbytes(self) -> int:
