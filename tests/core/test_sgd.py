@@ -11,6 +11,7 @@ from ehm.config import MapConfig
 from ehm.core.model.features import SparseFeatures
 from ehm.core.weights.sgd import (
     BORDER,
+    MAX_STEP,
     TWO_SIDED_MIN_SAMPLES,
     blocked_order,
     loss_weights,
@@ -49,9 +50,10 @@ def test_sgd_rounds_match_reference(rng, sparse_batch):
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
     sample_weights = rng.uniform(0.5, 3.0, n)
+    sample_weights[::50] = 400.0  # cells of many samples: their first steps reach MAX_STEP
     arguments = (indptr, rows, values, labels, sample_weights, visits, starts)
-    sgd_rounds(*arguments, *compiled, 0.3, 1e-3)
-    sgd_rounds_reference(*arguments, *reference, 0.3, 1e-3)
+    sgd_rounds(*arguments, *compiled, 1.0, 1e-3)
+    sgd_rounds_reference(*arguments, *reference, 1.0, 1e-3)
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     assert not np.allclose(compiled[0], state[0])
@@ -208,7 +210,7 @@ def test_blocked_order_visits_every_sample_once_a_block_at_a_time():
 def test_a_sample_standing_for_w_moves_a_fresh_weight_by_sqrt_w_steps(weight):
     """One sample of weight w: its squared gradient counts w times in the accumulator and its
     gradient w times in the step, so a fresh weight moves lr sqrt(w), as w single samples
-    would to within a factor of 2."""
+    would to within a factor of 2, but never more than MAX_STEP (the bias is not held)."""
     weights, grad_sq, bias = np.zeros(1), np.zeros(1), np.zeros(2)
     sgd_pass(
         np.array([0, 1]),
@@ -225,6 +227,28 @@ def test_a_sample_standing_for_w_moves_a_fresh_weight_by_sqrt_w_steps(weight):
     )
     gradient = 0.5 * 0.8  # (sigmoid(0) - 1) * phi, negated
     assert grad_sq[0] == pytest.approx(weight * gradient**2)
-    assert weights[0] == pytest.approx(0.3 * np.sqrt(weight), rel=1e-6)
+    assert weights[0] == pytest.approx(min(0.3 * np.sqrt(weight), MAX_STEP), rel=1e-6)
     assert bias[0] == pytest.approx(0.3 * np.sqrt(weight), rel=1e-6)
     assert bias[1] == pytest.approx(weight * 0.25)
+
+
+def test_a_heavy_sample_nearly_right_moves_a_weight_at_most_max_step():
+    """A cell of 250 free samples that the bias already reads free (p = 0.0003): AdaGrad's
+    first step is lr sqrt(250) = 9.5 whatever the error; it is held to MAX_STEP."""
+    weights, grad_sq, bias = np.zeros(2), np.zeros(2), np.array([-8.0, 1e6])
+    sgd_pass(
+        np.array([0, 2]),
+        np.array([0, 1]),
+        np.array([0.9, 0.05]),
+        np.array([0.0]),
+        np.array([250.0]),
+        np.array([0]),
+        weights,
+        grad_sq,
+        bias,
+        0.6,
+        0.0,
+    )
+    # Both weights step the same scale-free amount, held to MAX_STEP against free.
+    np.testing.assert_allclose(weights, [-MAX_STEP, -MAX_STEP])
+    assert 0.6 * np.sqrt(250.0) > MAX_STEP
