@@ -137,9 +137,10 @@ class MapConfig:
     queries and grids share one model, and point queries take 0.12-0.86x OctoMap's getLabels
     time (0.38-1.89x with 'nearest'). Not the default yet: an integrate costs 1.26-1.45x the
     default's (a TUM frame's sample takes 18.4 kernels, not 5.4, and SGD pays per kernel).
-    With learning_rate 0.6 its held-out F1 was higher than the default's on every data set
-    (seed 0 against three seeds; the warehouse 0.964 against 0.951), with thin structures
-    found more often; at 0.3 it loses up to 0.013 on the PCL room (BENCHMARKS.md)."""
+    With learning_rate 0.6 its held-out F1 over three seeds is the default's or higher on
+    every data set (at most 0.001 lower on TUM at 40 %, 0.010-0.019 higher on the warehouse,
+    the hillside and the sample scan), with thin structures found more often; at 0.3 it loses
+    up to 0.013 on the PCL room (BENCHMARKS.md)."""
     length_scale: float = 3.0
     """Kernel support in standard deviations of the cluster (r = 1 at this many sigmas), for
     the kernels of free clusters."""
