@@ -129,9 +129,8 @@ def on_level(
         rows = np.flatnonzero(~found)
         if len(rows) == 0:
             break
-        columns = [middle - half_width, middle + half_width]
-        if half_width == 1:
-            columns.insert(1, middle)
+        outer = [middle - half_width, middle + half_width]
+        columns = [middle, *outer] if half_width == 1 else outer
         points = (
             surfels.positions[rows, None, :]
             + along[None, columns, None] * surfels.normals[rows, None, :]

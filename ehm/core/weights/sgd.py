@@ -33,9 +33,10 @@ from ehm.core.model.logistic import sigmoid, sigmoid_scalar
 
 EPSILON = 1e-8
 # The most one sample's step moves a weight, log-odds. Beside the sensor of OctoMap's sample
-# scan, free cells of 250 samples each threw two free kernels of 'support' features (learning
-# rate 0.6, seed 0) to +0.87 and +0.83 and held-out F1 to 0.893 (0.970 with seed 1); with
-# steps of at most 3 (or 1) it is 0.971 (BENCHMARKS.md).
+# scan, free cells of hundreds of samples each threw two free kernels of 'support' features
+# (learning rate 0.6, seed 0) to +0.87 and +0.83 and held-out F1 to 0.893 (0.970 with seed
+# 1); with steps of at most 3 (or 1) it is 0.971. The default's F1 stays the same
+# (BENCHMARKS.md).
 MAX_STEP = 3.0
 SGD_BLOCK = 4096
 """Samples a pass visits together (see `blocked_order`): their features stay in cache. A
