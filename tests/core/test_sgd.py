@@ -41,7 +41,7 @@ def _two_sided_batch(rng, sparse_batch, n=2000, n_clusters=60):
     return indptr, rows, values, labels, sides
 
 
-def test_sgd_rounds_match_reference(rng, sparse_batch):
+def test_sgd_rounds_match_reference(rng, sparse_batch, monkeypatch):
     indptr, rows, values, labels, sides = _two_sided_batch(rng, sparse_batch)
     assert set(np.unique(sides)) == {0, 1, BORDER}
     n, n_clusters = len(labels), 60
@@ -57,6 +57,11 @@ def test_sgd_rounds_match_reference(rng, sparse_batch):
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     assert not np.allclose(compiled[0], state[0])
+    # The heavy samples' steps were held: unheld, the twin's weights come out otherwise.
+    unheld = [a.copy() for a in state]
+    monkeypatch.setattr("ehm.core.weights.sgd.MAX_STEP", np.inf)
+    sgd_rounds_reference(*arguments, *unheld, 1.0, 1e-3)
+    assert not np.allclose(unheld[0], reference[0])
 
 
 def test_sgd_rounds_do_not_depend_on_the_threads(rng, sparse_batch):
