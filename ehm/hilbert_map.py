@@ -635,6 +635,7 @@ class HilbertMap:
         return_gradient: bool = False,
         unknown_is_occupied: bool = False,
         unknown_box: np.ndarray | None = None,
+        obstacle_box: np.ndarray | None = None,
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
         frame) to the nearest point whose occupancy is at or above `level`: positive outside,
@@ -642,31 +643,27 @@ class HilbertMap:
         the nearest obstacle; 0 beyond reach). Distances are kept up to
         config.distance_reach: farther points read that. Unknown space (no kernel reaches it)
         is free unless unknown_is_occupied; unknown_box, (2, d) metres [low, high] corners,
-        world frame, makes it an obstacle only inside that box (a planner's workspace; a
-        tile's learn box). Read from a signed distance field of surfels on
+        world frame, makes it an obstacle only inside that box (a planner's workspace);
+        obstacle_box, alike, counts obstacles (occupied, and unknown when asked) only inside
+        it (a tile's core). Read from a signed distance field of surfels on
         cluster_radius voxels, put where point queries (mode 'exact') meet the level
         (ehm.core.queries.distance, ehm.grid.planner_support), made on the first call for a
-        level and kept up to date as the map learns (each update's stage 'grids'; on large
-        maps learned scan by scan this costs several times the update, BENCHMARKS.md). NaN
-        rows for points that are not finite; InputError for maps whose grid would be too
-        large to keep (tile them)."""
+        level and boxes and kept up to date as the map learns (each update's stage 'grids'; on
+        large maps learned scan by scan this costs several times the update, BENCHMARKS.md).
+        NaN rows for points that are not finite; InputError for a box of another shape or
+        with low > high, and for maps whose grid would be too large to keep (tile them)."""
         self._learned("measure distances in it")
         threshold = log_odds_level(level)
         points, finite, query = self._query_points(points)
         distance = np.full(len(points), np.nan)
-        if unknown_box is not None:
-            unknown_box = np.asarray(unknown_box, dtype=np.float64)
-            if unknown_box.shape != (2, self.dim):
-                raise InputError(
-                    f"unknown_box must have shape (2, {self.dim}), got {unknown_box.shape}"
-                )
-            if np.isnan(unknown_box).any() or np.any(unknown_box[0] > unknown_box[1]):
-                raise InputError(
-                    "unknown_box must be [low corner, high corner] with low <= high and no NaN, "
-                    f"got {unknown_box.tolist()}"
-                )
         found, gradient = self._planner.distances(
-            self.snapshot, query, threshold, bool(unknown_is_occupied), return_gradient, unknown_box
+            self.snapshot,
+            query,
+            threshold,
+            bool(unknown_is_occupied),
+            return_gradient,
+            self._checked_box("unknown_box", unknown_box),
+            self._checked_box("obstacle_box", obstacle_box),
         )
         distance[finite] = found
         if not return_gradient:
@@ -674,6 +671,21 @@ class HilbertMap:
         gradients = np.full(points.shape, np.nan)
         gradients[finite] = gradient
         return distance, gradients
+
+    def _checked_box(self, name: str, box: np.ndarray | None) -> np.ndarray | None:
+        """A (2, d) float64 box of [low, high] corners, metres, or None; InputError naming
+        `name` for another shape, NaN or low > high."""
+        if box is None:
+            return None
+        box = np.asarray(box, dtype=np.float64)
+        if box.shape != (2, self.dim):
+            raise InputError(f"{name} must have shape (2, {self.dim}), got {box.shape}")
+        if np.isnan(box).any() or np.any(box[0] > box[1]):
+            raise InputError(
+                f"{name} must be [low corner, high corner] with low <= high and no NaN, "
+                f"got {box.tolist()}"
+            )
+        return box
 
     def _point_log_odds(self, points: np.ndarray) -> np.ndarray:
         """(n,) log-odds at (n, d) points as `occupancy` reads each point alone (mode 'exact':

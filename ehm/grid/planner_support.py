@@ -5,7 +5,7 @@ One grid of the map's log-odds, at voxels of about a cluster radius, serves both
 first, and the cells kernels of positive weight reach with their summed weight
 (ehm.core.queries.cover), from which the cells where the occupancy may pass a level, guide the
 rays the grid does not settle. Distance fields (ehm.core.queries.distance), one per level and
-rule for unknown space asked for, are made from its log-odds, the means of the clusters of
+rule for unknown space and boxes asked for, are made from its log-odds, the means of the clusters of
 positive weight (where obstacles thinner than a voxel peak) and the map's log-odds as point
 queries read them, which place the surface.
 
@@ -33,6 +33,10 @@ from ehm.errors import InputError
 from ehm.grid.bounds import support_bounds, support_half_widths
 from ehm.grid.local_grids import Lattice
 from ehm.grid.occupancy_grid import OccupancyGrid
+
+# A box's corners' coordinates, [low, high] flattened (a key of the distance fields kept), or
+# None for everywhere.
+FlatBox = tuple[float, ...] | None
 
 # The grid is left out for maps whose grid would take more than this many bytes.
 RAY_GRID_MAX_BYTES = 2**28
@@ -66,8 +70,8 @@ class PlannerSupport:
         self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
         # Distance fields by (log-odds level, unknown space is an obstacle, the box it is one
-        # in: its corners' coordinates, or None for everywhere).
-        self._fields: dict[tuple[float, bool, tuple[float, ...] | None], DistanceField] = {}
+        # in, the box obstacles count in).
+        self._fields: dict[tuple[float, bool, FlatBox, FlatBox], DistanceField] = {}
 
     def grid(self, take_snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
         """The log-odds at the grid's voxel centres (intercept included), made from the map's
@@ -130,12 +134,14 @@ class PlannerSupport:
         unknown_is_occupied: bool,
         with_gradient: bool,
         unknown_box: np.ndarray | None = None,
+        obstacle_box: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) signed distances, metres, from (n, d) float64 points, metres, world frame, to
         the surface where the map's log-odds (kernels from `take_snapshot()`) reach
         `threshold`, and with_gradient their (n, d) gradients (else (0, d)); the field is made
-        on the first call for a threshold and rule. unknown_box: (2, d) metres, or None: with
-        unknown_is_occupied, unknown space is an obstacle only inside it (DistanceField).
+        on the first call for a threshold, rule and boxes. unknown_box, obstacle_box: (2, d)
+        metres, or None: with unknown_is_occupied, unknown space is an obstacle only inside
+        the first; only obstacles inside the second count (DistanceField).
         InputError when the map's grid would be too large to keep."""
         self.grid(take_snapshot)
         if self._grid is None:
@@ -143,10 +149,9 @@ class PlannerSupport:
                 f"the map is too large for a distance field at {self.resolution:g} m voxels "
                 f"(over {RAY_GRID_MAX_BYTES / 2**20:.0f} MiB); tile it (ehm.tiles.TiledMap)"
             )
-        box = None
-        if unknown_box is not None and unknown_is_occupied:
-            box = tuple(np.asarray(unknown_box, dtype=np.float64).ravel())
-        key = (threshold, unknown_is_occupied, box)
+        if not unknown_is_occupied:
+            unknown_box = None  # it changes nothing
+        key = (threshold, unknown_is_occupied, _flat(unknown_box), _flat(obstacle_box))
         if key not in self._fields:
             self._fields[key] = self._new_field(*key)
         dim = self._grid.dim
@@ -156,16 +161,14 @@ class PlannerSupport:
         return distance, gradient[:, :dim]
 
     def _new_field(
-        self, threshold: float, unknown_is_occupied: bool, box: tuple[float, ...] | None
+        self,
+        threshold: float,
+        unknown_is_occupied: bool,
+        unknown_box: FlatBox,
+        obstacle_box: FlatBox,
     ) -> DistanceField:
-        """A distance field of the grid as it stands (box: the corners of the box unknown
-        space is an obstacle in, flattened, or None)."""
+        """A distance field of the grid as it stands."""
         lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
-        unknown_box = None
-        if box is not None:  # a 2D map's box reaches through its lattice's one voxel
-            corners = np.reshape(box, (2, -1))
-            height = np.array([[-np.inf], [np.inf]])
-            unknown_box = corners if corners.shape[1] == 3 else np.hstack([corners, height])
         field = DistanceField(
             lattice.origin,
             self.resolution,
@@ -173,7 +176,8 @@ class PlannerSupport:
             threshold,
             unknown_is_occupied,
             self.reach,
-            unknown_box,
+            _lifted_box(unknown_box),
+            _lifted_box(obstacle_box),
         )
         field.update(self._scores_3d(), self._grid.intercept, self._lifted_log_odds, self._peaks())
         return field
@@ -286,3 +290,19 @@ def _kernels(snapshot: MapSnapshot, rows: np.ndarray) -> tuple[np.ndarray, np.nd
     them."""
     reach = kernel_reach(snapshot.transforms[rows], snapshot.planar_kernel[rows])
     return snapshot.means[rows], reach, snapshot.weights[rows]
+
+
+def _flat(box: np.ndarray | None) -> FlatBox:
+    """A (2, d) box's corners as a FlatBox."""
+    return None if box is None else tuple(np.asarray(box, dtype=np.float64).ravel())
+
+
+def _lifted_box(box: FlatBox) -> np.ndarray | None:
+    """(2, 3) corners, metres, of a flattened box, or None: a 2D map's box reaches through its
+    lattice's one voxel."""
+    if box is None:
+        return None
+    corners = np.reshape(box, (2, -1))
+    if corners.shape[1] == 3:
+        return corners
+    return np.hstack([corners, np.array([[-np.inf], [np.inf]])])

@@ -474,47 +474,37 @@ class TiledMap:
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
         frame) to the nearest point whose occupancy reaches `level`, and with return_gradient
-        its (n, d) gradient, as HilbertMap.distance tells them. Every tile whose learn box
-        lies within distance_reach of a point tells the distance to its own surface where it
-        lies in the tile's core (where the tile weighs most in the blend): the nearest wins,
-        and a point inside any tile's obstacle is inside (the deepest wins).
-        Unknown space is an obstacle, when asked, where a tile that learned it does not know
-        it (within its learn box).
-        Each tile keeps its field as it learns. NaN rows for points that are not finite."""
+        its (n, d) gradient, as HilbertMap.distance tells them. Each tile tells of the
+        obstacles in its core (where it weighs most in the blend; its field's obstacle_box),
+        occupied space and, when asked, unknown space (points in the core of a tile that
+        learned nothing read -reach). The nearest wins, and a point inside any obstacle is
+        inside (the deepest wins). Each tile keeps its field as it learns. NaN rows for points
+        that are not finite."""
         points = self._checked_points(points)
         finite = np.all(np.isfinite(points), axis=1)
         reach = self.config.distance_reach
         distance = np.where(finite, reach, np.nan)
         gradient = np.where(finite[:, None], np.zeros(points.shape), np.nan)
-        own = np.floor(points / self.tiling.size + 0.5)
         asked = points[finite]
-        box = (
-            np.stack([asked.min(axis=0) - reach, asked.max(axis=0) + reach]) if len(asked) else None
-        )
-        meeting = set(self.tiling.keys_meeting(box)) if box is not None else set()
+        if len(asked) == 0:
+            return (distance, gradient) if return_gradient else distance
+        box = np.stack([asked.min(axis=0) - reach, asked.max(axis=0) + reach])
+        meeting = set(self.tiling.keys_meeting(box))
         for key in (key for key in self.tile_keys if key in meeting):
-            box = self.tiling.learn_box(key) + np.array([[-reach], [reach]])
-            near = np.flatnonzero(finite & np.all((points >= box[0]) & (points < box[1]), axis=1))
+            core = self.tiling.core_box(key)
+            near = np.all((points > core[0] - reach) & (points < core[1] + reach), axis=1)
+            near = np.flatnonzero(near & finite)
             tile_map = self._answering(key) if len(near) else None
             if tile_map is None:
                 continue
-            in_core = np.all(own[near] == key, axis=1)
-            # Unknown space is the tile's to tell within its learn box only.
             found, slope = tile_map.distance(
-                points[near], level, True, unknown_is_occupied, self.tiling.learn_box(key)
+                points[near], level, True, unknown_is_occupied, obstacle_box=core
             )
-            # A tile tells only of the surface in its core, where its weight is highest.
-            surface = points[near] - found[:, None] * slope
-            core = self.tiling.core_box(key)
-            own_surface = np.all((surface >= core[0]) & (surface <= core[1]), axis=1)
-            # Nothing within reach, or deep inside the tile whose core holds the point.
-            told = own_surface | (found >= reach) | ((found <= -reach) & in_core)
-            wins = _nearer(found, distance[near]) & told
-            distance[near[wins]] = found[wins]
-            gradient[near[wins]] = slope[wins]
+            wins = _nearer(found, distance[near])
+            distance[near[wins]], gradient[near[wins]] = found[wins], slope[wins]
         if unknown_is_occupied:  # points in the core of a tile that learned nothing: inside
             rows = np.flatnonzero(finite)
-            keys = own[rows].astype(np.int64)
+            keys = np.floor(points[rows] / self.tiling.size + 0.5).astype(np.int64)
             for key, entries in _by_tile(rows, keys):
                 if self._answering(key) is None:
                     distance[entries], gradient[entries] = -reach, 0.0

@@ -39,10 +39,16 @@ NO_PEAKS = np.zeros((0, 3))
 
 
 def field_of(
-    scores, log_odds, unknown_is_occupied=False, reach=0.6, peaks=NO_PEAKS, unknown_box=None
+    scores,
+    log_odds,
+    unknown_is_occupied=False,
+    reach=0.6,
+    peaks=NO_PEAKS,
+    unknown_box=None,
+    obstacle_box=None,
 ):
     field = DistanceField(
-        ORIGIN, RESOLUTION, scores.shape, 0.0, unknown_is_occupied, reach, unknown_box
+        ORIGIN, RESOLUTION, scores.shape, 0.0, unknown_is_occupied, reach, unknown_box, obstacle_box
     )
     field.update(scores, 0.0, log_odds, peaks)
     return field
@@ -185,6 +191,39 @@ def test_unknown_space_is_an_obstacle_only_inside_the_box_asked():
     np.testing.assert_array_equal(
         everywhere.distances(points[:2], scores, False)[0],
         field_of(scores, log_odds, True).distances(points[:2], scores, False)[0],
+    )
+
+
+def test_only_obstacles_inside_the_obstacle_box_count(rng):
+    """The ball cut at x = 0 by the box (a tile's core): its half at x < 0 keeps its sphere,
+    the cut is its face, and what lies beyond it, the ball's other half and unknown space, is
+    free."""
+    box = np.array([[-1.0, -1.0, -1.0], [0.0, 1.0, 1.0]])
+    scores = ball_log_odds(centres())
+    scores[:, :, 15:] = 0.0  # unknown above z = 0.5
+    log_odds = lambda p: np.where(p[:, 2] >= 0.5, 0.0, ball_log_odds(p))  # noqa: E731
+    field = field_of(scores, log_odds, True, obstacle_box=box)
+    points = np.array(
+        [
+            [-0.7, 0.05, 0.0],  # 0.25 m from the sphere, within the box
+            [0.3, 0.05, 0.0],  # inside the ball beyond the cut: 0.3 m from its face
+            [0.7, 0.05, 0.0],  # beyond the ball and the cut
+            [0.3, 0.05, 0.8],  # unknown, beyond the cut: 0.3 m from the unknown in the box
+            [-0.3, 0.05, 0.8],  # unknown, within the box: inside
+            [5.0, 0.05, 0.0],  # beyond the grid and the box: free
+        ]
+    )
+    found = field.distances(points, scores, False)[0]
+    # To half a voxel: surfels on a step of the log-odds (the cut, unknown space) are placed
+    # to within that.
+    np.testing.assert_allclose(found[:4], [0.25, 0.3, 0.6, 0.3], atol=0.5 * RESOLUTION + 1e-9)
+    assert found[4] < 0.0 and found[5] == 0.6
+    whole = field_of(scores, log_odds, True)  # without the box the ball's other half counts
+    assert whole.distances(points[1:3], scores, False)[0][0] < 0.0
+    everything = field_of(scores, log_odds, True, obstacle_box=np.array([[-9.0] * 3, [9.0] * 3]))
+    inside = rng.uniform(-1.0, 1.0, (2000, 3))
+    np.testing.assert_array_equal(
+        everything.distances(inside, scores, False)[0], whole.distances(inside, scores, False)[0]
     )
 
 

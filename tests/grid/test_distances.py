@@ -162,6 +162,31 @@ def test_unknown_space_is_an_obstacle_only_when_asked():
             hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=np.array(bad))
 
 
+def test_only_obstacles_inside_the_obstacle_box_count():
+    """The wall, a circle of 4 m, cut by a box that ends at x = 3.8 m: from (3, 0) the wall
+    ahead no longer counts, only its part beside, as far as the box reaches."""
+    hilbert_map = wall_map(4.0)
+    points = np.array([[3.0, 0.0], [0.0, -0.5], [2.0, 1.0]])
+    cut = np.array([[-20.0, -20.0], [3.8, 20.0]])
+    whole = hilbert_map.distance(points)
+    boxed = hilbert_map.distance(points, obstacle_box=cut)
+    assert whole[0] == pytest.approx(1.0, abs=0.1)
+    # The nearest wall point left: (3.8, 1.25) on the circle, 1.48 m away.
+    assert boxed[0] == pytest.approx(np.hypot(0.8, np.sqrt(16.0 - 3.8**2)), abs=0.1)
+    everything = np.array([[-50.0, -50.0], [50.0, 50.0]])
+    for unknown_is_occupied in (False, True):
+        np.testing.assert_array_equal(
+            hilbert_map.distance(points, unknown_is_occupied=unknown_is_occupied),
+            hilbert_map.distance(
+                points, unknown_is_occupied=unknown_is_occupied, obstacle_box=everything
+            ),
+        )
+    with pytest.raises(InputError, match=r"obstacle_box must have shape \(2, 2\)"):
+        hilbert_map.distance(points, obstacle_box=np.zeros((2, 3)))
+    with pytest.raises(InputError, match=r"obstacle_box must be .* low <= high and no NaN"):
+        hilbert_map.distance(points, obstacle_box=np.array([[1.0, 0.0], [0.0, 1.0]]))
+
+
 def test_distance_rows_and_mistakes():
     hilbert_map = wall_map(2.0)
     distance, gradient = hilbert_map.distance(

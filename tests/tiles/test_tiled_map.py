@@ -242,22 +242,29 @@ def test_rays_stop_where_the_blended_map_rises_above_the_level(tiled_room, room)
         tiled_room.segment_free(np.zeros((2, 3)), np.ones((3, 3)))
 
 
-def test_distances_across_tiles_follow_the_blended_level(tiled_room, rng):
-    """Around the tile border at x = 1.5 m and the table: distances against the nearest point of
-    a 3 cm raster on the other side of the blended map's 0.5 level."""
-    low, high = np.array([0.5, -1.0, 0.2]), np.array([2.5, 1.0, 1.6])
-    axes = [np.arange(a, b, 0.03) + 0.015 for a, b in zip(low, high, strict=True)]
+def blended_level_distances(tiled, low, high, step, n, rng):
+    """(n, 3) points drawn in the box [low + 0.3, high - 0.3] m and their signed distances to
+    the nearest point of a raster of `step` m over [low, high] on the other side of the
+    blended map's 0.5 level (unknown space, at 0.5 to rounding, below it)."""
+    axes = [np.arange(a, b, step) + step / 2 for a, b in zip(low, high, strict=True)]
     raster = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    points = rng.uniform(low + 0.3, high - 0.3, (3000, 3))
+    points = rng.uniform(np.add(low, 0.3), np.subtract(high, 0.3), (n, 3))
 
     def at_level(where):
-        occupancy = tiled_room.occupancy(where, mode="exact")
+        occupancy = tiled.occupancy(where, mode="exact")
         return (occupancy >= 0.5) & (np.abs(occupancy - 0.5) > 1e-9)
 
     on_raster, at_points = at_level(raster), at_level(points)
     to_obstacle = cKDTree(raster[on_raster]).query(points)[0]
     to_free = cKDTree(raster[~on_raster]).query(points)[0]
-    expected = np.where(at_points, -to_free, to_obstacle)
+    return points, np.where(at_points, -to_free, to_obstacle)
+
+
+def test_distances_across_tiles_follow_the_blended_level(tiled_room, rng):
+    """Around the tile border at x = 1.5 m and the table, against a 3 cm raster."""
+    points, expected = blended_level_distances(
+        tiled_room, [0.5, -1.0, 0.2], [2.5, 1.0, 1.6], 0.03, 3000, rng
+    )
     distance, gradient = tiled_room.distance(points, return_gradient=True)
     near = np.abs(expected) < 0.3
     error = np.abs(distance - expected)[near]
@@ -266,6 +273,21 @@ def test_distances_across_tiles_follow_the_blended_level(tiled_room, rng):
     assert np.percentile(error, 90) < 0.1
     moving = np.abs(distance) < 1.0
     np.testing.assert_allclose(np.linalg.norm(gradient[moving], axis=1), 1.0, atol=1e-9)
+
+
+def test_distances_over_the_room_miss_no_blended_surface(tiled_room, rng):
+    """Over the whole room, against a 7 cm raster: a tile's nearest surface outside its core
+    does not hide a nearer one that another tile tells."""
+    points, expected = blended_level_distances(
+        tiled_room, [-3.5, -2.5, 0.2], [3.5, 2.5, 2.8], 0.07, 10_000, rng
+    )
+    near = np.abs(expected) < 0.5
+    assert near.sum() > 800
+    for unknown_is_occupied in (False, True):
+        distance = tiled_room.distance(points, unknown_is_occupied=unknown_is_occupied)
+        error = np.abs(distance - expected)[near]
+        assert np.median(error) < 0.04
+        assert np.percentile(error, 99) < 0.4
 
 
 def test_distances_outside_every_tile_and_bad_rows(tiled_room, room_map):

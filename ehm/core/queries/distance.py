@@ -46,8 +46,9 @@ class DistanceField:
     voxels no kernel reaches are obstacles too (else free); reach: metres, farthest distance
     kept; unknown_box: (2, 3) metres, world frame, [low, high] corners, or None: with
     unknown_is_occupied, only unknown voxels whose centres lie inside it are obstacles (a
-    tile's learn box: beyond it, what the tile does not know is another tile's to tell). Fed
-    the grid's scores by `update`; `distances` answers."""
+    planner's workspace); obstacle_box, alike: only voxels whose centres lie inside it are
+    obstacles, occupied or unknown (a tile's core: beyond it, obstacles are another tile's to
+    tell). Fed the grid's scores by `update`; `distances` answers."""
 
     def __init__(
         self,
@@ -58,6 +59,7 @@ class DistanceField:
         unknown_is_occupied: bool,
         reach: float,
         unknown_box: np.ndarray | None = None,
+        obstacle_box: np.ndarray | None = None,
     ) -> None:
         self.origin = np.asarray(origin, dtype=np.float64)
         self.resolution = float(resolution)
@@ -66,7 +68,9 @@ class DistanceField:
         self.unknown_is_occupied = bool(unknown_is_occupied)
         self.reach = float(reach)
         self.unknown_box = None if unknown_box is None else np.asarray(unknown_box, float)
-        self._masks_unknown = self.unknown_box is not None and self.unknown_is_occupied
+        self.obstacle_box = None if obstacle_box is None else np.asarray(obstacle_box, float)
+        self._boxes_unknown = self.unknown_box is not None and self.unknown_is_occupied
+        self._boxes = self._boxes_unknown or self.obstacle_box is not None
         self._boxed_scores: np.ndarray | None = None
         # Per voxel: the flat index of the voxel whose surfel is nearest its centre; -1: none.
         self.nearest = np.full(self.shape, -1, dtype=np.int32)
@@ -100,7 +104,7 @@ class DistanceField:
         seen = tuple(slice(a, b) for a, b in zip(seen_low, seen_high, strict=True))
         corner = self.origin + seen_low * self.resolution
         block = scores[seen]
-        if self._masks_unknown:  # the scores as the box makes them, kept for `distances`
+        if self._boxes:  # the scores as the boxes make them, kept for `distances`
             block = self._boxed(block, corner, intercept)
             if self._boxed_scores is None:  # the first update sees every voxel
                 self._boxed_scores = np.empty_like(scores)
@@ -156,13 +160,13 @@ class DistanceField:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) signed distances, metres, at (n, 3) float64 points, metres, world frame, and
         with_gradient their (n, 3) gradients (else (0, 3)); `scores` as last given to
-        `update`, for the side of points far from every surfel (with an unknown_box, the
-        field's own copy as the box makes them). Points outside the grid lie beyond reach of
-        every surfel: reach, or -reach where unknown space is an obstacle (inside the box)."""
+        `update`, for the side of points far from every surfel (with a box, the field's own
+        copy as the boxes make them). Points outside the grid lie beyond reach of every
+        surfel: reach, or -reach where unknown space is an obstacle (inside the boxes)."""
         points = np.ascontiguousarray(points, dtype=np.float64)
         distance = np.empty(len(points))
         gradient = np.zeros((len(points) if with_gradient else 0, 3))
-        if self._masks_unknown:
+        if self._boxes:
             scores = self._boxed_scores
         _field_distances(
             points,
@@ -181,47 +185,63 @@ class DistanceField:
             distance,
             gradient,
         )
-        if self._masks_unknown:  # beyond the grid
-            outside = np.any((points < self.unknown_box[0]) | (points > self.unknown_box[1]), 1)
+        if self._boxes:  # beyond the grid
+            outside = np.zeros(len(points), dtype=bool)
+            for box in (self.unknown_box, self.obstacle_box):
+                if box is not None:
+                    outside |= np.any((points < box[0]) | (points > box[1]), axis=1)
             distance[outside & (distance == -self.reach)] = self.reach
         return distance, gradient
 
     def _boxed_log_odds(
         self, log_odds: Callable[[np.ndarray], np.ndarray], intercept: float
     ) -> Callable[[np.ndarray], np.ndarray]:
-        """`log_odds` read as `_boxed` reads scores: where no kernel reaches (the log-odds
-        are the `intercept`) outside unknown_box, known and free."""
-        if not self._masks_unknown:
+        """`log_odds` read as `_boxed` reads scores: known and free outside obstacle_box, and
+        where no kernel reaches (the log-odds are the `intercept`) outside unknown_box."""
+        if not self._boxes:
             return log_odds
-        box, free = self.unknown_box, min(self.threshold, intercept) - 1.0
+        free = min(self.threshold, intercept) - 1.0
 
         def boxed(points: np.ndarray) -> np.ndarray:
             values = log_odds(points)
-            outside = np.any((points < box[0]) | (points > box[1]), axis=1)
             unknown = np.abs(values - intercept) <= KNOWN_SCORE
-            return np.where(outside & unknown, free, values)
+            freed = self._freed(
+                unknown, lambda box: np.any((points < box[0]) | (points > box[1]), axis=1)
+            )
+            return np.where(freed, free, values)
 
         return boxed
 
     def _boxed(self, scores: np.ndarray, corner: np.ndarray, intercept: float) -> np.ndarray:
-        """`scores` (a block of the grid's, its voxel (0, 0, 0) at `corner`, metres) with
-        the unknown voxels outside unknown_box, when unknown space is an obstacle, made
-        known and free: a copy, or `scores` itself when none changes."""
-        if not self._masks_unknown:
-            return scores
+        """`scores` (a block of the grid's, its voxel (0, 0, 0) at `corner`, metres) with the
+        voxels outside obstacle_box, and the unknown ones outside unknown_box when unknown
+        space is an obstacle, made known and free: a copy, or `scores` itself when none
+        changes."""
         centres = [
             corner[a] + (np.arange(scores.shape[a]) + 0.5) * self.resolution for a in range(3)
         ]
-        inside = [
-            (c >= self.unknown_box[0, a]) & (c <= self.unknown_box[1, a])
-            for a, c in enumerate(centres)
-        ]
-        outside = ~(inside[0][:, None, None] & inside[1][None, :, None] & inside[2][None, None, :])
-        unknown = np.abs(scores) <= KNOWN_SCORE
-        if not np.any(outside & unknown):
+
+        def outside(box: np.ndarray) -> np.ndarray:
+            inside = [(c >= box[0, a]) & (c <= box[1, a]) for a, c in enumerate(centres)]
+            return ~(inside[0][:, None, None] & inside[1][None, :, None] & inside[2][None, None])
+
+        freed = self._freed(np.abs(scores) <= KNOWN_SCORE, outside)
+        if not np.any(freed):
             return scores
         free = min(self.threshold - intercept, 0.0) - 1.0  # known, below the level
-        return np.where(outside & unknown, free, scores)
+        return np.where(freed, free, scores)
+
+    def _freed(
+        self, unknown: np.ndarray, outside: Callable[[np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """Which of some voxels or points (`unknown`: bool array, which are unknown) the boxes
+        make known and free; outside((2, 3) box) -> bool array: which lie outside it."""
+        freed = np.zeros(np.shape(unknown), dtype=bool)
+        if self.obstacle_box is not None:
+            freed |= outside(self.obstacle_box)
+        if self._boxes_unknown:
+            freed |= unknown & outside(self.unknown_box)
+        return freed
 
     @property
     def nbytes(self) -> int:
