@@ -292,17 +292,19 @@ def test_distances_over_the_room_miss_no_blended_surface(tiled_room, rng):
 
 def test_distances_in_2d_tiles_are_not_farther_than_one_maps(rng):
     """A wall 4 m around a sensor in 2D, in tiles of 2 m: distances read as one map reads
-    them, and where they differ, the nearer (a tile misses no obstacle another one tells)."""
+    them, and where they differ, the nearer (a tile misses no obstacle another one tells).
+    Unknown space lies nearer in tiles (0.04-0.054 m median over seeds): a tile's kernels stop
+    sooner where its rays are clipped."""
     angles = np.linspace(-1.2, 1.2, 400)
     ends = 4.0 * np.column_stack([np.cos(angles), np.sin(angles)])
     one = HilbertMap(batch_rays=0).integrate(ends, np.zeros(2))
     tiled = TiledMap(2.0, 0.5, batch_rays=0).integrate(ends, np.zeros(2))
     radius, angle = rng.uniform(0.5, 3.9, 3000), rng.uniform(-1.05, 1.05, 3000)
     points = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
-    for unknown_is_occupied, farther_share in ((False, 0.01), (True, 0.05)):
+    for unknown_is_occupied, median, farther_share in ((False, 0.02, 0.01), (True, 0.08, 0.05)):
         kept = tiled.distance(points, unknown_is_occupied=unknown_is_occupied)
         alone = one.distance(points, unknown_is_occupied=unknown_is_occupied)
-        assert np.median(np.abs(kept - alone)) < 0.05
+        assert np.median(np.abs(kept - alone)) < median
         assert np.mean(kept - alone > 0.1) < farther_share
 
 
