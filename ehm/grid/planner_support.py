@@ -4,10 +4,10 @@ distances (`distance`).
 One grid of the map's log-odds, at voxels of about a cluster radius, serves both. Rays march it
 first, and the cells kernels of positive weight reach with their summed weight
 (ehm.core.queries.cover), from which the cells where the occupancy may pass a level, guide the
-rays the grid does not settle. Distance fields (ehm.core.queries.distance), one per level and
-rule for unknown space and boxes asked for, are made from its log-odds, the means of the clusters of
-positive weight (where obstacles thinner than a voxel peak) and the map's log-odds as point
-queries read them, which place the surface.
+rays the grid does not settle. Distance fields (ehm.core.queries.distance), one per level,
+rule for unknown space and boxes asked for, are made from its log-odds, the means of the
+clusters of positive weight (where obstacles thinner than a voxel peak) and the map's log-odds
+as point queries read them, which place the surface.
 
 Each is made on first use and then follows the map: after each update only what clusters that
 changed cover is counted again (OccupancyGrid.update, KernelCover.changed), and a distance
