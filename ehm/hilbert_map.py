@@ -45,6 +45,7 @@ from ehm.core.queries.raycast import (
     refine_guesses,
     segment_rays,
 )
+from ehm.core.queries.surfels import ReadNear
 from ehm.core.search.anchors import AnchorLayers
 from ehm.core.search.index import ClusterIndex
 from ehm.core.search.supports import SupportHash
@@ -121,6 +122,7 @@ class HilbertMap:
             RAY_CELLS_PER_RADIUS * self.config.cluster_radius,
             self.config.distance_reach,
             self._point_log_odds,
+            self._near_log_odds,
         )
 
     # ------------------------------------------------------------------ state
@@ -646,10 +648,11 @@ class HilbertMap:
         world frame, makes it an obstacle only inside that box (a planner's workspace);
         obstacle_box, alike, counts obstacles (occupied, and unknown when asked) only inside
         it (a tile's core). Read from a signed distance field of surfels on
-        cluster_radius voxels, put where point queries (mode 'exact') meet the level
+        cluster_radius voxels, put where the log-odds meet the level as point queries read
+        them, from one search of nearest clusters around each surfel
         (ehm.core.queries.distance, ehm.grid.planner_support), made on the first call for a
         level and boxes and kept up to date as the map learns (each update's stage 'grids'; on
-        large maps learned scan by scan this costs several times the update, BENCHMARKS.md).
+        large maps learned scan by scan this costs up to twice the update, BENCHMARKS.md).
         NaN rows for points that are not finite; InputError for a box of another shape or
         with low > high, and for maps whose grid would be too large to keep (tile them)."""
         self._learned("measure distances in it")
@@ -691,6 +694,23 @@ class HilbertMap:
         """(n,) log-odds at (n, d) points as `occupancy` reads each point alone (mode 'exact':
         a function of the point, whatever else is asked with it)."""
         return self._scores(points, "exact", False)[0]
+
+    def _near_log_odds(self, places: np.ndarray, spread: float) -> ReadNear:
+        """What reads the log-odds at points within `spread` metres of (m, d) `places`, metres
+        (ehm.core.queries.surfels.NearLogOdds): with 'nearest' features, each point from the
+        nearest clusters of its place, found once per place (as a query in batch mode reads a
+        group); with 'support', each point alone (the same)."""
+        if self.config.features == "support":
+            return lambda points, rows: self._point_log_odds(points)
+        clusters, cfg = self._learned("query it"), self.config
+        neighbours = self._index.nearest(places, cfg.neighbours, cfg.coarse_neighbours, spread)
+        kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
+        learned = (clusters.weights, self._query_intercept(), np.zeros(0), False)
+
+        def read(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+            return decision_values(points, rows, neighbours, *kernels, *learned)[0]
+
+        return read
 
     def _query_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Checked (n, d) float64 points, which rows are finite, and those rows (contiguous)."""

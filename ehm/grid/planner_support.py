@@ -14,8 +14,9 @@ changed cover is counted again (OccupancyGrid.update, KernelCover.changed), and 
 field looks again only within its reach of the box of voxels whose log-odds changed. The grid
 reaches somewhat beyond the map, and at least a distance field's reach; a map that grows
 beyond that has it made again as it learns, and a grid too large to keep is tried again at the
-next query after an update. Keeping a distance field costs many point queries per update
-where the map is large and every scan changes most of it (BENCHMARKS.md, "Distances").
+next query after an update. Keeping a distance field costs a search of nearest clusters per
+surfel an update moves, where the map is large and every scan changes most of it
+(BENCHMARKS.md, "Distances").
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from ehm.core.model.kernels import kernel_reach
 from ehm.core.queries.cover import KernelCover
 from ehm.core.queries.distance import DistanceField
 from ehm.core.queries.raycast import CandidateCells, GridLogOdds
+from ehm.core.queries.surfels import NearLogOdds, ReadNear
 from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError
 from ehm.grid.bounds import support_bounds, support_half_widths
@@ -58,11 +60,13 @@ class PlannerSupport:
         cell_side: float,
         reach: float,
         log_odds: Callable[[np.ndarray], np.ndarray],
+        near_log_odds: NearLogOdds,
     ) -> None:
         self.resolution = resolution
         self.cell_side = cell_side
         self.reach = reach
         self._log_odds_at = log_odds
+        self._near_log_odds = near_log_odds
         self._grid: OccupancyGrid | None = None
         self._log_odds: GridLogOdds | None = None
         self._grid_tried = False  # a grid too large to keep is not tried again until an update
@@ -179,7 +183,13 @@ class PlannerSupport:
             _lifted_box(unknown_box),
             _lifted_box(obstacle_box),
         )
-        field.update(self._scores_3d(), self._grid.intercept, self._lifted_log_odds, self._peaks())
+        field.update(
+            self._scores_3d(),
+            self._grid.intercept,
+            self._lifted_log_odds,
+            self._peaks(),
+            near=self._lifted_near,
+        )
         return field
 
     def _peaks(self) -> np.ndarray:
@@ -197,6 +207,13 @@ class PlannerSupport:
     def _lifted_log_odds(self, points: np.ndarray) -> np.ndarray:
         """The map's log-odds at (n, 3) points of the 3D lattice (a 2D map's: their x, y)."""
         return self._log_odds_at(np.ascontiguousarray(points[:, : self._grid.dim]))
+
+    def _lifted_near(self, places: np.ndarray, spread: float) -> ReadNear:
+        """The map's NearLogOdds around (m, 3) places of the 3D lattice (a 2D map's: their
+        x, y)."""
+        dim = self._grid.dim
+        read = self._near_log_odds(np.ascontiguousarray(places[:, :dim]), spread)
+        return lambda points, rows: read(np.ascontiguousarray(points[:, :dim]), rows)
 
     def _scores_3d(self) -> np.ndarray:
         """The grid's scores as a 3D array (a view; a 2D grid is one voxel thick)."""
@@ -256,7 +273,12 @@ class PlannerSupport:
         peaks = self._peaks() if self._fields else np.zeros((0, 3))
         for field in self._fields.values():
             field.update(
-                self._scores_3d(), self._grid.intercept, self._lifted_log_odds, peaks, changed
+                self._scores_3d(),
+                self._grid.intercept,
+                self._lifted_log_odds,
+                peaks,
+                changed,
+                self._lifted_near,
             )
 
     def _cover_update(self, old: MapSnapshot | None, snapshot: MapSnapshot) -> KernelCover | None:

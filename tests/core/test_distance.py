@@ -13,6 +13,7 @@ from ehm.core.queries.distance import (
 )
 from ehm.core.queries.surfels import (
     Surfels,
+    anywhere,
     box_surfels,
     box_surfels_reference,
     on_level,
@@ -86,15 +87,16 @@ def test_on_level_moves_surfels_onto_the_exact_level():
         scores, 0.0, 0.0, False, ORIGIN, RESOLUTION, np.zeros(3, int), np.array(SHAPE)
     )
     # The map's own log-odds put the surface 3 cm inside the grid's.
-    moved = on_level(surfels, lambda p: ball_log_odds(p, radius=0.42), 0.0, RESOLUTION)
+    moved = on_level(surfels, anywhere(lambda p: ball_log_odds(p, radius=0.42)), 0.0, RESOLUTION)
     radii = np.linalg.norm(moved.positions, axis=1)
     # Along each normal, within the normal's angle to the radius.
     assert np.median(np.abs(radii - 0.42)) < 2e-3
     np.testing.assert_array_equal(moved.keys, surfels.keys)
     # No crossing within a voxel to either side: the surfel is left out.
-    inner = on_level(surfels, lambda p: ball_log_odds(p, radius=0.3), 0.0, RESOLUTION)
+    inner = on_level(surfels, anywhere(lambda p: ball_log_odds(p, radius=0.3)), 0.0, RESOLUTION)
     assert len(inner.keys) == 0
-    assert len(on_level(surfels, lambda p: np.full(len(p), 5.0), 0.0, RESOLUTION).keys) == 0
+    everywhere_occupied = anywhere(lambda p: np.full(len(p), 5.0))
+    assert len(on_level(surfels, everywhere_occupied, 0.0, RESOLUTION).keys) == 0
 
 
 def test_on_level_reads_from_the_surfel_outwards_and_takes_the_nearest_crossing():
@@ -117,7 +119,8 @@ def test_on_level_reads_from_the_surfel_outwards_and_takes_the_nearest_crossing(
         return np.where(surfel == 2, double, 20.0 * single)
 
     asked = []
-    moved = on_level(surfels, lambda p: asked.append(len(p)) or log_odds(p), 0.0, RESOLUTION)
+    counted = anywhere(lambda p: asked.append(len(p)) or log_odds(p))
+    moved = on_level(surfels, counted, 0.0, RESOLUTION)
     # Three points for every surfel, then the outer pair for the two the first do not settle.
     assert asked[:2] == [9, 4]
     np.testing.assert_array_equal(moved.keys, [0, 1, 2])

@@ -131,6 +131,30 @@ def test_the_field_follows_updates_as_a_fresh_one_would(rng):
         assert np.percentile(error, 90) < 0.75 * hilbert_map.config.cluster_radius
 
 
+def test_surfels_read_the_log_odds_around_them_from_one_search_each(room, room_map, rng):
+    """What puts surfels on the level reads points along each surfel's normal from one search
+    of nearest clusters around it: at the surfel itself, what a point query reads; within the
+    spread, nearly so (a group search, as batch queries make); with every kernel at a point
+    ('support'), exactly what point queries read."""
+    hits = room.scans[0].points_world[room.scans[0].hit_mask]
+    places = hits[rng.integers(0, len(hits), 2000)] + rng.normal(0.0, 0.05, (2000, 3))
+    spread = room_map.config.cluster_radius
+    rows = np.repeat(np.arange(len(places)), 5)
+    offsets = rng.normal(size=(len(rows), 3))
+    offsets *= (rng.uniform(0.0, spread, len(rows)) / np.linalg.norm(offsets, axis=1))[:, None]
+    points = places[rows] + offsets
+    read = room_map._near_log_odds(places, spread)
+    at_places = read(places, np.arange(len(places)))
+    np.testing.assert_array_equal(at_places, room_map._point_log_odds(places))
+    around, exact = read(points, rows), room_map._point_log_odds(points)
+    assert np.median(np.abs(around - exact)) < 0.01
+    assert np.mean(np.sign(around) == np.sign(exact)) > 0.95
+    supported = ehm.HilbertMap(features="support").integrate_scan(room.scans[0])
+    np.testing.assert_array_equal(
+        supported._near_log_odds(places, spread)(points, rows), supported._point_log_odds(points)
+    )
+
+
 def test_unknown_space_is_an_obstacle_only_when_asked():
     hilbert_map = wall_map(4.0)
     behind_the_wall = np.array([[7.0, 0.0]])

@@ -25,7 +25,10 @@ import numpy as np
 from ehm.core.queries.nearest_sites import nearest_sites
 from ehm.core.queries.surfels import (
     KNOWN_SCORE,
+    NearLogOdds,
+    ReadNear,
     Surfels,
+    anywhere,
     box_surfels,
     is_obstacle,
     on_level,
@@ -84,21 +87,24 @@ class DistanceField:
         log_odds: Callable[[np.ndarray], np.ndarray],
         peaks: np.ndarray,
         changed: np.ndarray | None = None,
+        near: NearLogOdds | None = None,
     ) -> None:
         """Follow the grid's new `scores` (the field's shape, float64, log-odds less
         `intercept`) where they changed, in `changed` ((2, 3) int64, the box of voxels [low,
         high); None: everywhere): the surfels of voxels within one voxel of it, found where the
         map's `log_odds` ((n, 3) metres -> (n,), as point queries read them) reach the level at
         one of `peaks` ((P, 3) metres, the means of clusters of positive weight) as well as at
-        the voxel centres (ehm.core.queries.surfels.with_peaks) and put on the level of
-        `log_odds` (on_level); and the nearest surfels of voxels within `reach` of those."""
+        the voxel centres (ehm.core.queries.surfels.with_peaks) and put on the level of the
+        log-odds `near` reads around each surfel (on_level; None: `log_odds`, point by point);
+        and the nearest surfels of voxels within `reach` of those."""
         shape = np.array(self.shape)
         if changed is None or intercept != self.intercept:
             changed = np.array([np.zeros(3, dtype=np.int64), shape])
         if np.any(changed[1] <= changed[0]):
             return
         self.intercept = intercept
-        log_odds = self._boxed_log_odds(log_odds, intercept)
+        near = anywhere(log_odds) if near is None else near
+        log_odds, near = self._boxed_readers(log_odds, near, intercept)
         low, high = _grown(changed, 1, shape)  # the voxels whose surfels may change
         seen_low, seen_high = _grown(changed, 2, shape)  # and their neighbours
         seen = tuple(slice(a, b) for a, b in zip(seen_low, seen_high, strict=True))
@@ -131,7 +137,7 @@ class DistanceField:
         index = np.column_stack(np.unravel_index(local.keys, levels.shape)) + seen_low
         keys = np.ravel_multi_index(tuple(index.T), self.shape).astype(np.int64)
         fresh = on_level(
-            Surfels(keys, local.positions, local.normals), log_odds, self.threshold, self.resolution
+            Surfels(keys, local.positions, local.normals), near, self.threshold, self.resolution
         )
         self.surfels = Surfels.joined(self.surfels.outside(low, high, self.shape), fresh)
         margin = int(np.ceil(self.reach / self.resolution)) + 1
@@ -193,24 +199,28 @@ class DistanceField:
             distance[outside & (distance == -self.reach)] = self.reach
         return distance, gradient
 
-    def _boxed_log_odds(
-        self, log_odds: Callable[[np.ndarray], np.ndarray], intercept: float
-    ) -> Callable[[np.ndarray], np.ndarray]:
-        """`log_odds` read as `_boxed` reads scores: known and free outside obstacle_box, and
-        where no kernel reaches (the log-odds are the `intercept`) outside unknown_box."""
+    def _boxed_readers(
+        self, log_odds: Callable[[np.ndarray], np.ndarray], near: NearLogOdds, intercept: float
+    ) -> tuple[Callable[[np.ndarray], np.ndarray], NearLogOdds]:
+        """`log_odds` and `near` read as `_boxed` reads scores: known and free outside
+        obstacle_box, and where no kernel reaches (the log-odds are the `intercept`) outside
+        unknown_box."""
         if not self._boxes:
-            return log_odds
+            return log_odds, near
         free = min(self.threshold, intercept) - 1.0
 
-        def boxed(points: np.ndarray) -> np.ndarray:
-            values = log_odds(points)
+        def boxed(points: np.ndarray, values: np.ndarray) -> np.ndarray:
             unknown = np.abs(values - intercept) <= KNOWN_SCORE
             freed = self._freed(
                 unknown, lambda box: np.any((points < box[0]) | (points > box[1]), axis=1)
             )
             return np.where(freed, free, values)
 
-        return boxed
+        def boxed_near(places: np.ndarray, spread: float) -> ReadNear:
+            read = near(places, spread)
+            return lambda points, rows: boxed(points, read(points, rows))
+
+        return lambda points: boxed(points, log_odds(points)), boxed_near
 
     def _boxed(self, scores: np.ndarray, corner: np.ndarray, intercept: float) -> np.ndarray:
         """`scores` (a block of the grid's, its voxel (0, 0, 0) at `corner`, metres) with the

@@ -19,7 +19,10 @@ A grid's log-odds are those of its voxel centres, linear in between only approxi
 a grid sums every kernel where point queries sum the nearest ones: the surfels are then moved
 along their normals to where the map's own log-odds, as point queries read them, meet the
 level, or left out where they do not nearby (`on_level`), so that distances agree with
-`occupancy`.
+`occupancy`. A map whose point queries search for each point's nearest clusters reads each
+surfel's points along its normal from one search around the surfel (`NearLogOdds`), as its
+queries in batch mode read a group of points: the searches are most of what putting surfels
+on the level costs.
 """
 
 from __future__ import annotations
@@ -76,6 +79,18 @@ LEVEL_SPAN = 1.0
 LEVEL_STEPS = 5
 LEVEL_REFINEMENTS = 2
 
+ReadNear = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""read(points (n, 3) metres, rows (n,) int64) -> (n,) log-odds: a map's log-odds at points,
+each within the spread of the place of its row (see NearLogOdds)."""
+NearLogOdds = Callable[[np.ndarray, float], ReadNear]
+"""near(places (m, 3) metres, spread metres) -> ReadNear: what reads a map's log-odds around
+those places (a map of nearest-cluster features: from one search per place)."""
+
+
+def anywhere(log_odds: Callable[[np.ndarray], np.ndarray]) -> NearLogOdds:
+    """The NearLogOdds of `log_odds` ((n, 3) metres -> (n,)), which reads each point alone."""
+    return lambda places, spread: lambda points, rows: log_odds(points)
+
 
 def with_peaks(
     scores: np.ndarray,
@@ -104,12 +119,12 @@ def with_peaks(
 
 def on_level(
     surfels: Surfels,
-    log_odds: Callable[[np.ndarray], np.ndarray],
+    near: NearLogOdds,
     threshold: float,
     resolution: float,
 ) -> Surfels:
-    """`surfels` each moved along its normal to the crossing of `threshold` by `log_odds`
-    ((n, 3) metres -> (n,) log-odds, as point queries read them) nearest its position, within
+    """`surfels` each moved along its normal to the crossing of `threshold` by the log-odds
+    `near` reads around it (as point queries read them) nearest its position, within
     LEVEL_SPAN voxels of `resolution` metres to either side: bracketed between LEVEL_STEPS
     points (read from the surfel outwards until one pair brackets a crossing), then located
     by LEVEL_REFINEMENTS steps of false position. Surfels with no crossing there are left
@@ -117,6 +132,7 @@ def on_level(
     count = len(surfels.keys)
     if count == 0:
         return surfels
+    read = near(surfels.positions, LEVEL_SPAN * resolution)
     along = np.linspace(-LEVEL_SPAN, LEVEL_SPAN, LEVEL_STEPS) * resolution
     # Read from the middle out: the points nearest the surfel first, then the next pair out
     # only for the surfels whose points read so far bracket no crossing. The crossing nearest
@@ -135,8 +151,9 @@ def on_level(
             surfels.positions[rows, None, :]
             + along[None, columns, None] * surfels.normals[rows, None, :]
         )
-        read = log_odds(points.reshape(-1, 3)).reshape(len(rows), len(columns)) - threshold
-        above[rows[:, None], columns] = read
+        owners = np.repeat(rows, len(columns))
+        values = read(points.reshape(-1, 3), owners).reshape(len(rows), len(columns))
+        above[rows[:, None], columns] = values - threshold
         # Crossings out of the obstacle (behind the surfel, against its normal) into free
         # space, in the intervals just opened: the inner one on the side behind first.
         for interval in (middle - half_width, middle + half_width - 1):
@@ -151,7 +168,7 @@ def on_level(
     at_inner, at_outer = above[rows, nearest[rows]], above[rows, nearest[rows] + 1]
     for _ in range(LEVEL_REFINEMENTS):
         guess = inner + at_inner / (at_inner - at_outer) * (outer - inner)
-        at_guess = log_odds(start + guess[:, None] * normals) - threshold
+        at_guess = read(start + guess[:, None] * normals, rows) - threshold
         inside = at_guess >= 0.0
         inner, at_inner = np.where(inside, guess, inner), np.where(inside, at_guess, at_inner)
         outer, at_outer = np.where(inside, outer, guess), np.where(inside, at_outer, at_guess)
