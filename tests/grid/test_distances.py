@@ -186,7 +186,7 @@ def test_unknown_space_is_an_obstacle_only_when_asked():
             hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=np.array(bad))
 
 
-def test_only_obstacles_inside_the_obstacle_box_count():
+def test_a_map_counts_only_obstacles_inside_the_obstacle_box():
     """The wall, a circle of 4 m, cut by a box that ends at x = 3.8 m: from (3, 0) the wall
     ahead no longer counts, only its part beside, as far as the box reaches."""
     hilbert_map = wall_map(4.0)
