@@ -195,7 +195,7 @@ class DistanceField:
             outside = np.zeros(len(points), dtype=bool)
             for box in (self.unknown_box, self.obstacle_box):
                 if box is not None:
-                    outside |= np.any((points < box[0]) | (points > box[1]), axis=1)
+                    outside |= _outside(points, box)
             distance[outside & (distance == -self.reach)] = self.reach
         return distance, gradient
 
@@ -211,9 +211,7 @@ class DistanceField:
 
         def boxed(points: np.ndarray, values: np.ndarray) -> np.ndarray:
             unknown = np.abs(values - intercept) <= KNOWN_SCORE
-            freed = self._freed(
-                unknown, lambda box: np.any((points < box[0]) | (points > box[1]), axis=1)
-            )
+            freed = self._freed(unknown, lambda box: _outside(points, box))
             return np.where(freed, free, values)
 
         def boxed_near(places: np.ndarray, spread: float) -> ReadNear:
@@ -258,6 +256,11 @@ class DistanceField:
         surfels = self.surfels
         boxed = 0 if self._boxed_scores is None else self._boxed_scores.nbytes
         return self.nearest.nbytes + sum(a.nbytes for a in surfels) + boxed
+
+
+def _outside(points: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """(n,) bool: which of (n, 3) points, metres, lie outside `box` ((2, 3) [low, high])."""
+    return np.any((points < box[0]) | (points > box[1]), axis=1)
 
 
 def _grown(box: np.ndarray, voxels: int, shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
