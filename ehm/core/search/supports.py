@@ -95,14 +95,20 @@ def sub_cell_slabs(dim: int, divisions: int) -> np.ndarray:
     c_a for the sub-cell at c, as _cell_of numbers them) whose coordinate along axis a lies
     in lo .. hi, as bits of slabs[a, lo, hi]. A box of sub-cells is the AND of its axes'
     slabs."""
-    bit = np.arange(divisions**dim)
-    coordinates = (bit[:, None] // divisions ** np.arange(dim)) % divisions
+    bit = np.arange(divisions**dim, dtype=np.uint64)
+    coordinates = (bit[:, None] // divisions ** np.arange(dim, dtype=np.uint64)) % divisions
     slabs = np.zeros((dim, divisions, divisions), dtype=np.uint64)
     for a in range(dim):
+        # The bits of each single coordinate along the axis, then their running ORs.
+        single = [
+            np.bitwise_or.reduce(np.uint64(1) << bit[coordinates[:, a] == c])
+            for c in range(divisions)
+        ]
         for lo in range(divisions):
+            slab = np.uint64(0)
             for hi in range(lo, divisions):
-                inside = bit[(coordinates[:, a] >= lo) & (coordinates[:, a] <= hi)]
-                slabs[a, lo, hi] = np.bitwise_or.reduce(np.uint64(1) << inside.astype(np.uint64))
+                slab |= single[hi]
+                slabs[a, lo, hi] = slab
     return slabs
 
 
