@@ -144,16 +144,16 @@ def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
     would give more than `max_free_samples`); with `learn_box`, only along the part of each ray
     inside it, as densely as along the whole ray.
     """
-    parts = [_rays_of_scan(scan, config) for scan in scans]
-    columns = (np.concatenate(column) for column in zip(*parts, strict=True))
-    return ScanRays(*columns, plane_side=config.cluster_radius)
-
-
-def _rays_of_scan(scan: Scan, config: MapConfig) -> tuple[np.ndarray, ...]:
-    offsets = scan.points_world - scan.origin
+    # The batch's scans as one set of rays, each with its scan's origin: a 2D batch holds
+    # hundreds of scans of a few hundred rays each.
+    points = np.concatenate([scan.points_world for scan in scans])
+    hits = np.concatenate([scan.hit_mask for scan in scans])
+    counts = [len(scan) for scan in scans]
+    origins = np.repeat(np.stack([scan.origin for scan in scans]), counts, axis=0)
+    offsets = points - origins
     lengths = np.linalg.norm(offsets, axis=1)
     usable = (lengths > 0) & (lengths >= config.min_range)
-    offsets, lengths, hits = offsets[usable], lengths[usable], scan.hit_mask[usable]
+    offsets, lengths, hits, origins = (a[usable] for a in (offsets, lengths, hits, origins))
     if config.max_range > 0:
         hits = hits & (lengths <= config.max_range)
         scale = np.minimum(config.max_range / lengths, 1.0)
@@ -163,10 +163,18 @@ def _rays_of_scan(scan: Scan, config: MapConfig) -> tuple[np.ndarray, ...]:
     spacing = np.maximum(config.free_spacing, free_length / config.max_free_samples)
     free_start, free_end = np.zeros(len(lengths)), free_length
     if config.learn_box:
-        box = learn_box(config, scan.dim)
-        free_start, free_end = ray_box_intervals(scan.origin, directions, free_length, box)
-    origins = np.broadcast_to(scan.origin, directions.shape)
-    return origins, directions, lengths, hits, free_start, free_end, spacing
+        box = learn_box(config, points.shape[1])
+        free_start, free_end = ray_box_intervals(origins, directions, free_length, box)
+    return ScanRays(
+        origins,
+        directions,
+        lengths,
+        hits,
+        free_start,
+        free_end,
+        spacing,
+        plane_side=config.cluster_radius,
+    )
 
 
 def ray_randoms(n: int, rng: np.random.Generator) -> np.ndarray:

@@ -11,7 +11,8 @@ def ray_box_intervals(
     """Where rays run inside a box: (n,) start and end distances along each ray, metres from
     `origin`, within [0, lengths]; start > end where a ray misses the box.
 
-    origin: (d,) metres, world frame; directions: (n, d) unit vectors; lengths: (n,) metres;
+    origin: (d,) metres, world frame, or (n, d): each ray's own; directions: (n, d) unit
+    vectors; lengths: (n,) metres;
     box: (2, d) metres, [low corner, high corner]. A ray that only touches a face counts as
     inside over that point.
     """
@@ -19,7 +20,7 @@ def ray_box_intervals(
     start, end = np.zeros(n), np.asarray(lengths, dtype=np.float64).copy()
     for axis in range(directions.shape[1]):
         step = directions[:, axis]
-        low, high = box[0, axis] - origin[axis], box[1, axis] - origin[axis]
+        low, high = box[0, axis] - origin[..., axis], box[1, axis] - origin[..., axis]
         moving = step != 0.0
         with np.errstate(divide="ignore", invalid="ignore"):  # rays parallel: see below
             t_low, t_high = low / step, high / step
