@@ -8,8 +8,6 @@ import pytest
 from ehm.core.queries.distance import (
     DistanceField,
     field_distances_reference,
-    write_keys,
-    write_keys_reference,
 )
 from ehm.core.queries.surfels import (
     Surfels,
@@ -320,16 +318,6 @@ def test_an_obstacle_between_voxel_centres_shows_at_its_peaks(rng):
     assert np.all(blind.distances(above, scores, False)[0] == 0.6)
     # The surfels of the raised voxels go onto the slab's faces (its top, seen from above).
     np.testing.assert_allclose(seeing.distances(above, scores, False)[0], 0.28, atol=0.01)
-
-
-def test_feature_transform_keys_agree_with_their_twin(rng):
-    shape = np.array([30, 20, 10])
-    offset = np.array([4, 2, 1])
-    box_shape = np.array([9, 8, 7])
-    found = rng.integers(0, np.prod(box_shape), (7, 6, 5))
-    out = np.full((7, 6, 5), -1, dtype=np.int32)
-    write_keys(found, offset, box_shape, shape, out)
-    np.testing.assert_array_equal(out, write_keys_reference(found, offset, box_shape, shape))
 
 
 def test_surfels_of_disjoint_sets_join_sorted():

@@ -157,9 +157,9 @@ class DistanceField:
             return
         sites = np.zeros(tuple(seen_high - seen_low), dtype=bool)
         sites[tuple((index[inside] - seen_low).T)] = True
-        found = nearest_sites(sites)
+        found = nearest_sites(sites, seen_low, shape)
         part = tuple(slice(a, b) for a, b in zip(low - seen_low, high - seen_low, strict=True))
-        write_keys(found[part], seen_low, np.array(sites.shape), shape, self.nearest[box])
+        self.nearest[box] = found[part]
 
     def distances(
         self, points: np.ndarray, scores: np.ndarray, with_gradient: bool
@@ -267,30 +267,6 @@ def _grown(box: np.ndarray, voxels: int, shape: np.ndarray) -> tuple[np.ndarray,
     """The box of voxels [low, high) ((2, 3) int64) grown by `voxels` on every side, within a
     grid of `shape`."""
     return np.maximum(box[0] - voxels, 0), np.minimum(box[1] + voxels, shape)
-
-
-@numba.njit(cache=True, parallel=True)
-def write_keys(found, offset, box_shape, shape, out):  # pragma: no cover - compiled
-    """out[i, j, k] = the flat index, in a grid of `shape`, of the voxel whose flat index in a
-    box of `box_shape` with low corner `offset` in that grid is found[i, j, k] (a feature
-    transform of the box, ehm.core.queries.nearest_sites)."""
-    for i in numba.prange(out.shape[0]):
-        for j in range(out.shape[1]):
-            for k in range(out.shape[2]):
-                flat = found[i, j, k]
-                c = flat % box_shape[2] + offset[2]
-                flat //= box_shape[2]
-                b = flat % box_shape[1] + offset[1]
-                a = flat // box_shape[1] + offset[0]
-                out[i, j, k] = (a * shape[1] + b) * shape[2] + c
-
-
-def write_keys_reference(
-    found: np.ndarray, offset: np.ndarray, box_shape: np.ndarray, shape: np.ndarray
-) -> np.ndarray:
-    """Plain NumPy twin of `write_keys`: the flat indices it writes, int64."""
-    index = np.unravel_index(found, tuple(box_shape))
-    return np.ravel_multi_index(tuple(index[axis] + offset[axis] for axis in range(3)), shape)
 
 
 @numba.njit(cache=True, inline="always")

@@ -8,7 +8,8 @@ the middle axis, the lower envelope of the parabolas (j - j')^2 + f(j') over tho
 gives the nearest site in each plane; along the first axis the same over the planes' gives the
 nearest in the grid. Each pass treats its lines independently, so they run on as many threads
 as there are. Squared distances are integers (voxel units), so the result is exact; where two
-sites are equally near, either may be given.
+sites are equally near, either may be given. Distances and sites are held in 32 bits (a grid of
+up to 2^31 voxels), which halves the memory each pass streams through.
 """
 
 from __future__ import annotations
@@ -17,26 +18,34 @@ import numba
 import numpy as np
 
 # The squared distance of a voxel with no site on its line (plane, grid).
-NO_SITE = np.iinfo(np.int64).max
+NO_SITE = np.iinfo(np.int32).max
 
 
-def nearest_sites(sites: np.ndarray) -> np.ndarray:
-    """(X, Y, Z) int64: for each voxel of the (X, Y, Z) bool grid `sites`, the flat (C order)
-    index of the nearest voxel that is a site, -1 where the grid holds none."""
+def nearest_sites(
+    sites: np.ndarray, offset: np.ndarray | None = None, grid_shape: np.ndarray | None = None
+) -> np.ndarray:
+    """(X, Y, Z) int32: for each voxel of the (X, Y, Z) bool box `sites`, the flat (C order)
+    index of the nearest voxel that is a site, -1 where the box holds none; flat in the grid
+    of `grid_shape` (3,) that holds the box with its low corner at voxel `offset` (3,)
+    (default: the box itself)."""
     sites = np.ascontiguousarray(sites, dtype=np.bool_)
     if sites.ndim != 3:
         raise ValueError(f"nearest_sites needs a 3D grid, got {sites.ndim}D")
+    offset = np.zeros(3, dtype=np.int64) if offset is None else np.asarray(offset, np.int64)
+    grid_shape = np.array(sites.shape) if grid_shape is None else np.asarray(grid_shape)
+    if np.prod(grid_shape.astype(np.float64)) >= 2.0**31:
+        raise ValueError(f"nearest_sites needs fewer than 2^31 voxels, got {tuple(grid_shape)}")
     if not sites.any():
-        return np.full(sites.shape, -1, dtype=np.int64)
-    return _nearest_sites(sites)
+        return np.full(sites.shape, -1, dtype=np.int32)
+    return _nearest_sites(sites, offset, grid_shape.astype(np.int64))
 
 
 @numba.njit(cache=True, parallel=True)
-def _nearest_sites(sites):  # pragma: no cover - compiled
-    """See nearest_sites (a grid with at least one site)."""
+def _nearest_sites(sites, offset, grid_shape):  # pragma: no cover - compiled
+    """See nearest_sites (a box with at least one site)."""
     nx, ny, nz = sites.shape
-    squared = np.empty(sites.shape, dtype=np.int64)
-    found = np.empty(sites.shape, dtype=np.int64)
+    squared = np.empty(sites.shape, dtype=np.int32)
+    found = np.empty(sites.shape, dtype=np.int32)
     # Along the last axis: the nearest site on each line, by a sweep each way.
     for i in numba.prange(nx):
         for j in range(ny):
@@ -53,7 +62,8 @@ def _nearest_sites(sites):  # pragma: no cover - compiled
                 best = before
                 if following >= 0 and (before < 0 or following - k < k - before):
                     best = following
-                found[i, j, k] = -1 if best < 0 else (i * ny + j) * nz + best
+                line = ((i + offset[0]) * grid_shape[1] + j + offset[1]) * grid_shape[2]
+                found[i, j, k] = -1 if best < 0 else line + best + offset[2]
                 squared[i, j, k] = NO_SITE if best < 0 else (k - best) * (k - best)
     # Along the middle axis, then the first: lower envelopes over the lines' squared distances.
     for i in numba.prange(nx):
@@ -70,19 +80,19 @@ def _nearest_sites(sites):  # pragma: no cover - compiled
 @numba.njit(cache=True)
 def _line_scratch(n):  # pragma: no cover - compiled
     """Room for one line of `n` voxels: (the parabolas of the envelope (n,) int64, where each
-    begins (n + 1,) float64, the line's squared distances and sites (n,) int64 each)."""
+    begins (n + 1,) float64, the line's squared distances and sites (n,) int32 each)."""
     return (
         np.empty(n, dtype=np.int64),
         np.empty(n + 1),
-        np.empty(n, dtype=np.int64),
-        np.empty(n, dtype=np.int64),
+        np.empty(n, dtype=np.int32),
+        np.empty(n, dtype=np.int32),
     )
 
 
 @numba.njit(cache=True, inline="always")
 def _envelope(squared, found, scratch):  # pragma: no cover - compiled
-    """One line: squared (n,) int64, each voxel's squared distance to its nearest site in the
-    lower dimensions (NO_SITE: none), and found (n,) int64 that site; both replaced in place
+    """One line: squared (n,) int32, each voxel's squared distance to its nearest site in the
+    lower dimensions (NO_SITE: none), and found (n,) int32 that site; both replaced in place
     by the nearest over the whole line, (q - q')^2 + squared[q'] at the best q'."""
     parabolas, starts, f, site = scratch
     n = len(squared)
@@ -117,12 +127,17 @@ def _envelope(squared, found, scratch):  # pragma: no cover - compiled
         found[q] = site[p]
 
 
-def nearest_sites_reference(sites: np.ndarray) -> np.ndarray:
+def nearest_sites_reference(
+    sites: np.ndarray, offset: np.ndarray | None = None, grid_shape: np.ndarray | None = None
+) -> np.ndarray:
     """scipy's feature transform in the form of `nearest_sites`."""
     from scipy import ndimage
 
     sites = np.asarray(sites, dtype=bool)
     if not sites.any():
-        return np.full(sites.shape, -1, dtype=np.int64)
+        return np.full(sites.shape, -1, dtype=np.int32)
+    offset = np.zeros(3, dtype=np.int64) if offset is None else np.asarray(offset)
+    grid_shape = sites.shape if grid_shape is None else tuple(grid_shape)
     index = ndimage.distance_transform_edt(~sites, return_distances=False, return_indices=True)
-    return np.ravel_multi_index(tuple(index), sites.shape).astype(np.int64)
+    placed = tuple(index[axis] + offset[axis] for axis in range(3))
+    return np.ravel_multi_index(placed, grid_shape).astype(np.int32)
