@@ -54,6 +54,8 @@ def _nearest_sites(sites, offset, grid_shape):  # pragma: no cover - compiled
                 if sites[i, j, k]:
                     last = k
                 found[i, j, k] = last
+            # The flat index, in the grid, of the line's first voxel.
+            line = ((i + offset[0]) * grid_shape[1] + j + offset[1]) * grid_shape[2] + offset[2]
             following = -1
             for k in range(nz - 1, -1, -1):
                 if sites[i, j, k]:
@@ -62,8 +64,7 @@ def _nearest_sites(sites, offset, grid_shape):  # pragma: no cover - compiled
                 best = before
                 if following >= 0 and (before < 0 or following - k < k - before):
                     best = following
-                line = ((i + offset[0]) * grid_shape[1] + j + offset[1]) * grid_shape[2]
-                found[i, j, k] = -1 if best < 0 else line + best + offset[2]
+                found[i, j, k] = -1 if best < 0 else line + best
                 squared[i, j, k] = NO_SITE if best < 0 else (k - best) * (k - best)
     # Along the middle axis, then the first: lower envelopes over the lines' squared distances.
     for i in numba.prange(nx):
