@@ -8,7 +8,8 @@ own kd-tree, and a point's neighbours are its nearest fine and its nearest coars
 
 Searches stop at the largest kernel reach of the scale (plus how far the points sharing a
 search lie from its centre): clusters farther away add zero to every feature, so leaving them
-out changes no result and prunes most of the tree.
+out changes no result and prunes most of the tree. Points with no centre of the scale that
+close are not searched at all (ehm.core.search.centre_counts).
 
 Two settings change the search: anisotropic search ranks a point's clusters by the radius
 their kernel gives it instead of by the distance to their centres (candidates from the
@@ -28,6 +29,7 @@ from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.kernels import projected_radii
 from ehm.core.search.anchors import AnchorLayers, AnchorTree
+from ehm.core.search.centre_counts import CentreCounts
 
 # cKDTree keeps a copy of the data, a permutation and about this many bytes per node.
 _KDTREE_NODE_BYTES = 80
@@ -145,6 +147,11 @@ class ClusterIndex:
             np.inf if reach is None or len(rows) == 0 else float(reach[rows].max())
             for rows in self._rows
         ]
+        # Per scale, its centres counted in cells as wide as its reach.
+        self._counts = [
+            CentreCounts.of(centres[rows], reach) if 0.0 < reach < np.inf else None
+            for rows, reach in zip(self._rows, self._reach, strict=True)
+        ]
 
     @classmethod
     def of(
@@ -185,12 +192,37 @@ class ClusterIndex:
     ) -> None:
         """Write nearest_of_scale's (n, k) rows into `found` (a view of that shape)."""
         n, k = found.shape
-        rows, tree = self._rows[int(coarse)], self._trees[int(coarse)]
-        if tree is None or n == 0 or k == 0:
+        if self._trees[int(coarse)] is None or n == 0 or k == 0:
             found[:] = -1
             return
-        wanted = k * (self._ranking.factor if self._ranking is not None else 1)
         bound = (self._reach[int(coarse)] + spread) * (1.0 + 1e-9)
+        searched = self._near_centres(points, coarse, bound)
+        if searched is not None:  # the other points have no cluster of the scale that close
+            found[:] = -1
+            part = np.empty((len(searched), k), dtype=np.int64)
+            self._search_into(part, points[searched], coarse, bound)
+            found[searched] = part
+            return
+        self._search_into(found, points, coarse, bound)
+
+    def _near_centres(self, points: np.ndarray, coarse: bool, bound: float) -> np.ndarray | None:
+        """(s,) int64 rows of `points` (n, d) that may have a centre of the scale within
+        `bound` metres, or None: all of them."""
+        counts = self._counts[int(coarse)]
+        if counts is None or not np.isfinite(bound):
+            return None
+        near = counts.any_within(points, bound)
+        return None if near.all() else np.flatnonzero(near)
+
+    def _search_into(
+        self, found: np.ndarray, points: np.ndarray, coarse: bool, bound: float
+    ) -> None:
+        """The search of _nearest_into, over every one of `points`."""
+        n, k = found.shape
+        if n == 0:
+            return
+        rows, tree = self._rows[int(coarse)], self._trees[int(coarse)]
+        wanted = k * (self._ranking.factor if self._ranking is not None else 1)
         if isinstance(tree, AnchorTree):
             candidates = tree.nearest(points, wanted, bound)
         else:
@@ -226,6 +258,7 @@ class ClusterIndex:
     def nbytes(self) -> int:
         """Approximate memory of the search structures, bytes."""
         total = sum(rows.nbytes for rows in self._rows)
+        total += sum(counts.sums.nbytes for counts in self._counts if counts is not None)
         for rows, tree in zip(self._rows, self._trees, strict=True):
             if isinstance(tree, AnchorTree):
                 total += tree.nbytes
