@@ -59,7 +59,7 @@ class CentreCounts:
 
 @numba.njit(cache=True, parallel=True)
 def _any_within(points, radius, low, side, sums):  # pragma: no cover - compiled
-    """See CentreCounts.any_within; `sums` reshaped to (n_0 + 1) ... (n_(d-1) + 1) flat."""
+    """See CentreCounts.any_within (low, side and sums its table's)."""
     n, d = points.shape
     shape = np.array(sums.shape, dtype=np.int64)
     strides = np.ones(d, dtype=np.int64)
