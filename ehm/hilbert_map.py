@@ -481,7 +481,9 @@ class HilbertMap:
         reach = PASS_REACH_CELLS * memory.sides[0]
         entries, passes = occupied_passes(memory, rays, reach, cfg.occupied_depth)
         hit = visit.entries[visit.samples.occupied]
-        standing = np.isin(entries, hit[hit >= 0]) | hit_again(memory, entries, rays, reach)
+        standing = np.isin(entries, hit[hit >= 0])
+        searched = np.flatnonzero(~standing)  # the others the batch hits in their own cell
+        standing[searched] = hit_again(memory, entries[searched], rays, reach)
         retraction = memory.retract(entries, passes, cfg.pass_retraction, standing)
         if len(retraction.entries) == 0:
             return 0
