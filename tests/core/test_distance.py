@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ehm.core.queries.distance import (
+    QUERY_CHUNK,
     DistanceField,
     field_distances_reference,
 )
@@ -148,11 +149,14 @@ def test_distances_to_a_ball_are_exact_to_a_few_millimetres(rng):
 
 
 def test_compiled_distances_agree_with_their_twin(rng):
+    """Points in and around a ball's field, more than the compiled pass answers in one chunk
+    (QUERY_CHUNK), and surfels' own places."""
     scores = ball_log_odds(centres())
     scores[:, :, :3] = 0.0  # a slab of unknown space
     for unknown_is_occupied in (False, True):
         field = field_of(scores, ball_log_odds, unknown_is_occupied)
-        points = np.vstack([rng.uniform(-1.2, 1.2, (4000, 3)), field.surfels.positions[:50]])
+        scattered = rng.uniform(-1.2, 1.2, (2 * QUERY_CHUNK + 500, 3))
+        points = np.vstack([scattered, field.surfels.positions[:50]])
         compiled = field.distances(points, scores, True)
         reference = field_distances_reference(field, points, scores)
         np.testing.assert_allclose(compiled[0], reference[0], atol=1e-12)

@@ -292,6 +292,19 @@ def _disc_distance(px, py, pz, positions, normals, row, radius):  # pragma: no c
     return distance, height, beyond, gx, gy, gz
 
 
+# Points `_field_distances` answers on one thread at a time.
+QUERY_CHUNK = 4096
+
+
+@numba.njit(cache=True, inline="always")
+def _among(values, count, value):  # pragma: no cover - compiled
+    """Whether `value` is among the first `count` of `values`."""
+    c = 0
+    while c < count and values[c] != value:
+        c += 1
+    return c < count
+
+
 @numba.njit(cache=True, parallel=True)
 def _field_distances(
     points,
@@ -312,47 +325,54 @@ def _field_distances(
 ):  # pragma: no cover - compiled
     nx, ny, nz = nearest.shape
     with_gradient = gradient.shape[0] > 0
-    for n in numba.prange(points.shape[0]):
-        ux = (points[n, 0] - origin[0]) / resolution
-        uy = (points[n, 1] - origin[1]) / resolution
-        uz = (points[n, 2] - origin[2]) / resolution
-        if not (0.0 <= ux < nx and 0.0 <= uy < ny and 0.0 <= uz < nz):
-            distance[n] = -reach if unknown_is_occupied else reach
-            continue
-        # The eight voxel centres around the point (repeated at the grid's faces).
-        bx, by, bz = int(np.floor(ux - 0.5)), int(np.floor(uy - 0.5)), int(np.floor(uz - 0.5))
-        best = np.inf
-        best_height = best_beside = 0.0
-        gx = gy = gz = 0.0
-        for corner in range(8):
-            i = min(max(bx + (corner & 1), 0), nx - 1)
-            j = min(max(by + ((corner >> 1) & 1), 0), ny - 1)
-            k = min(max(bz + ((corner >> 2) & 1), 0), nz - 1)
-            key = nearest[i, j, k]
-            if key < 0:
+    count = points.shape[0]
+    for chunk in numba.prange((count + QUERY_CHUNK - 1) // QUERY_CHUNK):
+        seen = np.empty(8, dtype=np.int64)  # neighbouring voxels mostly keep one surfel
+        for n in range(chunk * QUERY_CHUNK, min((chunk + 1) * QUERY_CHUNK, count)):
+            ux = (points[n, 0] - origin[0]) / resolution
+            uy = (points[n, 1] - origin[1]) / resolution
+            uz = (points[n, 2] - origin[2]) / resolution
+            if not (0.0 <= ux < nx and 0.0 <= uy < ny and 0.0 <= uz < nz):
+                distance[n] = -reach if unknown_is_occupied else reach
                 continue
-            row = np.searchsorted(keys, key)
-            if row == keys.shape[0] or keys[row] != key:
+            # The eight voxel centres around the point (repeated at the grid's faces).
+            bx, by, bz = int(np.floor(ux - 0.5)), int(np.floor(uy - 0.5)), int(np.floor(uz - 0.5))
+            best = np.inf
+            best_height = best_beside = 0.0
+            gx = gy = gz = 0.0
+            for corner in range(8):
+                i = min(max(bx + (corner & 1), 0), nx - 1)
+                j = min(max(by + ((corner >> 1) & 1), 0), ny - 1)
+                k = min(max(bz + ((corner >> 2) & 1), 0), nz - 1)
+                key = nearest[i, j, k]
+                repeated = _among(seen, corner, key)
+                seen[corner] = key
+                if key < 0 or repeated:
+                    continue
+                row = np.searchsorted(keys, key)
+                if row == keys.shape[0] or keys[row] != key:
+                    continue
+                d, height, beside, dx, dy, dz = _disc_distance(
+                    points[n, 0], points[n, 1], points[n, 2], positions, normals, row, radius
+                )
+                if d < best:
+                    best, best_height, best_beside = d, height, beside
+                    gx, gy, gz = dx, dy, dz
+            if best < SIGN_FROM_NORMAL * resolution and abs(best_height) >= best_beside:
+                sign = 1.0 if best_height >= 0.0 else -1.0
+            else:
+                score = scores[int(ux), int(uy), int(uz)]
+                sign = (
+                    -1.0 if is_obstacle(score, intercept, threshold, unknown_is_occupied) else 1.0
+                )
+            if best >= reach:
+                distance[n] = sign * reach
                 continue
-            d, height, beside, dx, dy, dz = _disc_distance(
-                points[n, 0], points[n, 1], points[n, 2], positions, normals, row, radius
-            )
-            if d < best:
-                best, best_height, best_beside = d, height, beside
-                gx, gy, gz = dx, dy, dz
-        if best < SIGN_FROM_NORMAL * resolution and abs(best_height) >= best_beside:
-            sign = 1.0 if best_height >= 0.0 else -1.0
-        else:
-            score = scores[int(ux), int(uy), int(uz)]
-            sign = -1.0 if is_obstacle(score, intercept, threshold, unknown_is_occupied) else 1.0
-        if best >= reach:
-            distance[n] = sign * reach
-            continue
-        distance[n] = sign * best
-        if with_gradient:
-            gradient[n, 0] = sign * gx
-            gradient[n, 1] = sign * gy
-            gradient[n, 2] = sign * gz
+            distance[n] = sign * best
+            if with_gradient:
+                gradient[n, 0] = sign * gx
+                gradient[n, 1] = sign * gy
+                gradient[n, 2] = sign * gz
 
 
 def field_distances_reference(
