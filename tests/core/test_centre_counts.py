@@ -15,11 +15,12 @@ def test_a_point_is_near_centres_where_its_twin_says_and_wherever_one_lies_withi
     counts = CentreCounts.of(centres, 0.4)
     points = rng.uniform(-3.0, 13.0, (3000, dim))
     points[:5, 0] = [np.nan, np.inf, -np.inf, np.nan, np.nan]
+    points[5:8, 0], points[5:8, -1] = 1e6, np.nan  # far along one axis, not finite on another
     for radius in (0.0, 0.3, 1.2):
         got = counts.any_within(points, radius)
         np.testing.assert_array_equal(got, any_within_reference(counts, centres, points, radius))
         exact = np.any(np.linalg.norm(points[:, None] - centres[None], axis=2) <= radius, axis=1)
-        assert np.all(got[exact]) and got[:5].all()
+        assert np.all(got[exact]) and got[:8].all()
         assert 0 < got.sum() < len(got)
 
 

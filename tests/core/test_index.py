@@ -28,22 +28,26 @@ def test_index_returns_nearest_fine_then_nearest_coarse_clusters(rng):
 
 def test_bounded_searches_find_every_centre_within_reach_and_none_beyond(rng):
     """Centres in two clumps of a 20 m box, kernels reaching 0.3-0.6 m: points all over the
-    box, most far from every centre (those are not searched), find the nearest centres of
-    each scale within the largest reach plus the spread, as brute force does."""
+    box, most far from every centre (those are not searched), and points among the centres
+    (all searched) find the nearest centres of each scale within the largest reach plus the
+    spread, as brute force does."""
     centres = np.concatenate([rng.normal(3.0, 0.5, (150, 3)), rng.normal(15.0, 1.0, (150, 3))])
     coarse = rng.random(300) < 0.3
     reach = rng.uniform(0.3, 0.6, 300)
-    points = rng.uniform(0.0, 20.0, (2000, 3))
+    index = ClusterIndex(centres, coarse, reach)
     spread = 0.1
-    found = ClusterIndex(centres, coarse, reach).nearest(points, 4, 2, spread)
-    for scale, columns in ((False, found[:, :4]), (True, found[:, 4:])):
-        rows = np.flatnonzero(coarse == scale)
-        bound = reach[rows].max() + spread
-        distance = np.linalg.norm(points[:, None] - centres[rows][None], axis=2)
-        order = np.argsort(distance, axis=1)[:, : columns.shape[1]]
-        within = np.take_along_axis(distance, order, axis=1) <= bound
-        np.testing.assert_array_equal(columns, np.where(within, rows[order], -1))
-    assert 0.5 < np.mean(np.all(found == -1, axis=1)) < 1.0
+    scattered = rng.uniform(0.0, 20.0, (2000, 3))
+    among = centres[rng.integers(0, 300, 2000)] + rng.normal(0.0, 0.05, (2000, 3))
+    for points, far_share in ((scattered, (0.5, 1.0)), (among, (0.0, 0.01))):
+        found = index.nearest(points, 4, 2, spread)
+        for scale, columns in ((False, found[:, :4]), (True, found[:, 4:])):
+            rows = np.flatnonzero(coarse == scale)
+            bound = reach[rows].max() + spread
+            distance = np.linalg.norm(points[:, None] - centres[rows][None], axis=2)
+            order = np.argsort(distance, axis=1)[:, : columns.shape[1]]
+            within = np.take_along_axis(distance, order, axis=1) <= bound
+            np.testing.assert_array_equal(columns, np.where(within, rows[order], -1))
+        assert far_share[0] <= np.mean(np.all(found == -1, axis=1)) < far_share[1]
 
 
 def test_index_pads_missing_clusters_and_drops_an_absent_scale():

@@ -57,6 +57,10 @@ class CentreCounts:
         return _any_within(points, float(radius), self.low, self.side, self.sums)
 
 
+# Points `_any_within` answers on one thread at a time, with one set of scratch rows.
+CHUNK = 4096
+
+
 @numba.njit(cache=True, parallel=True)
 def _any_within(points, radius, low, side, sums):  # pragma: no cover - compiled
     """See CentreCounts.any_within (low, side and sums its table's)."""
@@ -67,43 +71,46 @@ def _any_within(points, radius, low, side, sums):  # pragma: no cover - compiled
         strides[a] = strides[a + 1] * shape[a + 1]
     flat = sums.ravel()
     found = np.empty(n, dtype=np.bool_)
-    for i in numba.prange(n):
+    for chunk in numba.prange((n + CHUNK - 1) // CHUNK):
         first = np.empty(d, dtype=np.int64)  # the box of cells, in the table's rows
         last = np.empty(d, dtype=np.int64)
-        empty = False
-        finite = True
-        for a in range(d):
-            if not np.isfinite(points[i, a]):
-                finite = False
-                break
-            lo = np.floor((points[i, a] - radius - low[a]) / side)
-            hi = np.floor((points[i, a] + radius - low[a]) / side)
-            lo = max(lo, 0.0)
-            hi = min(hi, shape[a] - 2.0)
-            if hi < lo:
-                empty = True
-            first[a] = np.int64(lo)  # the row before the box's first cell
-            last[a] = np.int64(hi) + 1
-        if not finite:
-            found[i] = True
-            continue
-        if empty:
-            found[i] = False
-            continue
-        # Inclusion and exclusion over the box's 2^d corners.
-        total = 0
-        for corner in range(1 << d):
-            index = 0
-            sign = 1
-            for a in range(d):
-                if corner >> a & 1:
-                    index += first[a] * strides[a]
-                    sign = -sign
-                else:
-                    index += last[a] * strides[a]
-            total += sign * np.int64(flat[index])
-        found[i] = total > 0
+        for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+            found[i] = _box_holds_any(
+                points[i], radius, low, side, shape, strides, flat, first, last
+            )
     return found
+
+
+@numba.njit(cache=True, inline="always")
+def _box_holds_any(
+    point, radius, low, side, shape, strides, flat, first, last
+):  # pragma: no cover - compiled
+    """Whether the box of cells around `point`'s ball holds a centre (True for a point that
+    is not finite); first and last (d,) int64 scratch rows."""
+    d = len(point)
+    for a in range(d):
+        if not np.isfinite(point[a]):
+            return True
+    for a in range(d):
+        lo = max(np.floor((point[a] - radius - low[a]) / side), 0.0)
+        hi = min(np.floor((point[a] + radius - low[a]) / side), shape[a] - 2.0)
+        if hi < lo:
+            return False
+        first[a] = np.int64(lo)  # the row before the box's first cell
+        last[a] = np.int64(hi) + 1
+    # Inclusion and exclusion over the box's 2^d corners.
+    total = 0
+    for corner in range(1 << d):
+        index = 0
+        sign = 1
+        for a in range(d):
+            if corner >> a & 1:
+                index += first[a] * strides[a]
+                sign = -sign
+            else:
+                index += last[a] * strides[a]
+        total += sign * np.int64(flat[index])
+    return total > 0
 
 
 def any_within_reference(

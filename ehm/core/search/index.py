@@ -38,6 +38,10 @@ _KDTREE_LEAF_SIZE = 16
 
 # Searches for fewer points than this run on one thread: starting the others costs more.
 PARALLEL_SEARCH_POINTS = 4096
+# Points whose centres near are counted first, and the share of them with some above which
+# every point is searched (ehm.core.search.centre_counts).
+SAMPLED_POINTS = 256
+NEAR_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -210,6 +214,11 @@ class ClusterIndex:
         `bound` metres, or None: all of them."""
         counts = self._counts[int(coarse)]
         if counts is None or not np.isfinite(bound):
+            return None
+        # Where nearly every point has centres near (points around hits), reading the table
+        # for each costs more than the searches it spares: a sample tells.
+        stride = len(points) // SAMPLED_POINTS
+        if stride > 1 and counts.any_within(points[::stride], bound).mean() > NEAR_SHARE:
             return None
         near = counts.any_within(points, bound)
         return None if near.all() else np.flatnonzero(near)
