@@ -20,6 +20,9 @@ from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
 PLANE_HITS = 6
 HIT_PLANAR_SPREAD = 0.1
 LINEAR_SPREAD = 0.1
+# Cells one thread decomposes at a time, with one set of scratch arrays (made per cell, they
+# took a third of the pass: a TUM frame's planes 4.9 ms against 3.1-3.3).
+CHUNK = 1024
 
 
 def hit_plane_normals(hit_points: np.ndarray, side: float) -> np.ndarray:
@@ -80,21 +83,22 @@ def _cell_planes_kernel(points, keys, min_hits, planar, linear):  # pragma: no c
                 outer[c, a, b] += offset[a] * offset[b]
     normals = np.full((cells, d), np.nan)
     sparse = np.zeros(cells, dtype=np.bool_)
-    for c in numba.prange(cells):
-        if count[c] < min_hits:
-            sparse[c] = True
-            continue
-        scatter = np.empty((d, d))
-        for a in range(d):
-            for b in range(d):
-                scatter[a, b] = outer[c, a, b] - sums[c, a] * sums[c, b] / count[c]
-        spread, axes = np.empty(d), np.zeros((d, d))
-        eigen_in_place(scatter, spread, axes)
-        if spread[1] <= linear * spread[d - 1]:
-            sparse[c] = True
-        elif spread[0] <= planar * spread[1]:
+    for chunk in numba.prange((cells + CHUNK - 1) // CHUNK):
+        scatter, spread, axes = np.empty((d, d)), np.empty(d), np.empty((d, d))
+        for c in range(chunk * CHUNK, min((chunk + 1) * CHUNK, cells)):
+            if count[c] < min_hits:
+                sparse[c] = True
+                continue
             for a in range(d):
-                normals[c, a] = axes[a, 0]
+                for b in range(d):
+                    scatter[a, b] = outer[c, a, b] - sums[c, a] * sums[c, b] / count[c]
+            axes[:] = 0.0
+            eigen_in_place(scatter, spread, axes)
+            if spread[1] <= linear * spread[d - 1]:
+                sparse[c] = True
+            elif spread[0] <= planar * spread[1]:
+                for a in range(d):
+                    normals[c, a] = axes[a, 0]
     hit_normals = np.empty((n, d))
     hit_sparse = np.empty(n, dtype=np.bool_)
     for i in numba.prange(n):
