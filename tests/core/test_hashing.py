@@ -3,6 +3,7 @@
 import numpy as np
 
 from ehm.core.search.hashing import (
+    first_come_ranks,
     group_by_key,
     group_rows,
     hash_bits,
@@ -42,6 +43,9 @@ def test_rows_grouped_in_the_order_keys_first_come(rng):
     rank = np.array([place[key] for key in keys])
     np.testing.assert_array_equal(order, np.argsort(rank, kind="stable"))
     np.testing.assert_array_equal(np.diff(starts), np.bincount(rank))
+    ranks, count = first_come_ranks(keys)
+    np.testing.assert_array_equal(ranks, rank)
+    assert count == len(first_come)
     empty_starts, empty_order = group_rows(np.zeros(0, dtype=np.int64))
     assert list(empty_starts) == [0] and len(empty_order) == 0
 

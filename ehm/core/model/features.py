@@ -24,6 +24,7 @@ from ehm.core.model.kernels import (
     sparse_kernel_reference,
 )
 from ehm.core.search.cells import cell_keys
+from ehm.core.search.hashing import first_come_ranks
 from ehm.core.search.index import ClusterIndex
 
 
@@ -79,12 +80,12 @@ def _squared_offsets(points, group_of_point, centres):  # pragma: no cover - com
 
 def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
     """Group (n, d) points, metres, by the cubic cell of side `cell` they fall in (Alg. 3
-    line 1); each group's centre is the mean of its points."""
+    line 1), the groups in the order their cells first come; each group's centre is the mean
+    of its points."""
     n, d = points.shape
     if n == 0:
         return PointGroups(np.zeros(0, dtype=np.int64), np.zeros((0, d)))
-    _, group_of_point = np.unique(cell_keys(points, cell).keys, return_inverse=True)
-    group_of_point = group_of_point.ravel().astype(np.int64)
+    group_of_point, _ = first_come_ranks(cell_keys(points, cell).keys)
     sizes = np.bincount(group_of_point)
     sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)
     return PointGroups(group_of_point, sums / sizes[:, None])

@@ -91,11 +91,9 @@ def _ranks(distinct, keys):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def group_rows(keys):  # pragma: no cover - compiled
-    """Rows of `keys` (n,) int64 >= 0 grouped by key, the keys in the order they first come:
-    (starts (u + 1,) int64, where each key's rows begin in `order`, and its end; order (n,)
-    int64, the rows, key by key and in their own order within a key). One pass over a table,
-    no sort."""
+def first_come_ranks(keys):  # pragma: no cover - compiled
+    """The rank of each of `keys` (n,) int64 >= 0 among the distinct keys in the order they
+    first come: ((n,) int64, how many distinct keys). One pass over a table, no sort."""
     table = np.full(table_size(len(keys)), EMPTY_KEY, dtype=np.int64)
     rank = np.empty(len(table), dtype=np.int64)
     row_rank = np.empty(len(keys), dtype=np.int64)
@@ -107,7 +105,16 @@ def group_rows(keys):  # pragma: no cover - compiled
             rank[s] = n
             n += 1
         row_rank[i] = rank[s]
-    return _rows_by_rank(row_rank, n)
+    return row_rank, n
+
+
+@numba.njit(cache=True, nogil=True)
+def group_rows(keys):  # pragma: no cover - compiled
+    """Rows of `keys` (n,) int64 >= 0 grouped by key, the keys in the order they first come:
+    (starts (u + 1,) int64, where each key's rows begin in `order`, and its end; order (n,)
+    int64, the rows, key by key and in their own order within a key). One pass over a table,
+    no sort."""
+    return _rows_by_rank(*first_come_ranks(keys))
 
 
 @numba.njit(cache=True, nogil=True)
