@@ -87,3 +87,20 @@ def test_new_clusters_join_or_create_anchors_as_scans_arrive(room):
     assert after[0] >= before[0] and after[1] >= before[1]
     assert len(hilbert_map.anchors_.parents[0]) == hilbert_map.n_clusters
     assert hilbert_map.anchors_.parents[0].min() >= 0
+
+
+def test_top_down_searches_skip_only_points_with_no_centre_near(rng, random_clusters):
+    """Clusters in a 10 m box, points in a 40 m one, most far from every centre: asked all
+    at once (the index then counts centres near, from the anchor tree's own, and searches
+    only the points with some), they find what they find asked a few hundred at a time
+    (every point searched)."""
+    clusters = random_clusters(rng, 2000, 10.0)
+    index = ClusterIndex(
+        clusters.means, clusters.coarse, clusters.reach(), None, anchored(clusters)
+    )
+    points = rng.uniform(-15.0, 25.0, (4000, 3))
+    together = index.nearest(points, 8, 4, 0.1)
+    apart = np.vstack([index.nearest(part, 8, 4, 0.1) for part in np.array_split(points, 16)])
+    np.testing.assert_array_equal(together, apart)
+    assert 0.5 < np.mean(np.all(together == -1, axis=1)) < 1.0
+    assert index._counts[0] is not None  # the table was made and read

@@ -151,11 +151,9 @@ class ClusterIndex:
             np.inf if reach is None or len(rows) == 0 else float(reach[rows].max())
             for rows in self._rows
         ]
-        # Per scale, its centres counted in cells as wide as its reach.
-        self._counts = [
-            CentreCounts.of(centres[rows], reach) if 0.0 < reach < np.inf else None
-            for rows, reach in zip(self._rows, self._reach, strict=True)
-        ]
+        # Per scale, its centres counted in cells as wide as its reach: made at the first search
+        # whose sample shows many points far from every centre (learning's seldom does).
+        self._counts: list[CentreCounts | None] = [None, None]
 
     @classmethod
     def of(
@@ -212,16 +210,29 @@ class ClusterIndex:
     def _near_centres(self, points: np.ndarray, coarse: bool, bound: float) -> np.ndarray | None:
         """(s,) int64 rows of `points` (n, d) that may have a centre of the scale within
         `bound` metres, or None: all of them."""
-        counts = self._counts[int(coarse)]
-        if counts is None or not np.isfinite(bound):
+        scale = int(coarse)
+        if not 0.0 < self._reach[scale] < np.inf or not np.isfinite(bound):
             return None
-        # Where nearly every point has centres near (points around hits), reading the table
-        # for each costs more than the searches it spares: a sample tells.
+        # Where nearly every point has centres near (points around hits, training samples),
+        # reading the table for each costs more than the searches it spares: a sample tells.
         stride = len(points) // SAMPLED_POINTS
-        if stride > 1 and counts.any_within(points[::stride], bound).mean() > NEAR_SHARE:
+        if stride < 2:  # too few points for the table to pay
             return None
-        near = counts.any_within(points, bound)
+        sample = np.empty((len(points[::stride]), 1), dtype=np.int64)
+        self._search_into(sample, points[::stride], coarse, bound)
+        if np.mean(sample[:, 0] >= 0) > NEAR_SHARE:
+            return None
+        if self._counts[scale] is None:
+            self._counts[scale] = CentreCounts.of(self._centres(scale), self._reach[scale])
+        near = self._counts[scale].any_within(points, bound)
         return None if near.all() else np.flatnonzero(near)
+
+    def _centres(self, scale: int) -> np.ndarray:
+        """(m, d) the centres of the clusters of one scale, as its search holds them."""
+        tree = self._trees[scale]
+        if isinstance(tree, AnchorTree):
+            return tree.centres[: len(tree.cluster_rows)]
+        return tree.data
 
     def _search_into(
         self, found: np.ndarray, points: np.ndarray, coarse: bool, bound: float
