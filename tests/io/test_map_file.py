@@ -125,11 +125,12 @@ def test_empty_map_cannot_be_saved(tmp_path):
 def test_maps_of_format_3_load_and_answer_as_they_did(name):
     """Files written in format 3, before the random generator's state was stored: a 2D plan
     (anchor layers) and a 3D room (planar kernels, co-planar merging, anisotropic search).
-    They answer as when they were written (to rounding), hold no sensor path, and a map built
-    now from the same scans with the same settings (no memory of past evidence then, the
-    nearest clusters' features, each scan learned as it came, occupied kernels as wide as free
-    ones) classifies nearly every point the same, though evidence is now learned per cell and
-    SGD visits it in another order (measured: 0.06 apart on average in the room)."""
+    They answer as when they were written (to the rounding of 32 bits), hold no sensor path,
+    and a map built now from the same scans with the same settings (no memory of past evidence
+    then, the nearest clusters' features, each scan learned as it came, occupied kernels as
+    wide as free ones) classifies nearly every point the same, though evidence is now learned
+    per cell and SGD visits it in another order (measured: 0.06 apart on average in the
+    room)."""
     recorded = np.load(DATA / "answers_v3.npz")
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
@@ -137,11 +138,11 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     points = recorded[f"{name}_points"]
     rebuilt = rebuild_v3_map(name)
     assert loaded.config == rebuilt.config
-    # Equal up to the last bit or two: another release of Numba or LLVM may round the compiled
-    # sums differently.
+    # Equal to the rounding of the clusters' shapes, kept in 32 bits since they were written
+    # in 64 (ClusterSet, STORED_AS): measured 3e-8 at most.
     for mode in ("batch", "exact"):
         answers = recorded[f"{name}_{mode}"]
-        np.testing.assert_allclose(loaded.occupancy(points, mode), answers, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(loaded.occupancy(points, mode), answers, rtol=0, atol=1e-6)
         again = rebuilt.occupancy(points, mode)
         assert np.mean((again > 0.5) == (answers > 0.5)) > 0.95
         assert np.mean(np.abs(again - answers)) < 0.08

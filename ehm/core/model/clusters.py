@@ -15,15 +15,25 @@ from ehm.core.model.kernels import (
     planar_clusters,
 )
 
+# The arrays of a ClusterSet kept in 32 bits: half the bytes of the clusters' shapes, statistics
+# and optimiser state, read by every feature. Means, weights and time stamps keep 64.
+STORED_AS = {
+    "covariances": np.float32,
+    "counts": np.float32,
+    "grad_sq": np.float32,
+    "precision": np.float32,
+    "transforms": np.float32,
+}
+
 
 @dataclass
 class ClusterSet:
     """Inducing points of the map, one row per cluster.
 
-    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float64, m^2. counts: (M,)
-    float64, samples the statistics summarise. weights: (M,) float64, classifier weights. grad_sq:
-    (M,) float64, AdaGrad accumulators. precision: (M,) float64, precision of each weight's Gaussian
-    posterior (ehm.core.weights.posterior). transforms: (M, d, d) float64, 1/m, kernel transforms
+    means: (M, d) float64, metres, world frame. covariances: (M, d, d) float32, m^2. counts: (M,)
+    float32, samples the statistics summarise. weights: (M,) float64, classifier weights. grad_sq:
+    (M,) float32, AdaGrad accumulators. precision: (M,) float32, precision of each weight's Gaussian
+    posterior (ehm.core.weights.posterior). transforms: (M, d, d) float32, 1/m, kernel transforms
     derived from the covariances (see ehm.core.model.kernels). coarse: (M,) bool, True for clusters
     of open free space (see ehm.core.search.index). occupied: (M,) bool, True for clusters of
     occupied samples. planar: (M,) bool, the covariance is flat (see
@@ -31,6 +41,8 @@ class ClusterSet:
     planar-surface kernel. Transforms and both planar flags follow from the covariances and the
     map's settings (`refresh`). seen: (M,) float64, seconds, the time stamp of the latest scan
     that brought the cluster evidence, NaN when none did (kept with MapConfig.forget_after).
+    Shapes, statistics and optimiser state are kept in 32 bits (see STORED_AS): they are
+    computed in 64 and rounded when stored, a relative 6e-8.
     """
 
     means: np.ndarray
@@ -45,6 +57,10 @@ class ClusterSet:
     planar: np.ndarray
     planar_kernel: np.ndarray
     seen: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name, dtype in STORED_AS.items():
+            setattr(self, name, np.asarray(getattr(self, name), dtype=dtype))
 
     @classmethod
     def empty(cls, dim: int) -> ClusterSet:
@@ -88,12 +104,13 @@ class ClusterSet:
         `precision` and no time seen; `refresh` them before use."""
         n = len(means)
         self.means = np.concatenate([self.means, means])
-        self.covariances = np.concatenate([self.covariances, covariances])
-        self.counts = np.concatenate([self.counts, counts.astype(np.float64)])
+        self.covariances = np.concatenate([self.covariances, covariances], dtype=np.float32)
+        self.counts = np.concatenate([self.counts, counts], dtype=np.float32)
         self.weights = np.concatenate([self.weights, np.zeros(n)])
-        self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n)])
-        self.precision = np.concatenate([self.precision, np.full(n, float(precision))])
-        self.transforms = np.concatenate([self.transforms, np.zeros((n,) + means.shape[1:] * 2)])
+        self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n, dtype=np.float32)])
+        self.precision = np.concatenate([self.precision, np.full(n, precision, dtype=np.float32)])
+        shape = (n,) + means.shape[1:] * 2
+        self.transforms = np.concatenate([self.transforms, np.zeros(shape, dtype=np.float32)])
         self.coarse = np.concatenate([self.coarse, np.asarray(coarse, dtype=bool)])
         self.occupied = np.concatenate([self.occupied, np.asarray(occupied, dtype=bool)])
         self.planar = np.concatenate([self.planar, np.zeros(n, dtype=bool)])
