@@ -116,8 +116,9 @@ class SparseFeatures:
     @classmethod
     def of_codes(cls, clusters: np.ndarray, codes: np.ndarray) -> SparseFeatures:
         """The kernels not zero of n points, from their codes (n, k) float64 at clusters
-        (n, k) int64 (ehm.core.model.kernels.kernel_code; OUTSIDE where the kernel is zero or
-        there is no cluster). Both are read in order, and only the kept codes are evaluated."""
+        (n, k) int32 or int64 (ehm.core.model.kernels.kernel_code; OUTSIDE where the kernel is
+        zero or there is no cluster). Both are read in order, and only the kept codes are
+        evaluated."""
         indptr = np.zeros(len(codes) + 1, dtype=np.int64)
         np.cumsum(_inside_counts(codes), out=indptr[1:])
         rows, values = _compress_codes(clusters, codes, indptr)
@@ -176,8 +177,9 @@ def training_features(
     )
     # Each point's clusters written beside its codes: compressing them then reads both in
     # order, not the neighbours of each point's group again: after the neighbour searches, 71 ms
-    # to 58 on the sample scan, 36 to 30 on a TUM frame (BENCHMARKS.md).
-    of_point = np.empty((len(points), neighbours.shape[1]), dtype=np.int64)
+    # to 58 on the sample scan, 36 to 30 on a TUM frame (BENCHMARKS.md); in 32 bits, half the
+    # bytes written: the sample scan's codes 25-27 ms -> 16-18.
+    of_point = np.empty((len(points), neighbours.shape[1]), dtype=np.int32)
     codes = _kernel_codes(
         points,
         groups.group_of_point,
@@ -195,8 +197,8 @@ def _kernel_codes(
     points, group_of_point, group_neighbours, means, transforms, planar, clusters
 ):  # pragma: no cover - compiled
     """(n, k) float64 kernel codes (ehm.core.model.kernels.kernel_code) of each point at its
-    group's k clusters, OUTSIDE where there is none; where clusters is (n, k) int64, not
-    (0, k), those clusters (-1 for none) are written into it."""
+    group's k clusters, OUTSIDE where there is none; where clusters is (n, k) (int32 or
+    int64), not (0, k), those clusters (-1 for none) are written into it."""
     n = points.shape[0]
     k = group_neighbours.shape[1]
     codes = np.empty((n, k))
