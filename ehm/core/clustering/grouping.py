@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from itertools import repeat
 
 import numba
 import numpy as np
@@ -95,10 +94,17 @@ def group_samples(
     centres, means, covariances, counts, coarse, occupied = [], [], [], [], [], []
     n_groups = 0
     # Each kind is clustered on a thread of its own as far as there are threads, with its seed
-    # order drawn here, one after the other, so the threads do not share `rng`.
+    # order drawn here, one after the other, so the threads do not share `rng`. The largest
+    # kind starts first: the others follow one another on the other thread (the warehouse's
+    # free samples along rays are half its samples; started last, they kept one thread busy
+    # alone for most of the stage).
     orders = [rng.permutation(len(rows)) for rows, _, _ in parts]
     with ThreadPoolExecutor(min(len(parts), numba.get_num_threads())) as pool:
-        results = pool.map(_cluster_part, repeat(samples), parts, orders, repeat(config))
+        started = {
+            kind: pool.submit(_cluster_part, samples, parts[kind], orders[kind], config)
+            for kind in sorted(range(len(parts)), key=lambda kind: -len(parts[kind][0]))
+        }
+        results = [started[kind].result() for kind in range(len(parts))]
         for (rows, _, is_coarse), result in zip(parts, results, strict=True):
             weights = samples.weight[rows]
             group_of_point[rows] = result.owner + n_groups
