@@ -159,6 +159,8 @@ def test_every_switch_maps_the_room_and_survives_a_round_trip(room, overrides, t
 def test_cluster_view_names_walls_and_floors_as_planar(room):
     view = ehm.HilbertMap(planar_kernel=True).fit(room.scans).clusters()
     assert len(view) == len(view.kind) == len(view.weights)
+    # Kept in 32 bits, shown in 64 as documented.
+    assert view.covariances.dtype == view.counts.dtype == np.float64
     assert set(view.kind) == {"planar", "volumetric"}
     np.testing.assert_array_equal(view.kernel == "planar", view.kind == "planar")
     # Free-space clusters in front of the floor (z = 0) are flat with vertical normals.

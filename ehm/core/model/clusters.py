@@ -184,9 +184,9 @@ class ClusterView:
     def of(cls, clusters: ClusterSet) -> ClusterView:
         return cls(
             clusters.means.copy(),
-            clusters.covariances.copy(),
+            clusters.covariances.astype(np.float64),
             clusters.weights.copy(),
-            clusters.counts.copy(),
+            clusters.counts.astype(np.float64),
             np.where(clusters.planar, "planar", "volumetric"),
             np.where(clusters.planar_kernel, "planar", "local"),
             np.where(clusters.coarse, "coarse", "fine"),
