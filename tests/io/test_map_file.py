@@ -135,6 +135,7 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
     assert (DATA / f"{name}_v3.ehm").read_bytes()[8:12] == (3).to_bytes(4, "little")
     loaded = ehm.load(DATA / f"{name}_v3.ehm")
     assert loaded.sensor_path.shape == (0, loaded.dim)
+    assert loaded.clusters_.transforms.dtype == loaded.clusters_.covariances.dtype == np.float32
     points = recorded[f"{name}_points"]
     rebuilt = rebuild_v3_map(name)
     assert loaded.config == rebuilt.config

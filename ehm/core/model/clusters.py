@@ -15,8 +15,9 @@ from ehm.core.model.kernels import (
     planar_clusters,
 )
 
-# The arrays of a ClusterSet kept in 32 bits: half the bytes of the clusters' shapes, statistics
-# and optimiser state, read by every feature. Means, weights and time stamps keep 64.
+# The arrays of a ClusterSet kept in 32 bits, computed in 64: the clusters' shapes, statistics
+# and optimiser state (a cluster keeps 128 bytes in 3D, not 212). Means, weights and time
+# stamps keep 64.
 STORED_AS = {
     "covariances": np.float32,
     "counts": np.float32,
