@@ -3,7 +3,7 @@
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.model.clusters import ClusterSet, ClusterView
+from ehm.core.model.clusters import STORED_AS, ClusterSet, ClusterView
 from ehm.core.model.kernels import kernel_transforms
 
 
@@ -31,8 +31,9 @@ def test_appended_clusters_start_at_weight_zero_and_get_their_kernels_on_refresh
     np.testing.assert_array_equal(clusters.planar, [True, False, False])
     np.testing.assert_array_equal(clusters.planar_kernel, [True, False, False])
     expected = kernel_transforms(clusters.covariances, 3.0, 0.02, clusters.planar_kernel)
-    # Computed in 64 bits, kept in 32 (STORED_AS).
-    assert clusters.transforms.dtype == np.float32
+    # Computed in 64 bits, kept in 32 (STORED_AS); means and weights in 64.
+    assert {clusters.arrays()[name].dtype for name in STORED_AS} == {np.dtype(np.float32)}
+    assert clusters.means.dtype == clusters.weights.dtype == np.float64
     np.testing.assert_array_equal(clusters.transforms, expected.astype(np.float32))
     # Reach: 3 standard deviations (0.1 and 0.3 m) for k_SP.
     np.testing.assert_allclose(clusters.reach()[1:], [0.3, 0.9])

@@ -104,19 +104,23 @@ class ClusterSet:
         """Add clusters with weight 0 (no prior knowledge of their occupancy), posterior
         `precision` and no time seen; `refresh` them before use."""
         n = len(means)
-        self.means = np.concatenate([self.means, means])
-        self.covariances = np.concatenate([self.covariances, covariances], dtype=np.float32)
-        self.counts = np.concatenate([self.counts, counts], dtype=np.float32)
-        self.weights = np.concatenate([self.weights, np.zeros(n)])
-        self.grad_sq = np.concatenate([self.grad_sq, np.zeros(n, dtype=np.float32)])
-        self.precision = np.concatenate([self.precision, np.full(n, precision, dtype=np.float32)])
-        shape = (n,) + means.shape[1:] * 2
-        self.transforms = np.concatenate([self.transforms, np.zeros(shape, dtype=np.float32)])
-        self.coarse = np.concatenate([self.coarse, np.asarray(coarse, dtype=bool)])
-        self.occupied = np.concatenate([self.occupied, np.asarray(occupied, dtype=bool)])
-        self.planar = np.concatenate([self.planar, np.zeros(n, dtype=bool)])
-        self.planar_kernel = np.concatenate([self.planar_kernel, np.zeros(n, dtype=bool)])
-        self.seen = np.concatenate([self.seen, np.full(n, np.nan)])
+        added = {
+            "means": means,
+            "covariances": covariances,
+            "counts": counts,
+            "weights": np.zeros(n),
+            "grad_sq": np.zeros(n),
+            "precision": np.full(n, float(precision)),
+            "transforms": np.zeros((n,) + means.shape[1:] * 2),
+            "coarse": np.asarray(coarse, dtype=bool),
+            "occupied": np.asarray(occupied, dtype=bool),
+            "planar": np.zeros(n, dtype=bool),
+            "planar_kernel": np.zeros(n, dtype=bool),
+            "seen": np.full(n, np.nan),
+        }
+        for name, rows in added.items():
+            joined = np.concatenate([getattr(self, name), rows], dtype=STORED_AS.get(name))
+            setattr(self, name, joined)
 
     def remove(self, rows: np.ndarray) -> np.ndarray:
         """Drop clusters `rows` ((R,) int64, distinct). The last clusters move into the holes,
