@@ -225,6 +225,14 @@ class MapConfig:
     """Weight of the past evidence replayed with each batch, per unit of the batch's own: from
     the cells around hits as much as the batch has there (times the ratio), the rest from the
     cells along rays, each cell in proportion to the weight it has seen."""
+    replay_cap: float | None = 2.0
+    """At most this many replayed samples per new sample of a batch; beyond, the entries are
+    drawn in proportion to their weight, each standing for its own weight in expectation
+    (ehm.core.observations.memory.threshold_draw; None: all of them). The replay's weight is
+    bounded by replay_ratio, the number of entries it comes from is not: on a drive that
+    passes its places again they grow with every pass (3.8 times a batch's new samples on the
+    warehouse's second lap), and so does the time per scan. The benchmarks' data sets replay
+    at most 1.9 times their batches but the Intel lab's last, small batch (BENCHMARKS.md)."""
     pass_retraction: float = 0.5
     """Share of the occupied evidence in a memory cell that each ray passing through it takes
     back, once rays of two batches have passed it with no new hit near it between
@@ -277,7 +285,8 @@ class MapConfig:
             if isinstance(field.default, bool) and not isinstance(value, bool):
                 raise SettingsError(f"MapConfig.{field.name} must be True or False, got {value!r}")
             finite = isinstance(value, int | float) and math.isfinite(value)
-            if isinstance(field.default, float) and not finite:
+            optional = field.type == "float | None"  # a setting that may be off
+            if isinstance(field.default, float) and not finite and not (optional and value is None):
                 raise SettingsError(
                     f"MapConfig.{field.name} must be a finite number, got {value!r}"
                 )
@@ -348,6 +357,10 @@ class MapConfig:
             )
         if not isinstance(self.replay_ratio, int | float) or not self.replay_ratio >= 0:
             raise SettingsError(f"MapConfig.replay_ratio must be >= 0, got {self.replay_ratio!r}")
+        if self.replay_cap is not None and not self.replay_cap > 0:
+            raise SettingsError(
+                f"MapConfig.replay_cap must be None or a positive number, got {self.replay_cap!r}"
+            )
         if not 0.0 <= self.pass_retraction <= 1.0:
             raise SettingsError(
                 f"MapConfig.pass_retraction must be between 0 and 1, got {self.pass_retraction!r}"

@@ -88,9 +88,9 @@ class HilbertMap:
     config: a MapConfig; keyword overrides replace single settings, for example
     HilbertMap(cluster_radius=0.2). Learned state ends in an underscore: clusters_ (a
     ClusterSet), anchors_ (AnchorLayers, empty unless config.anchor_layers > 1), bias_,
-    n_scans_, timings_ (seconds per stage of the last update) and last_update_ (clusters
-    added and merged by it) and time_ (seconds, the latest time stamp of the scans learned; None
-    without).
+    n_scans_, timings_ (seconds per stage of the last update), last_update_ (clusters added
+    and merged by it, its samples and those replayed from the memory) and time_ (seconds, the
+    latest time stamp of the scans learned; None without).
     """
 
     def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
@@ -428,7 +428,8 @@ class HilbertMap:
                 )
             self._relist(changed)
         with timer("replay"):
-            replayed = memory.replay(cfg.replay_ratio, visit)
+            replayed = memory.replay(cfg.replay_ratio, visit, cfg.replay_cap, self._rng)
+            self.last_update_.update(new_samples=n_new, replayed_samples=len(replayed))
             # Shuffled once here, SGD reads the features in order
             # (ehm.core.weights.sgd.blocked_order).
             shuffle = self._rng.permutation(n_new + len(replayed))

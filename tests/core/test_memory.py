@@ -19,6 +19,7 @@ from ehm.core.observations.memory import (
     merge_entries_reference,
     region_layout,
     region_layout_reference,
+    threshold_draw,
     visit_rows,
     visit_rows_reference,
 )
@@ -141,6 +142,35 @@ def test_replay_weighs_ratio_times_the_batch_in_each_group_in_proportion_to_seen
     assert replayed.weight[~surface].sum() == pytest.approx(0.5 * 10.0)
     np.testing.assert_allclose(np.sort(replayed.weight[surface]), [0.75, 2.25])
     np.testing.assert_allclose(np.sort(replayed.weight[~surface]), [1.25, 3.75])
+
+
+def test_threshold_draw_keeps_the_heavy_weights_and_each_light_one_in_expectation(rng):
+    weight = np.concatenate([[5.0, 3.0], rng.uniform(0.01, 0.2, 98)])
+    drawn_weight = np.zeros_like(weight)
+    for seed in range(4000):
+        rows, stands_for = threshold_draw(weight, 20, np.random.default_rng(seed))
+        assert len(rows) == 20 and np.all(np.diff(rows) > 0)
+        assert stands_for.sum() == pytest.approx(weight.sum())
+        np.testing.assert_array_equal(stands_for[:2], [5.0, 3.0])  # kept as they are
+        light = stands_for[2:]
+        np.testing.assert_allclose(light, light[0])  # each drawn one stands for the threshold
+        assert light[0] > weight[2:].max()
+        drawn_weight[rows] += stands_for
+    np.testing.assert_allclose(drawn_weight / 4000, weight, atol=0.02)
+
+
+def test_replay_beyond_its_cap_is_drawn_with_the_same_weight_in_all(rng):
+    memory = EvidenceMemory(2, True, SIDES)
+    points, weight = rng.uniform(0.0, 6.0, (2000, 2)), rng.uniform(0.5, 2.0, 2000)
+    insert(memory, samples_at(points, weight=weight))
+    visit = memory.visit(samples_at(rng.uniform(0.0, 6.0, (40, 2))))
+    every = memory.replay(1.0, visit)
+    capped = memory.replay(1.0, visit, 1.5, np.random.default_rng(1))
+    assert len(every) > 60 and len(capped) == 60
+    assert capped.weight.sum() == pytest.approx(every.weight.sum())
+    assert np.isin(capped.points.view(complex), every.points.view(complex)).all()
+    same = memory.replay(1.0, visit, len(every) / 40, np.random.default_rng(1))
+    np.testing.assert_array_equal(same.weight, every.weight)
 
 
 def test_replay_comes_from_the_regions_the_batch_reaches_alone():

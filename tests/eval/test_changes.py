@@ -78,11 +78,12 @@ def followed():
 
 def test_a_map_that_takes_back_passed_evidence_forgets_what_left(followed):
     keeps, forgets = followed[0.0], followed[0.5]
-    # The cart's surface, three and four scans after rays began to pass through it: 137 and
-    # 135 of 191 voxels read occupied where all evidence is kept, 44 and 15 where it is taken
-    # back. (Over seeds 0-5 of this sparse room, 23 % and 10 % on average, each seed 11-38 %
-    # and 4-20 %.)
-    assert keeps[1].share(3) > 0.7 and keeps[1].share(4) > 0.7
+    # The cart's surface, three and four scans after rays began to pass through it: 134 and
+    # 121 of 191 voxels read occupied where all evidence is kept (137 and 135 with every
+    # past entry replayed: from the fifth scan on, the replay is drawn at twice the batch,
+    # MapConfig.replay_cap), 38 and 18 where it is taken back. (Over seeds 0-5 of this sparse
+    # room, 23 % and 10 % on average, each seed 11-38 % and 4-20 %, before the cap.)
+    assert keeps[1].share(3) > 0.6 and keeps[1].share(4) > 0.6
     assert forgets[1].share(3) < 0.3 and forgets[1].share(4) < 0.2
     # The person's trail: 18.3 % against 25.6 % (its rays end on the wall behind within the
     # band that deepens with range, where only what lies off the wall's plane is passed).

@@ -328,6 +328,32 @@ def merge_entries_reference(
     return keys[kept], weight[kept], place[kept], flags[kept]
 
 
+def threshold_draw(
+    weight: np.ndarray, count: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """`count` of (n > count,) positive weights, each row standing for its own weight in
+    expectation: rows of at least a threshold keep their weight, and the lighter ones are
+    drawn by systematic resampling, the threshold apart along their running sum from one
+    random offset, each drawn one standing for the threshold; the threshold is the one that
+    leaves `count` rows. Returns (rows (count,) int64 sorted, the weight (count,) each stands
+    for); their sum is the weights'."""
+    descending = np.sort(weight)[::-1][:count]
+    taken = np.arange(count)
+    lighter = weight.sum() - np.concatenate([[0.0], np.cumsum(descending[:-1])])
+    thresholds = lighter / (count - taken)
+    heavy_count = int(np.argmax(descending < thresholds))  # the first row below its threshold
+    threshold = thresholds[heavy_count]
+    heavy = weight >= threshold
+    light = np.flatnonzero(~heavy)
+    positions = (rng.random() + np.arange(count - heavy_count)) * threshold
+    at = np.searchsorted(np.cumsum(weight[light]), positions, side="right")
+    drawn, draws = np.unique(light[np.minimum(at, len(light) - 1)], return_counts=True)
+    rows = np.concatenate([np.flatnonzero(heavy), drawn])
+    stands_for = np.concatenate([weight[heavy], draws * threshold])
+    order = np.argsort(rows)
+    return rows[order], stands_for[order]
+
+
 @dataclass(frozen=True)
 class Visit:
     """Where a batch of evidence falls in a memory. samples: the batch; keys: (n,) int64 the
@@ -469,19 +495,26 @@ class EvidenceMemory:
         """Record which `pending` entries ((p,) bool `clustered`) now formed clusters."""
         self.flags[pending.entries[clustered]] |= CLUSTERED
 
-    def replay(self, ratio: float, visit: Visit) -> TrainingSamples:
+    def replay(
+        self,
+        ratio: float,
+        visit: Visit,
+        cap: float | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> TrainingSamples:
         """The entries near the visit's samples as weighted samples: those around hits weigh
         `ratio` times the visit's weight there in all, those along rays the rest of ratio times
         the visit's weight (all to one group when the other has no entries near), each entry
-        in proportion to the weight it has seen."""
+        in proportion to the weight it has seen. With `cap`, at most cap times as many as the
+        visit's samples, drawn from `rng` in proportion to their weight (threshold_draw)."""
         samples = visit.samples
         near = visit.near
         if len(near) == 0 or ratio == 0:
             return self._samples_at(near[:0], visit.memory_keys)
-        replayed = self._samples_at(near, visit.memory_keys)
+        _, groups = sample_flags((visit.memory_keys[near] >> SUB_BITS) & (2**KIND_BITS - 1))
+        seen = self.weight[near].astype(np.float64)
         total = ratio * samples.weight.sum()
         at_surface_total = ratio * samples.weight[samples.at_surface].sum()
-        groups, seen = replayed.at_surface, replayed.weight
         weight = np.zeros(len(near))
         in_group = [groups & (seen > 0), ~groups & (seen > 0)]
         if not (in_group[0].any() and in_group[1].any()):
@@ -490,10 +523,15 @@ class EvidenceMemory:
             shares = (at_surface_total, total - at_surface_total)
             for rows, share in zip(in_group, shares, strict=True):
                 weight[rows] = share * seen[rows] / seen[rows].sum()
-        keep = weight > 0
-        return TrainingSamples(
-            replayed.points[keep], replayed.occupied[keep], replayed.at_surface[keep], weight[keep]
-        )
+        kept = np.flatnonzero(weight > 0)
+        weight = weight[kept]
+        if cap is not None and len(kept) > cap * len(samples):
+            if rng is None:
+                raise ValueError("a replay with a cap draws its entries: give it rng")
+            drawn, weight = threshold_draw(weight, int(cap * len(samples)), rng)
+            kept = kept[drawn]
+        replayed = self._samples_at(near[kept], visit.memory_keys)
+        return TrainingSamples(replayed.points, replayed.occupied, replayed.at_surface, weight)
 
     def insert(self, visit: Visit, clustered: np.ndarray, time: float = np.nan) -> None:
         """Add the visit's samples to the memory; clustered: (n,) bool, each formed part of a
