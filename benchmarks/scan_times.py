@@ -2,11 +2,13 @@
 of `MapConfig.batch_rays` rays shared by its scans) and OctoMap's insertPointCloud, in one
 process on the same scans.
 
-    python benchmarks/scan_times.py [--datasets corridor_2d,intel_lab,...]
+    python benchmarks/scan_times.py [--datasets corridor_2d,intel_lab,...] [--set name=value]
 
 corridor_2d is a generated 100 m office floor scanned 2,000 times by a 2D laser of 180 rays
-as a robot drives along it: a map that keeps growing. Prints a markdown table and draws
-benchmarks/figures/scan_times.png.
+as a robot drives along it: a map that keeps growing. warehouse_drive is 200 LiDAR scans of
+16 x 512 rays on two laps round the warehouse's shelving: a map whose places are passed
+again. Prints a markdown table and draws benchmarks/figures/scan_times.png (with --set, not
+drawn).
 """
 
 from __future__ import annotations
@@ -16,13 +18,20 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import RESOLUTION, heading, markdown_table
+from common import (
+    RESOLUTION,
+    add_settings_argument,
+    heading,
+    markdown_table,
+    settings_of,
+    settings_text,
+)
 
 import ehm
 from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines.octree import OctoMapMapper
 from ehm.eval.datasets import DataMissingError, load_dataset, warehouse
-from ehm.eval.datasets.simulated import corridor_2d
+from ehm.eval.datasets.simulated import corridor_2d, warehouse_drive
 from ehm.eval.plots import scan_time_plot
 from ehm.pipeline import MappingPipeline
 
@@ -32,6 +41,7 @@ LOADERS = {
     "intel_lab": lambda: load_dataset("intel_lab"),
     "tum_fr2_pioneer_slam2": lambda: load_dataset("tum_fr2_pioneer_slam2"),
     "warehouse": lambda: warehouse().scans,
+    "warehouse_drive": lambda: warehouse_drive().scans,
 }
 
 
@@ -57,7 +67,9 @@ def tenth_means(seconds: np.ndarray) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--datasets", default=",".join(LOADERS))
+    add_settings_argument(parser)
     args = parser.parse_args()
+    settings = settings_of(args)
     # Compile every kernel before timing.
     MappingPipeline(corridor_2d(n_scans=20, length=10.0).scans, ehm.HilbertMap()).run()
     seconds, rows = {}, []
@@ -67,7 +79,7 @@ def main() -> None:
         except DataMissingError as error:
             print(f"Left out {name}: {error}\n")
             continue
-        run = MappingPipeline(scans, ehm.HilbertMap()).run()
+        run = MappingPipeline(scans, ehm.HilbertMap(**settings)).run()
         ours = run.amortized_scan_seconds()
         theirs = octomap_scan_seconds(scans)
         seconds[name] = {"EHM (batch time shared by its scans)": ours, "OctoMap": theirs}
@@ -85,12 +97,13 @@ def main() -> None:
                 f"{ours.sum():.2f} / {theirs.sum():.2f} ({ours.sum() / theirs.sum():.2f})",
             ]
         )
-    print(heading("Time per scan", "EHM and OctoMap in one process"))
+    print(heading("Time per scan", f"EHM and OctoMap in one process{settings_text(settings)}"))
     header = ["sequence", "scans", "rays per scan", "EHM batches", "EHM ms, first batch"]
     header += ["EHM ms, second / last 10 %", "OctoMap ms, second / last 10 %"]
     header += ["total s, EHM / OctoMap"]
     print(markdown_table(header, rows))
-    scan_time_plot(seconds, HERE / "figures" / "scan_times.png")
+    if not settings:
+        scan_time_plot(seconds, HERE / "figures" / "scan_times.png")
 
 
 if __name__ == "__main__":

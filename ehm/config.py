@@ -285,8 +285,8 @@ class MapConfig:
             if isinstance(field.default, bool) and not isinstance(value, bool):
                 raise SettingsError(f"MapConfig.{field.name} must be True or False, got {value!r}")
             finite = isinstance(value, int | float) and math.isfinite(value)
-            optional = field.type == "float | None"  # a setting that may be off
-            if isinstance(field.default, float) and not finite and not (optional and value is None):
+            off = value is None and MapConfig.may_be_off(field.name)
+            if isinstance(field.default, float) and not finite and not off:
                 raise SettingsError(
                     f"MapConfig.{field.name} must be a finite number, got {value!r}"
                 )
@@ -448,6 +448,13 @@ class MapConfig:
         if unknown:
             raise SettingsError(f"unknown MapConfig setting(s): {', '.join(unknown)}")
         return dataclasses.replace(self, **overrides)
+
+    @staticmethod
+    def may_be_off(name: str) -> bool:
+        """Whether setting `name` takes None, which turns it off."""
+        return any(
+            f.name == name and f.type.endswith("| None") for f in dataclasses.fields(MapConfig)
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

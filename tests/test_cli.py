@@ -8,6 +8,8 @@ from typer.testing import CliRunner
 
 import ehm
 from ehm.cli import app
+from ehm.cli.app import parse_settings
+from ehm.errors import InputError
 from ehm.eval.runner import RECORD_KEYS
 from ehm.io.distance_file import load_distance_grid
 from ehm.io.grid_file import load_grid
@@ -106,6 +108,14 @@ def test_bad_inputs_give_clear_errors(map_file, plan_log, tmp_path):
     fails(["map", log, "-o", output, "--set", "forget_after=-1"], 2, "a positive number of sec")
     fails(["map", log, "-o", output, "--resolution", "0"], 2, "resolution must be a positive")
     assert not (tmp_path / "x.ehm").exists()
+
+
+def test_settings_that_may_be_off_take_none():
+    settings = parse_settings(["replay_cap=none", "forget_after=30"])
+    assert settings == {"replay_cap": None, "forget_after": 30.0}
+    assert ehm.MapConfig(**settings).replay_cap is None
+    with pytest.raises(InputError, match="learning_rate is a float, got 'none'"):
+        parse_settings(["learning_rate=none"])
 
 
 def test_a_log_with_time_stamps_makes_a_map_that_fades(plan_log, tmp_path):

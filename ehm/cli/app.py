@@ -100,9 +100,9 @@ def parse_settings(settings: list[str]) -> dict:
         name, sep, value = item.partition("=")
         if not sep or name not in defaults:
             raise InputError(f"--set {item!r}: expected name=value with a MapConfig name")
-        # A setting off by default (None) takes a number, or none.
+        # A setting that may be off (None) takes a number, or none.
         kind = float if defaults[name] is None else type(defaults[name])
-        if defaults[name] is None and value.lower() == "none":
+        if MapConfig.may_be_off(name) and value.lower() == "none":
             overrides[name] = None
         elif kind is bool:
             words = {"1": True, "true": True, "yes": True, "on": True}
