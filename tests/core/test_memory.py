@@ -15,6 +15,7 @@ from ehm.core.observations.memory import (
     _find,
     batch_entries,
     batch_entries_reference,
+    heavy_threshold,
     merge_entries,
     merge_entries_reference,
     region_layout,
@@ -157,6 +158,22 @@ def test_threshold_draw_keeps_the_heavy_weights_and_each_light_one_in_expectatio
         assert light[0] > weight[2:].max()
         drawn_weight[rows] += stands_for
     np.testing.assert_allclose(drawn_weight / 4000, weight, atol=0.02)
+
+
+def test_the_heavy_threshold_is_the_one_the_sorted_weights_give(rng):
+    for _ in range(200):
+        n = int(rng.integers(3, 300))
+        count = int(rng.integers(1, n))
+        weight = rng.lognormal(0.0, rng.uniform(0.1, 3.0), n)
+        threshold, heavy = heavy_threshold(weight, count)
+        # By definition: the k heaviest rows kept, the rest shared out in count - k steps of
+        # t, for the least k whose next row lies below its t.
+        descending = np.sort(weight)[::-1][:count]
+        rest = weight.sum() - np.concatenate([[0.0], np.cumsum(descending[:-1])])
+        steps = rest / (count - np.arange(count))
+        k = int(np.argmax(descending < steps))
+        assert threshold == pytest.approx(steps[k], rel=1e-9)  # sums in another order
+        assert heavy.sum() == k and np.all(weight[heavy] >= threshold)
 
 
 def test_replay_beyond_its_cap_is_drawn_with_the_same_weight_in_all(rng):

@@ -335,23 +335,34 @@ def threshold_draw(
     expectation: rows of at least a threshold keep their weight, and the lighter ones are
     drawn by systematic resampling, the threshold apart along their running sum from one
     random offset, each drawn one standing for the threshold; the threshold is the one that
-    leaves `count` rows. Returns (rows (count,) int64 sorted, the weight (count,) each stands
-    for); their sum is the weights'."""
-    descending = np.sort(weight)[::-1][:count]
-    taken = np.arange(count)
-    lighter = weight.sum() - np.concatenate([[0.0], np.cumsum(descending[:-1])])
-    thresholds = lighter / (count - taken)
-    heavy_count = int(np.argmax(descending < thresholds))  # the first row below its threshold
-    threshold = thresholds[heavy_count]
+    leaves `count` rows (heavy_threshold). Returns (rows (count,) int64 sorted, the weight
+    (count,) each stands for); their sum is the weights'."""
+    threshold, heavy = heavy_threshold(weight, count)
+    drawn = count - np.count_nonzero(heavy)
+    # Draws at (offset + j) t, j < drawn: those below each light row's running sum, less
+    # those below the row before's, fell on it.
+    running = np.cumsum(np.where(heavy, 0.0, weight)) / threshold - rng.random()
+    below = np.clip(np.ceil(running), 0, drawn).astype(np.int64)
+    draws = np.diff(below, prepend=0)
+    stands_for = np.where(heavy, weight, draws * threshold)
+    rows = np.flatnonzero(stands_for > 0)
+    return rows, stands_for[rows]
+
+
+def heavy_threshold(weight: np.ndarray, count: int) -> tuple[float, np.ndarray]:
+    """The threshold t of (n > count,) positive weights at which the rows of at least t and
+    the lighter ones' total in steps of t make `count`: (t, (n,) bool the rows of at least t).
+    Found from above: t starts at the mean per row kept, and each row at or above it is taken
+    out of the total it shares, which lowers t, until no lighter row reaches it."""
+    total = weight.sum()
+    threshold = total / count
     heavy = weight >= threshold
-    light = np.flatnonzero(~heavy)
-    positions = (rng.random() + np.arange(count - heavy_count)) * threshold
-    at = np.searchsorted(np.cumsum(weight[light]), positions, side="right")
-    drawn, draws = np.unique(light[np.minimum(at, len(light) - 1)], return_counts=True)
-    rows = np.concatenate([np.flatnonzero(heavy), drawn])
-    stands_for = np.concatenate([weight[heavy], draws * threshold])
-    order = np.argsort(rows)
-    return rows[order], stands_for[order]
+    while True:
+        threshold = (total - weight[heavy].sum()) / (count - np.count_nonzero(heavy))
+        reached = weight >= threshold
+        if np.array_equal(reached, heavy):
+            return float(threshold), heavy
+        heavy = reached
 
 
 @dataclass(frozen=True)
@@ -528,7 +539,7 @@ class EvidenceMemory:
         if cap is not None and len(kept) > cap * len(samples):
             if rng is None:
                 raise ValueError("a replay with a cap draws its entries: give it rng")
-            drawn, weight = threshold_draw(weight, int(cap * len(samples)), rng)
+            drawn, weight = threshold_draw(weight, max(1, int(cap * len(samples))), rng)
             kept = kept[drawn]
         replayed = self._samples_at(near[kept], visit.memory_keys)
         return TrainingSamples(replayed.points, replayed.occupied, replayed.at_surface, weight)
