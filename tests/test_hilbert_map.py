@@ -267,8 +267,8 @@ def test_scan_by_scan_with_the_memory_does_not_forget():
 def test_the_replay_stays_within_its_cap_when_places_are_passed_again(plan):
     """The floor plan driven twice, scan by scan: the past evidence around each batch grows
     with the passes (2.04 times a batch's samples on the second, uncapped); with
-    replay_cap=1 it stays within one, and held-out F1 is the same to four places (seed 1:
-    0.9302 against 0.9363)."""
+    replay_cap=1 it stays within one, and held-out F1 within 0.01 (seeds 0, 1, 2: 0.9486,
+    0.9302, 0.9594 against 0.9455, 0.9363, 0.9655)."""
     split = held_out_rays(plan.scans, 0.8, 0.05, 0)
     most, f1 = {}, {}
     for cap in (None, 1.0):
