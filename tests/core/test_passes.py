@@ -51,9 +51,12 @@ def assert_passes_agree(memory: EvidenceMemory, rays: ScanRays, at_least: int) -
 
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("parallel", [False, True])
-def test_passes_agree_with_their_numpy_twin(rng, monkeypatch, dim, parallel):
+@pytest.mark.parametrize("marked", [False, True])
+def test_passes_agree_with_their_numpy_twin(rng, monkeypatch, dim, parallel, marked):
     if parallel:
         monkeypatch.setattr(passes_module, "PARALLEL_MIN_RAYS", 10)
+    if marked:  # the rays mark the regions they cross first, and only those have normals
+        monkeypatch.setattr(passes_module, "MARKED_REGIONS_PER_RAY", 0.0)
     points = rng.uniform(-2.0, 2.0, (600, dim))
     kinds = rng.choice([OCCUPIED, FREE_AT_SURFACE], 600, p=[0.8, 0.2])
     memory = memory_of(points, kinds)
@@ -63,9 +66,13 @@ def test_passes_agree_with_their_numpy_twin(rng, monkeypatch, dim, parallel):
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_passes_of_sparse_evidence_agree_with_their_numpy_twin(rng, dim):
+@pytest.mark.parametrize("marked", [False, True])
+def test_passes_of_sparse_evidence_agree_with_their_numpy_twin(rng, monkeypatch, dim, marked):
     """Entries in a few clumps far apart and long rays, many of them through a clump or
-    beside it: the passes are those of the NumPy twin."""
+    beside it: the passes are those of the NumPy twin, the regions the rays cross marked
+    first or not."""
+    if marked:
+        monkeypatch.setattr(passes_module, "MARKED_REGIONS_PER_RAY", 0.0)
     centres = rng.uniform(-6.0, 6.0, (6, dim))
     points = (centres[:, None, :] + rng.uniform(-0.3, 0.3, (6, 60, dim))).reshape(-1, dim)
     memory = memory_of(points, np.full(len(points), OCCUPIED))
@@ -193,6 +200,16 @@ def test_region_normals_agree_with_their_numpy_twin(rng, dim):
     reference = passes_module.region_normals_reference(memory)
     planar = assert_same_normals(compiled, reference)
     assert planar.sum() > 40
+
+
+def test_only_the_normals_of_wanted_regions_are_found(rng):
+    points = planar_patches(rng, 3, 30, 40, 0.1, 0.003)
+    memory = memory_of(points, np.full(len(points), OCCUPIED))
+    every = passes_module.region_normals(memory)
+    wanted = rng.random(len(every)) < 0.5
+    some = passes_module.region_normals(memory, wanted=wanted)
+    np.testing.assert_array_equal(some[wanted], every[wanted])
+    assert np.isnan(some[~wanted]).all() and not np.isnan(every[~wanted]).all()
 
 
 def test_rays_to_the_floor_behind_pass_what_stood_on_it(monkeypatch):

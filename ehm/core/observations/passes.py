@@ -74,6 +74,14 @@ PASS_PARTS = 8
 # tests each region it walks in the bitmap and looks up only those it holds (on a TUM frame,
 # 7 % of 2.5 million steps). A box of more regions goes without, and every step is looked up.
 BITMAP_REGIONS = 1 << 28
+# Regions holding occupied entries, per ray of a batch, beyond which the rays first mark the
+# regions they cross and only those regions' normals are found. The benchmarks' data sets
+# hold 0.3 (TUM) to 1.9 (the warehouse's last scan) and their passes took as long or longer
+# with the marking (TUM's over a build 334-419 ms against 293-307, the warehouse's 294-301
+# against 251-284); the warehouse drive holds 10-15 in its second lap, and with the marking
+# from 4 on its passes took 2.4-2.8 s over the drive against 3.7-4.1 (the maps the same to
+# the last bit either way).
+MARKED_REGIONS_PER_RAY = 4.0
 # Regions one thread lays out or fits a plane to at a time, with one set of scratch arrays
 # (made per region, the layout of TUM's tenth frame took 3.6 ms against 2.9).
 CHUNK = 1024
@@ -255,6 +263,7 @@ def pass_kernel(
     reach,
     bits,
     bitmap,
+    wanted,
     found,
     used,
 ):  # pragma: no cover - compiled
@@ -268,7 +277,8 @@ def pass_kernel(
     solid_start (n,) on, a ray passes only entries farther than `plane_gap` metres from the
     plane through its hit, hit_points (n, d), of normal hit_normals (n, d) (NaN: none, and it
     passes none there). Stops before a ray that might overfill `found`; returns (the next ray,
-    entries found)."""
+    entries found). With `wanted` (R,) bool, not (0,), only marks in it the rows of the
+    regions holding occupied entries that the rays cross, and finds nothing (normals unread)."""
     d = origins.shape[1]
     bitmap_low, bitmap_extent, bitmap_words = bitmap
     side = fine_side * FINE_CELLS_PER_RADIUS
@@ -277,6 +287,7 @@ def pass_kernel(
     step = np.empty(d, dtype=np.int64)
     t_next = np.empty(d)
     t_delta = np.empty(d)
+    marking = len(wanted) > 0
     for r in range(first_ray, last_ray):
         t, t_end = free_start[r], free_end[r]
         if t_end <= t:
@@ -294,7 +305,10 @@ def pass_kernel(
             for a in range(d):
                 key = (key << bits) | (region[a] + half)
             row = row_of(table_keys, table_rows, key << 1)  # the region around hits
-            if row >= 0 and _crosses(normals[row], directions[r], grazing_cos):
+            if marking:
+                if row >= 0:
+                    wanted[row] = True
+            elif row >= 0 and _crosses(normals[row], directions[r], grazing_cos):
                 for k in range(occupied_starts[row], occupied_starts[row + 1]):
                     position = positions[k]
                     along = 0.0
@@ -317,19 +331,26 @@ def pass_kernel(
     return last_ray, used
 
 
-def region_normals(memory: EvidenceMemory, layout: OccupiedLayout | None = None) -> np.ndarray:
+def region_normals(
+    memory: EvidenceMemory, layout: OccupiedLayout | None = None, wanted: np.ndarray | None = None
+) -> np.ndarray:
     """(R, d) float64: the unit normal of the plane the occupied entries of each of the
     memory's regions around hits lie on (at least d of them, weighted by their weights; see
     PLANAR_SPREAD), NaN where they lie on none (and for regions along rays). layout: the
-    memory's `occupied_layout`, when it is known."""
+    memory's `occupied_layout`, when it is known; wanted: (R,) bool, the regions whose normals
+    are needed (None: all), NaN for the others."""
     starts, entries, positions = occupied_layout(memory) if layout is None else layout
-    return _normals_kernel(starts, entries, positions, memory.weight, PLANAR_SPREAD, LINEAR_SPREAD)
+    wanted = np.ones(len(starts) - 1, dtype=bool) if wanted is None else wanted
+    return _normals_kernel(
+        starts, entries, positions, memory.weight, PLANAR_SPREAD, LINEAR_SPREAD, wanted
+    )
 
 
 @numba.njit(cache=True, parallel=True)
-def _normals_kernel(starts, entries, positions, weight, planar, linear):  # pragma: no cover
+def _normals_kernel(starts, entries, positions, weight, planar, linear, wanted):  # pragma: no cover
     """region_normals from the memory's occupied layout (starts, entries, positions) and
-    weights (m,), planar and linear PLANAR_SPREAD and LINEAR_SPREAD."""
+    weights (m,), planar and linear PLANAR_SPREAD and LINEAR_SPREAD, of the `wanted` (R,)
+    regions."""
     d = positions.shape[1]
     n_regions = len(starts) - 1
     normals = np.full((n_regions, d), np.nan)
@@ -337,6 +358,8 @@ def _normals_kernel(starts, entries, positions, weight, planar, linear):  # prag
         mean, spread = np.empty(d), np.empty(d)
         scatter, axes = np.empty((d, d)), np.empty((d, d))
         for r in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_regions)):
+            if not wanted[r]:
+                continue
             mean[:] = 0.0
             total, count = 0.0, 0
             for k in range(starts[r], starts[r + 1]):
@@ -385,7 +408,7 @@ def region_normals_reference(memory: EvidenceMemory) -> np.ndarray:
 
 def _passes_of_part(arguments: tuple, first: int, last: int) -> np.ndarray:
     """Occupied entries passed by rays first .. last - 1 (`arguments`: pass_kernel's from
-    `origins` to `bitmap`), one row per pass."""
+    `origins` to `wanted`), one row per pass."""
     found = np.empty(max(1024, 64 * (last - first)), dtype=np.int64)
     used, ray = 0, first
     while ray < last:
@@ -395,13 +418,29 @@ def _passes_of_part(arguments: tuple, first: int, last: int) -> np.ndarray:
     return found[:used]
 
 
+def _in_parts(arguments: tuple, n: int) -> np.ndarray:
+    """pass_kernel over n rays in PASS_PARTS parts on the threads there are (one part for
+    fewer than PARALLEL_MIN_RAYS): the entries passed, one row per pass."""
+    parts = 1 if n < PARALLEL_MIN_RAYS else PASS_PARTS
+    bounds = [n * part // parts for part in range(parts + 1)]
+    with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
+        return np.concatenate(
+            list(pool.map(_passes_of_part, repeat(arguments), bounds[:-1], bounds[1:]))
+        )
+
+
 def occupied_passes(
     memory: EvidenceMemory, rays: ScanRays, reach: float, depth: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The memory's occupied entries that `rays` pass (see the module's docstring), within
     `reach` metres, a ray with a hit only where it goes on for `depth` metres more (the band a
     surface is taken to be solid, `occupied_depth`): (entries (k,) int64 sorted, passes (k,)
-    int64 rays through each)."""
+    int64 rays through each).
+
+    The rays read the normals of the regions they cross alone. Where the regions holding
+    occupied entries outnumber the rays MARKED_REGIONS_PER_RAY times (a long drive's memory,
+    of which a batch crosses a part), the rays first walk to mark those regions, and only
+    their normals are found; else every region's are."""
     none = np.zeros(0, dtype=np.int64)
     if len(memory) == 0 or len(rays) == 0:
         return none, none
@@ -409,7 +448,7 @@ def occupied_passes(
     layout = occupied_layout(memory)
     fine_side = memory.sides[0]
     solid_start, hit_points = _solid_band(rays, depth)
-    arguments = (
+    walk = (
         np.ascontiguousarray(rays.origins),
         rays.directions,
         rays.free_start,
@@ -421,20 +460,22 @@ def occupied_passes(
         keys,
         rows,
         *layout,
-        region_normals(memory, layout),
+    )
+    tests = (
         np.cos(np.radians(GRAZING_DEGREES)),
         fine_side,
         reach,
         region_bits(memory.dim),
         occupied_bitmap(memory.regions, layout[0], region_bits(memory.dim), memory.dim),
     )
-    n = len(rays)
-    parts = 1 if n < PARALLEL_MIN_RAYS else PASS_PARTS
-    bounds = [n * part // parts for part in range(parts + 1)]
-    with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
-        found = np.concatenate(
-            list(pool.map(_passes_of_part, repeat(arguments), bounds[:-1], bounds[1:]))
-        )
+    starts = layout[0]
+    wanted = None
+    if np.count_nonzero(np.diff(starts)) > MARKED_REGIONS_PER_RAY * len(rays):
+        wanted = np.zeros(len(starts) - 1, dtype=bool)
+        unread = np.zeros((0, memory.dim))
+        _in_parts((*walk, unread, *tests, wanted), len(rays))
+    normals = region_normals(memory, layout, wanted)
+    found = _in_parts((*walk, normals, *tests, np.zeros(0, dtype=bool)), len(rays))
     entries, passes = np.unique(found, return_counts=True)
     return entries, passes.astype(np.int64)
 
