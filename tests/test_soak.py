@@ -8,20 +8,23 @@ import numpy as np
 import pytest
 
 import ehm
-from ehm.eval.datasets.simulated import corridor_2d, warehouse_drive
+from ehm.eval.datasets.simulated import corridor_2d, floor_plan_2d, warehouse_drive
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.mark.parametrize(
-    ("scans", "save_every"),
+    ("scans", "save_every", "settings"),
     [
-        (lambda: corridor_2d(n_scans=300, length=20.0).scans, 37),
-        (lambda: warehouse_drive(n_scans=8, rings=8, azimuths=256).scans, 3),
+        (lambda: corridor_2d(n_scans=300, length=20.0).scans, 37, {}),
+        (lambda: warehouse_drive(n_scans=8, rings=8, azimuths=256).scans, 3, {}),
+        # Driven twice, scan by scan, its replay drawn beyond half the batch from the second
+        # scan on: the draws follow the saved random state.
+        (lambda: 2 * floor_plan_2d(seed=0).scans, 3, {"batch_rays": 0, "replay_cap": 0.5}),
     ],
 )
-def test_saving_and_loading_along_the_way_changes_nothing(tmp_path, scans, save_every):
-    saved, plain = ehm.HilbertMap(), ehm.HilbertMap()
+def test_saving_and_loading_along_the_way_changes_nothing(tmp_path, scans, save_every, settings):
+    saved, plain = ehm.HilbertMap(**settings), ehm.HilbertMap(**settings)
     for index, scan in enumerate(scans(), start=1):
         saved.integrate_scan(scan)
         plain.integrate_scan(scan)
