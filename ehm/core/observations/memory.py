@@ -335,8 +335,9 @@ def threshold_draw(
     expectation: rows of at least a threshold keep their weight, and the lighter ones are
     drawn by systematic resampling, the threshold apart along their running sum from one
     random offset, each drawn one standing for the threshold; the threshold is the one that
-    leaves `count` rows (heavy_threshold). Returns (rows (count,) int64 sorted, the weight
-    (count,) each stands for); their sum is the weights'."""
+    leaves `count` rows (heavy_threshold). Returns (rows (k,) int64 sorted, k = count but for
+    a light row that rounding gives two draws, the weight (k,) each stands for); their sum is
+    the weights'."""
     threshold, heavy = heavy_threshold(weight, count)
     drawn = count - np.count_nonzero(heavy)
     # Draws at (offset + j) t, j < drawn: those below each light row's running sum, less
