@@ -17,7 +17,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ehm.core.model.kernels import cluster_kernel, cluster_kernel_reference
+from ehm.core.model.kernels import (
+    cluster_kernel_reference,
+    kernel_code,
+    kernels_of_codes_serial,
+)
 from ehm.core.snapshot import MapSnapshot
 from ehm.grid.bounds import support_half_widths
 
@@ -163,6 +167,7 @@ def _accumulate_planes(
     n_fields = fields.shape[0]
     for i in numba.prange(fields.shape[1]):
         x = origin[0] + (i + 0.5) * resolution
+        row_values = np.empty(fields.shape[3])
         for e in range(plane_start[i], plane_start[i + 1]):
             m = plane_clusters[e]
             t = transforms[m]
@@ -187,6 +192,12 @@ def _accumulate_planes(
                 z_high = means[m, 2] + (-half_b + root) / a_zz - origin[2]
                 k_low = max(low[m, 2], int(np.floor(z_low / resolution - 0.5)))
                 k_high = min(high[m, 2], int(np.ceil(z_high / resolution - 0.5)))
+                if k_high < k_low:
+                    continue
+                # The row's kernel codes, then their values in one loop LLVM vectorises, then
+                # the sums: the warehouse's planner grid in 514 ms against 1,039 with each value
+                # found and added voxel by voxel, the same to the last bit (BENCHMARKS.md).
+                run = row_values[: k_high - k_low + 1]
                 for k in range(k_low, k_high + 1):
                     dz = origin[2] + (k + 0.5) * resolution - means[m, 2]
                     p0 = a0 + t[0, 2] * dz
@@ -194,10 +205,16 @@ def _accumulate_planes(
                     p2 = a2 + t[2, 2] * dz
                     r2 = p0 * p0 + p1 * p1 + p2 * p2
                     r_max = max(abs(p0), abs(p1), abs(p2))
-                    value = cluster_kernel(r2, r_max, planar[m])
-                    for f in range(n_fields):
-                        term = value * value if powers[f] == 2 else value
-                        fields[f, i, j, k] += coefficients[m, f] * term
+                    run[k - k_low] = kernel_code(r2, r_max, planar[m])
+                kernels_of_codes_serial(run)
+                for f in range(n_fields):
+                    coefficient = coefficients[m, f]
+                    if powers[f] == 2:
+                        for k in range(k_low, k_high + 1):
+                            fields[f, i, j, k] += coefficient * (run[k - k_low] * run[k - k_low])
+                    else:
+                        for k in range(k_low, k_high + 1):
+                            fields[f, i, j, k] += coefficient * run[k - k_low]
 
 
 def accumulate_local_grids_reference(

@@ -4,17 +4,28 @@ import numpy as np
 
 from ehm.core.model.kernels import (
     TWO_PI,
-    cluster_kernel,
     cluster_kernel_reference,
     cluster_normals,
     covariance_square_roots,
+    kernel_code,
     kernel_reach,
     kernel_transforms,
+    kernels_of_codes_serial,
     planar_clusters,
     sparse_kernel,
     sparse_kernel_reference,
     transform_square_roots,
 )
+
+
+def compiled_kernel(projected: np.ndarray, planar: bool) -> float:
+    """A kernel's value at u = projected (d,), as the compiled passes find it: its code, then
+    the code's value."""
+    code = np.array(
+        [kernel_code(float(np.sum(projected**2)), float(np.max(np.abs(projected))), planar)]
+    )
+    kernels_of_codes_serial(code)
+    return float(code[0])
 
 
 def test_sparse_kernel_matches_reference_and_known_values():
@@ -60,20 +71,16 @@ def test_planar_kernel_is_one_within_two_standard_deviations_of_each_axis():
     projected = offsets @ transform.T
     values = cluster_kernel_reference(projected, np.ones(5, bool))
     np.testing.assert_array_equal(values, [1, 0, 1, 0, 0])
-    compiled = [
-        cluster_kernel(float(np.sum(u**2)), float(np.max(np.abs(u))), True) for u in projected
-    ]
+    compiled = [compiled_kernel(u, True) for u in projected]
     np.testing.assert_array_equal(compiled, values)
     # Corners of the box: sqrt(1^2 + 0.04^2 + 2^2) metres from the mean.
     reach = kernel_reach(transform[None], np.array([True]))
     np.testing.assert_allclose(reach, [np.sqrt(1 + 0.04**2 + 4)])
 
 
-def test_cluster_kernel_is_k_sp_of_the_radius_where_not_planar(rng):
+def test_kernel_is_k_sp_of_the_radius_where_not_planar(rng):
     projected = rng.uniform(-1, 1, (200, 3))
-    compiled = [
-        cluster_kernel(float(np.sum(u**2)), float(np.max(np.abs(u))), False) for u in projected
-    ]
+    compiled = [compiled_kernel(u, False) for u in projected]
     expected = sparse_kernel_reference(np.linalg.norm(projected, axis=1))
     np.testing.assert_allclose(compiled, expected, atol=1e-15)
     np.testing.assert_allclose(cluster_kernel_reference(projected, np.zeros(200, bool)), expected)

@@ -97,15 +97,6 @@ def projected_radii(points, i, cluster, means, transforms):  # pragma: no cover 
     return r2, r_max
 
 
-@numba.njit(cache=True, inline="always")
-def cluster_kernel(r2: float, r_max: float, planar: bool) -> float:  # pragma: no cover
-    """Kernel value from |u|^2 and max_a |u_a| of u = T_m (x - mu_m): k_PS when `planar`,
-    else k_SP."""
-    if planar:
-        return 1.0 if r_max < 1.0 else 0.0
-    return sparse_kernel(np.sqrt(r2))
-
-
 # Kernel codes: the projected radii of many (point, cluster) pairs, written in one pass, that
 # kernels_of_codes turns into kernel values in another, where the polynomial of k_SP runs four
 # values at a time (a TUM frame's 1.7 million kernel values: 3 ms, against 20 within the pass
@@ -143,7 +134,8 @@ def kernels_of_codes(codes):  # pragma: no cover - compiled
 
 
 def cluster_kernel_reference(projected: np.ndarray, planar: np.ndarray) -> np.ndarray:
-    """Plain NumPy twin of `cluster_kernel`: projected (..., d) u, planar (...) bool."""
+    """Plain NumPy kernel values of projected (..., d) u, planar (...) bool: k_PS where
+    planar, else k_SP (what kernel_code and kernels_of_codes give)."""
     inside_box = np.max(np.abs(projected), axis=-1) < 1.0
     values = sparse_kernel_reference(np.linalg.norm(projected, axis=-1))
     return np.where(planar, inside_box.astype(np.float64), values)
