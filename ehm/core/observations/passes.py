@@ -479,7 +479,7 @@ def occupied_passes(
     # Counted by entry rather than sorted (np.unique): 0.6 ms a TUM frame against 3.2.
     passes = np.bincount(found)
     entries = np.flatnonzero(passes)
-    return entries, passes[entries].astype(np.int64)
+    return entries, passes[entries]
 
 
 def hit_again(
