@@ -1,6 +1,7 @@
 """OctoMap, wavemap and EHM side by side on every data set, in one process.
 
     python benchmarks/peers.py [--seeds 0] [--fractions 0.8] [--datasets street,...]
+                               [--set features=support ...]
 
 For each data set and split (held-out rays, DESIGN.md), every method maps the training scans
 at the data set's resolution (OctoMap's and wavemap's smallest cell; EHM through
@@ -11,7 +12,8 @@ of what it keeps. Held-out F1 of the occupied class at 0.5; on the simulated sce
 against the exact occupancy at points within 0.3 m of training hits, where a training ray
 reached (benchmarks/online_mapping.py). Each method maps a small scan first, untimed, so
 compilation is not timed. wavemap (../shared/peers/wavemap, built by its build.sh) is left
-out, with a message, where it is not built and on 2D data.
+out, with a message, where it is not built and on 2D data. `--set` changes EHM's settings
+over the resolution's defaults.
 """
 
 from __future__ import annotations
@@ -22,7 +24,14 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
+from common import (
+    RESOLUTION,
+    RESOLUTIONS,
+    heading,
+    markdown_table,
+    settings_text,
+    sweep_arguments,
+)
 from online_mapping import SIMULATED, near_surface_test_points, scans_and_scene
 
 from ehm.core.sensor.scan import Scan
@@ -65,32 +74,38 @@ class WavemapMapper:
         return self.peer.memory_bytes()
 
 
-def mapper_of(method: str, resolution: float, seed: int):
-    """A fresh mapper of `method`, or the reason there is none."""
+def mapper_of(method: str, resolution: float, seed: int, settings: dict | None = None):
+    """A fresh mapper of `method` (EHM with MapConfig overrides `settings`), or the reason
+    there is none."""
     if method != "wavemap":
-        return make_mapper(method, resolution, seed)
+        return make_mapper(method, resolution, seed, settings if method == "ehm" else None)
     try:
         return WavemapMapper(resolution)
     except ImportError:
         return "not built: run ../shared/peers/wavemap/build.sh .venv"
 
 
-def warm_up(method: str, dim: int) -> None:
-    """Map a small scan once, untimed, so compiled code is ready."""
-    if method != "wavemap":
+def warm_up(method: str, dim: int, settings: dict) -> None:
+    """Map two small scans of `dim` dimensions once, untimed, so compiled code is ready
+    (EHM with `settings`, its MapConfig overrides)."""
+    if method == "octomap" or (method == "ehm" and not settings):
         warm_up_method(method, dim)
         return
-    mapper = mapper_of(method, RESOLUTION, 0)
-    if not isinstance(mapper, str):
-        directions = np.random.default_rng(0).normal(size=(400, 3))
-        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-        mapper.build([Scan(2.0 * directions, np.zeros(3))])
-        mapper.occupancy(directions)
+    mapper = mapper_of(method, RESOLUTION, 0, settings)
+    if isinstance(mapper, str) or (method == "wavemap" and dim == 2):
+        return
+    directions = np.random.default_rng(0).normal(size=(400, dim))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    origins = (np.zeros(dim), np.full(dim, 0.5))
+    mapper.build([Scan(2.0 * directions + origin, origin) for origin in origins])
+    mapper.occupancy(directions)
 
 
-def measure(name: str, scans: list[Scan], scene, fraction: float, seed: int) -> dict:
+def measure(
+    name: str, scans: list[Scan], scene, fraction: float, seed: int, settings: dict
+) -> dict:
     """Per method: build s, query s, memory MB, held-out F1, and near F1 on a scene; or the
-    reason it was left out."""
+    reason it was left out. settings: MapConfig overrides for EHM."""
     resolution = RESOLUTIONS.get(name, RESOLUTION)
     split = held_out_rays(scans, fraction, resolution, seed)
     near = truth = None
@@ -102,7 +117,7 @@ def measure(name: str, scans: list[Scan], scene, fraction: float, seed: int) -> 
         if method == "wavemap" and scans[0].dim == 2:
             found[method] = "3D only"
             continue
-        mapper = mapper_of(method, resolution, seed)
+        mapper = mapper_of(method, resolution, seed, settings)
         if isinstance(mapper, str):
             found[method] = mapper
             continue
@@ -123,11 +138,12 @@ def measure(name: str, scans: list[Scan], scene, fraction: float, seed: int) -> 
 
 
 def main() -> None:
-    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS)
-    print(heading("Peers", f"seeds {sweep.seeds}, train fractions {sweep.fractions}"))
+    sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, with_settings=True)
+    detail = f"seeds {sweep.seeds}, train fractions {sweep.fractions}"
+    print(heading("Peers", detail + settings_text(sweep.settings)))
     for method in METHODS:
         for dim in (2, 3):
-            warm_up(method, dim)
+            warm_up(method, dim, sweep.settings)
     header = ["data set", "train", "method", "build s", "query s", "memory MB"]
     header += ["held-out F1", "near F1 (exact)", "build / OctoMap's", "memory / OctoMap's"]
     rows = []
@@ -137,7 +153,9 @@ def main() -> None:
             continue
         scans, scene = loaded
         for fraction in sweep.fractions:
-            runs = [measure(name, scans, scene, fraction, seed) for seed in sweep.seeds]
+            runs = [
+                measure(name, scans, scene, fraction, seed, sweep.settings) for seed in sweep.seeds
+            ]
             means = {}
             for method in METHODS:
                 if isinstance(runs[0][method], str):
