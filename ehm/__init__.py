@@ -2,9 +2,10 @@
 
 The public API: HilbertMap, TiledMap (city-scale maps in tiles, learned on Dask), MapConfig,
 Scan, load (either kind of map), diff (what changed between two maps), evaluate (the paper's
-comparison, ehm.eval), and the errors raised for bad input: EhmError and its kinds
-(ehm.errors). Each is imported on first use, so `import ehm` and the command line's help are
-instant, and the evaluation is never loaded by a program that does not ask for it.
+comparison, ehm.eval), the errors raised for bad input: EhmError and its kinds
+(ehm.errors), and AssumptionWarning, what a reader assumed that its input does not say.
+Each is imported on first use, so `import ehm` and the command line's help are instant,
+and the evaluation is never loaded by a program that does not ask for it.
 """
 
 import os
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
     from ehm.config import MapConfig
     from ehm.core.sensor.scan import Scan
     from ehm.errors import (
+        AssumptionWarning,
         EhmError,
         EmptyMapError,
         FileReadError,
@@ -38,6 +40,7 @@ if TYPE_CHECKING:
 
 # Each public name and the module that defines it.
 _HOMES = {
+    "AssumptionWarning": "ehm.errors",
     "EhmError": "ehm.errors",
     "EmptyMapError": "ehm.errors",
     "FileReadError": "ehm.errors",
@@ -55,6 +58,7 @@ _HOMES = {
 }
 
 __all__ = [
+    "AssumptionWarning",
     "EhmError",
     "EmptyMapError",
     "FileReadError",

@@ -42,3 +42,9 @@ class FileReadError(EhmError):
 class OutputError(EhmError):
     """An output path that cannot or may not be written: missing folder, existing file without
     `force`, or one of the inputs."""
+
+
+class AssumptionWarning(UserWarning):
+    """A reader assumed something its input does not record (a camera, units, a frame); the
+    message says what it assumed and how to say otherwise. The command line prints these as
+    `note:` lines."""

@@ -194,3 +194,48 @@ def test_a_closed_pipe_is_not_called_a_bug(tmp_path, monkeypatch):
     monkeypatch.setattr("ehm.maps.load", closed)
     result = runner.invoke(app, ["info", str(tmp_path / "m.ehm")])
     assert result.exit_code == 1 and "bug" not in result.output
+
+
+def test_a_format_that_cannot_fit_an_input_is_refused_by_name(tmp_path):
+    (tmp_path / "a.pcd").write_text("not read")
+    fails(
+        ["map", tmp_path / "a.pcd", "-f", "bag", "-o", tmp_path / "m.ehm"],
+        "a.pcd: is not a ROS bag",
+    )
+    fails(
+        ["map", tmp_path / "a.pcd", "-f", "tum", "-o", tmp_path / "m.ehm"],
+        "is not a folder of tum depth frames",
+    )
+    fails(
+        ["map", tmp_path, "-f", "xyz", "-o", tmp_path / "m.ehm"], "is a folder; xyz scans are files"
+    )
+
+
+def test_depth_options_are_checked_and_kept_to_depth_frames(tmp_path, plan_log):
+    out = tmp_path / "m.ehm"
+    fails(
+        ["map", plan_log, "--intrinsics", "1,2,3,4", "-o", out], "are for depth frames, not carmen"
+    )
+    fails(["map", plan_log, "--depth-scale", "0", "-o", out], "are for depth frames, not carmen")
+    (tmp_path / "fr1" / "depth").mkdir(parents=True)
+    (tmp_path / "fr1" / "poses.txt").write_text("depth/0.png 0 0 0 0 0 0 1\n")
+    fails(["map", tmp_path / "fr1", "--intrinsics", "1,2,3", "-o", out], "intrinsics are 4 numbers")
+    fails(
+        ["map", tmp_path / "fr1", "--depth-scale", "-5", "-o", out], "depth scale is the raw units"
+    )
+    fails(["map", tmp_path / "fr1", "--fov", "240", "-o", out], "fov is for CARMEN logs, not tum")
+
+
+def test_what_a_reader_assumes_is_said_in_a_note(tmp_path):
+    from PIL import Image
+
+    folder = tmp_path / "seq-01"
+    folder.mkdir()
+    depth = np.full((48, 64), 1500, dtype=np.uint16)
+    Image.fromarray(depth).save(folder / "frame-000000.depth.png")
+    np.savetxt(folder / "frame-000000.pose.txt", np.eye(4))
+    result = runner.invoke(app, ["map", str(folder), "-o", str(tmp_path / "m.ehm"), "--quiet"])
+    assert result.exit_code == 0, result.output
+    assert "note: seq-01: no camera-intrinsics.txt, so 7-Scenes' Kinect is assumed" in " ".join(
+        result.stderr.split()
+    )

@@ -8,7 +8,6 @@ shown, not run.
 """
 
 import importlib
-import inspect
 import os
 import re
 import shlex
@@ -76,7 +75,7 @@ def test_code_blocks_and_commands_are_found():
 @pytest.fixture(scope="session")
 def workspace(tmp_path_factory, plan_log):
     """Small files of the formats the guides read: a CARMEN log (`floor.log`), a ROS 1 bag of
-    three LiDAR sweeps placed by /tf (`room.bag`), TUM depth frames (`tum/`), and a KITTI
+    three LiDAR sweeps placed by /tf (`room.bag`), TUM depth frames (`tum_fr2/`), and a KITTI
     sequence (`kitti/sequences/00` with `kitti/poses/00.txt`)."""
     folder = tmp_path_factory.mktemp("docs")
     shutil.copy(plan_log, folder / "floor.log")
@@ -86,7 +85,7 @@ def workspace(tmp_path_factory, plan_log):
         simulate_scan(scene, o, lidar_directions(32, 512, 30.0), 20.0, 0.01, rng) for o in origins
     ]
     _write_bag(folder / "room.bag", sweeps)
-    _write_tum(folder / "tum", scene, origins)
+    _write_tum(folder / "tum_fr2", scene, origins)
     _write_kitti(folder / "kitti", sweeps)
     return folder
 
@@ -109,15 +108,15 @@ def _write_bag(path: Path, sweeps) -> None:
 
 def _write_tum(folder: Path, scene, origins) -> None:
     """640 x 480 depth frames looking along +x (the camera's z), in TUM's layout, through
-    Freiburg 2's intrinsics (the reader's defaults); only the pixels the reader takes (every
-    second row and column) are rendered, the rest read 0, no depth."""
+    Freiburg 2's intrinsics (the folder's name names them); only the pixels the reader takes
+    (every second row and column) are rendered, the rest read 0, no depth."""
     from PIL import Image
 
-    from ehm.io.tum import tum_scans
+    from ehm.io.depth import PIXEL_STRIDE
+    from ehm.io.tum import FREIBURG_CAMERAS
 
-    camera = inspect.signature(tum_scans).parameters
-    fx, fy, cx, cy = (camera[name].default for name in ("fx", "fy", "cx", "cy"))
-    stride = camera["pixel_stride"].default
+    fx, fy, cx, cy = FREIBURG_CAMERAS[2].intrinsics
+    stride = PIXEL_STRIDE
     (folder / "depth").mkdir(parents=True)
     v, u = np.mgrid[0:480:stride, 0:640:stride]
     rays_camera = np.column_stack([(u.ravel() - cx) / fx, (v.ravel() - cy) / fy, np.ones(u.size)])

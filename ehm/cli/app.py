@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -195,6 +198,26 @@ def parse_numbers(text: str, kind: type, what: str) -> list:
     if not all(math.isfinite(v) for v in values):
         raise InputError(f"{what}: expected finite numbers, got {text!r}")
     return values
+
+
+@contextmanager
+def reported_assumptions() -> Iterator[None]:
+    """Print each ehm.AssumptionWarning raised inside as a `note:` line on stderr, as it comes:
+    what a reader assumed that its input does not record."""
+    from ehm.errors import AssumptionWarning
+
+    shown = warnings.showwarning
+
+    def note(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, AssumptionWarning):
+            errors.print(f"[yellow]note:[/yellow] {escape(str(message))}")
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", AssumptionWarning)
+        warnings.showwarning = note
+        yield
 
 
 def serve_until_stopped(server, what: str) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Annotated
@@ -17,6 +18,7 @@ from ehm.cli.app import (
     load_map,
     parse_numbers,
     parse_settings,
+    reported_assumptions,
     serve_until_stopped,
     timings_table,
 )
@@ -113,6 +115,27 @@ def map_command(
             "the sequence's; 'identity' for poses of the Velodyne itself."
         ),
     ] = None,
+    intrinsics: Annotated[
+        str | None,
+        typer.Option(
+            help="Depth frames: the camera 'fx,fy,cx,cy', pixels (default: the layout's own, "
+            "TUM's by the sequence's name)."
+        ),
+    ] = None,
+    depth_scale: Annotated[
+        float | None,
+        typer.Option(
+            help="Depth frames: raw depth units a metre, 1000 for millimetres (default: the "
+            "layout's own, TUM 5000)."
+        ),
+    ] = None,
+    fov: Annotated[
+        float | None,
+        typer.Option(
+            help="CARMEN FLASER lines: the laser's field of view, degrees (ROBOTLASER1 lines "
+            "carry theirs).  [default: 180]"
+        ),
+    ] = None,
     topic: Annotated[
         str | None,
         typer.Option(help="Bags: the PointCloud2 or LaserScan topic (default: the only one)."),
@@ -196,7 +219,13 @@ def map_command(
 
     given = [*inputs, *(p for p in (poses, calib) if p is not None)]
     sensor = parse_numbers(origin, float, "--origin") if origin else None
-    files = ScanFiles(inputs, format, sensor, poses, calib, every, limit, topic, frame, odometry)
+    camera = parse_numbers(intrinsics, float, "--intrinsics") if intrinsics else None
+    with reported_assumptions():
+        files = ScanFiles(
+            inputs, format, origin=sensor, poses=poses, calib=calib, intrinsics=camera,
+            depth_scale=depth_scale, fov=None if fov is None else math.radians(fov),
+            every=every, limit=limit, topic=topic, frame=frame, odometry=odometry,
+        )  # fmt: skip
     ranges = {"min_range": min_range, "max_range": max_range}
     overrides = {k: v for k, v in ranges.items() if v is not None}
     settings = parse_settings(setting or [])

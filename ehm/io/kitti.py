@@ -1,11 +1,15 @@
 """KITTI odometry Velodyne scans: `velodyne/NNNNNN.bin` (float32 x y z intensity in the
-Velodyne frame), placed by the sequence's poses (line i: frame i's row-major 3x4
-T_world_camera0) and calib.txt's `Tr` (T_camera0_velodyne), each at its time in times.txt
-(line i: frame i's, seconds) where the sequence has one."""
+Velodyne frame), placed by the sequence's poses (line i: frame i's row-major 3x4 pose of the
+left camera, P_i = T_camera0_camera_i) and calib.txt's `Tr` (T_camera_velodyne), each at its
+time in times.txt (line i: frame i's, seconds) where the sequence has one.
+
+The map's world is the first LiDAR pose's frame, z up as robotics tools expect (KITTI's
+poses are in the first camera's frame: y down, z forward): T_world_velodyne_i = Tr^-1 P_i Tr.
+A scan without a poses file is placed in its LiDAR's own frame at a given origin."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Sequence
 from os import PathLike
 from pathlib import Path
 
@@ -21,25 +25,8 @@ from ehm.io.poses import read_kitti_calibration, read_poses
 IDENTITY = "identity"
 
 
-def read_kitti(
-    bin_paths: list[str | PathLike[str]],
-    poses_path: str | PathLike[str],
-    calib: str | PathLike[str] | None = None,
-) -> list[Scan]:
-    """KITTI Velodyne scans in world frame, in frame order. The frame number is the file's
-    name (000123.bin is frame 123, placed by line 123 of the poses file), so any subset of a
-    sequence finds its own poses. T_world_velodyne = T_world_camera0 @ Tr, with Tr from
-    `calib`: a calib.txt path; by default the calib.txt of the scans' sequence folder (beside
-    `velodyne/`); or "identity" when the poses already place the Velodyne."""
-    return list(kitti_scans(bin_paths, poses_path, calib))
-
-
-def kitti_files(
-    items: list[str | PathLike[str]], poses: str | PathLike[str] | None
-) -> tuple[list[Path], Path]:
-    """The .bin scans of `items` (files, or sequence folders holding velodyne/) and the poses
-    file: `poses`, or for one sequence folder NN the odometry layout's poses/NN.txt beside
-    sequences/ (dataset/sequences/NN and dataset/poses/NN.txt)."""
+def kitti_files(items: list[str | PathLike[str]]) -> list[Path]:
+    """The .bin scans of `items` (files, or sequence folders holding velodyne/)."""
     scans: list[Path] = []
     for item in map(Path, items):
         if item.is_dir():
@@ -49,48 +36,62 @@ def kitti_files(
             scans += found
         else:
             scans.append(item)
+    return scans
+
+
+def sequence_poses(
+    items: list[str | PathLike[str]], poses: str | PathLike[str] | None
+) -> Path | None:
+    """The poses file of KITTI scans: `poses`, or for one sequence folder NN the odometry
+    layout's poses/NN.txt beside sequences/ (dataset/sequences/NN and dataset/poses/NN.txt);
+    None when there is neither."""
     if poses is not None:
-        return scans, Path(poses)
+        return Path(poses)
     folders = [Path(item) for item in items if Path(item).is_dir()]
     if len(folders) == 1:
         beside = folders[0].resolve().parent.parent / "poses" / f"{folders[0].name}.txt"
         if beside.exists():
-            return scans, beside
-    raise InputError("KITTI scans need the sequence's poses file (--poses)")
-
-
-def kitti_scans(
-    bin_paths: list[str | PathLike[str]],
-    poses_path: str | PathLike[str],
-    calib: str | PathLike[str] | None = None,
-) -> Iterator[Scan]:
-    """The scans of `read_kitti`, each read when it is asked for; the frame numbers, poses
-    and calibration are checked first, here."""
-    frames = kitti_frames(bin_paths, poses_path, calib)
-    return (read_kitti_scan(*frame) for frame in frames)
+            return beside
+    return None
 
 
 def kitti_frames(
     bin_paths: list[str | PathLike[str]],
-    poses_path: str | PathLike[str],
+    poses_path: str | PathLike[str] | None,
     calib: str | PathLike[str] | None = None,
+    origin: Sequence[float] | None = None,
 ) -> list[tuple[Path, np.ndarray, float | None]]:
     """Each scan's file, (4, 4) T_world_velodyne and time (seconds; None without the
     sequence's times.txt beside `velodyne/`), in frame order, checked (frame numbers, poses
-    and calibration; see read_kitti); no scan is read."""
+    and calibration, see the module); no scan is read. Without a poses file, each scan is
+    placed in its LiDAR's own frame with its centre at `origin` (metres)."""
     frames = sorted((_frame_number(path), Path(path)) for path in bin_paths)
+    times = _times(frames[0][1])
+    if poses_path is None:
+        if origin is None:
+            raise InputError(
+                "KITTI scans need the sequence's poses file (--poses), or --origin X,Y,Z to map "
+                "them in the LiDAR's own frame"
+            )
+        T_world_velodyne = np.eye(4)
+        T_world_velodyne[:3, 3] = origin
+        return [(path, T_world_velodyne, _time(times, frame)) for frame, path in frames]
     poses = read_poses(poses_path)
     T_camera_velodyne = _calibration(frames[0][1], calib)
+    T_velodyne_camera = np.linalg.inv(T_camera_velodyne)
     for frame, path in frames:
         if frame >= len(poses):
             raise FileReadError(
                 poses_path, f"{len(poses)} poses: none for frame {frame} ({path.name})"
             )
-    times = _times(frames[0][1])
     return [
-        (path, poses[frame] @ T_camera_velodyne, times[frame] if frame < len(times) else None)
+        (path, T_velodyne_camera @ poses[frame] @ T_camera_velodyne, _time(times, frame))
         for frame, path in frames
     ]
+
+
+def _time(times: list[float], frame: int) -> float | None:
+    return times[frame] if frame < len(times) else None
 
 
 def read_kitti_scan(path: Path, T_world_velodyne: np.ndarray, time: float | None = None) -> Scan:
@@ -120,7 +121,9 @@ def _frame_number(path: str | PathLike[str]) -> int:
 
 
 def _calibration(first_scan: Path, calib: str | PathLike[str] | None) -> np.ndarray:
-    """T_camera0_velodyne from `calib` (see read_kitti)."""
+    """T_camera0_velodyne from `calib`: a calib.txt path; by default the calib.txt of the
+    scans' sequence folder (beside `velodyne/`); or "identity" when the poses already place
+    the Velodyne."""
     if calib is not None and str(calib) == IDENTITY:
         return np.eye(4)
     if calib is not None:

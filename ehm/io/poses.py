@@ -39,7 +39,7 @@ def read_poses(path: str | PathLike[str]) -> list[np.ndarray]:
             values = np.array(words, dtype=np.float64)
             if not np.all(np.isfinite(values)):
                 raise InputError("numbers that are not finite")
-            poses.append(_kitti_pose(values) if layout == "KITTI" else _tum_pose(values))
+            poses.append(matrix_pose(values) if layout == "KITTI" else _tum_pose(values))
         except ValueError as error:  # InputError too
             raise FileReadError(path, f"not a pose: {error}", where) from None
     if not poses:
@@ -56,13 +56,20 @@ def read_kitti_calibration(path: str | PathLike[str]) -> np.ndarray:
                 values = np.array(rest.split(), dtype=np.float64)
                 if values.shape != (12,) or not np.all(np.isfinite(values)):
                     raise InputError(f"expected 12 finite numbers, got {len(values)}")
-                return _kitti_pose(values)
+                return matrix_pose(values)
             except ValueError as error:  # InputError too
                 raise FileReadError(path, f"bad Tr: {error}", f"line {number}") from None
     raise FileReadError(path, "no 'Tr:' line (the Velodyne-to-camera transform)")
 
 
-def _kitti_pose(values: np.ndarray) -> np.ndarray:
+def matrix_pose(values: np.ndarray) -> np.ndarray:
+    """(4, 4) pose of a row-major 3x4 matrix (12 numbers, KITTI) or 4x4 matrix (16 numbers,
+    7-Scenes, Redwood); InputError when its 3x3 part is not a rotation or a 4x4's last row is
+    not 0 0 0 1."""
+    if values.shape == (16,):
+        if not np.allclose(values[12:], [0.0, 0.0, 0.0, 1.0], atol=_ROTATION_TOLERANCE):
+            raise InputError(f"the last row of a 4x4 pose is {values[12:].tolist()}, not 0 0 0 1")
+        values = values[:12]
     pose = np.vstack([values.reshape(3, 4), [0.0, 0.0, 0.0, 1.0]])
     rotation = pose[:3, :3]
     with np.errstate(over="ignore", invalid="ignore"):  # huge entries: an infinite error
@@ -78,3 +85,19 @@ def _tum_pose(values: np.ndarray) -> np.ndarray:
     pose[:3, :3] = quaternion_to_matrix(qw, qx, qy, qz)
     pose[:3, 3] = (tx, ty, tz)
     return pose
+
+
+def read_matrix(path: str | PathLike[str], shape: tuple[int, int]) -> np.ndarray:
+    """The matrix of `shape` a text file holds, its numbers in rows (7-Scenes' frame poses,
+    tsdf-fusion's camera-intrinsics.txt); FileReadError for any other count or a number that
+    is not finite."""
+    words = read_text(path).split()
+    try:
+        values = np.array(words, dtype=np.float64)
+    except ValueError as error:
+        raise FileReadError(path, f"not a {shape[0]}x{shape[1]} matrix ({error})") from None
+    if values.size != shape[0] * shape[1] or not np.all(np.isfinite(values)):
+        raise FileReadError(
+            path, f"expected {shape[0]}x{shape[1]} finite numbers, got {values.size} numbers"
+        )
+    return values.reshape(shape)

@@ -12,6 +12,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from itertools import islice
 from os import PathLike
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -20,19 +21,30 @@ from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen
+from ehm.io.depth import DepthCamera, check_depth_options, depth_scan
 from ehm.io.files import COMPRESSED_SUFFIXES, uncompressed_suffix
-from ehm.io.kitti import kitti_files, kitti_frames, read_kitti_scan
+from ehm.io.kitti import kitti_files, kitti_frames, read_kitti_scan, sequence_poses
 from ehm.io.las import read_las
 from ehm.io.octomap_graph import read_octomap_graph
 from ehm.io.pcd import read_pcd
 from ehm.io.ply import read_ply
 from ehm.io.poses import read_poses
-from ehm.io.tum import tum_scans
+from ehm.io.redwood import is_redwood, redwood_frames
+from ehm.io.seven_scenes import is_seven_scenes, seven_scenes_frames
+from ehm.io.tum import is_tum, tum_frames
 from ehm.io.xyz import read_xyz
 
-FORMATS = ("xyz", "ply", "pcd", "las", "kitti", "graph", "tum", "carmen", "bag")
+FORMATS = (
+    "xyz", "ply", "pcd", "las", "kitti", "graph", "tum", "7scenes", "redwood", "carmen", "bag",
+)  # fmt: skip
+# Folders of depth images, each with its camera and poses, and the reader of each layout.
+DEPTH_FORMATS = {"tum": tum_frames, "7scenes": seven_scenes_frames, "redwood": redwood_frames}
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
-POSED_FORMATS = ("graph", "tum", "carmen")
+POSED_FORMATS = ("graph", "carmen", *DEPTH_FORMATS)
+_DEPTH_LAYOUTS = (
+    "tum: depth.txt and groundtruth.txt, or poses.txt; 7scenes: frame-*.depth.png and "
+    "frame-*.pose.txt; redwood: depth/ and a .log trajectory"
+)
 _EXTENSIONS = {
     ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".ply": "ply", ".pcd": "pcd",
     ".las": "las", ".laz": "las", ".bin": "kitti", ".graph": "graph", ".log": "carmen",
@@ -41,8 +53,9 @@ _EXTENSIONS = {
 
 
 def guess_format(path: str | PathLike[str]) -> str:
-    """The reader for a path: a folder holding poses.txt is TUM, one holding metadata.yaml a
-    ROS 2 bag, one holding velodyne/ a KITTI sequence, otherwise by extension (the one
+    """The reader for a path: a folder holding metadata.yaml is a ROS 2 bag, one holding
+    velodyne/ a KITTI sequence, others depth frames in their layout (ehm.io.tum,
+    ehm.io.seven_scenes, ehm.io.redwood); a file by its extension (the one
     before .gz, .bz2 or .xz for compressed files: x.log.gz is a CARMEN log, scan.bz2 points)."""
     path = Path(path)
     if is_bag(path):
@@ -50,9 +63,15 @@ def guess_format(path: str | PathLike[str]) -> str:
     if path.is_dir() and (path / "velodyne").is_dir():
         return "kitti"
     if path.is_dir():
-        if (path / "poses.txt").exists():
-            return "tum"
-        raise FileReadError(path, "a folder is read as TUM depth frames and needs poses.txt")
+        for fmt, is_layout in (("tum", is_tum), ("7scenes", is_seven_scenes),
+                               ("redwood", is_redwood)):  # fmt: skip
+            if is_layout(path):
+                return fmt
+        raise FileReadError(
+            path,
+            "a folder of scans is a KITTI sequence (velodyne/), a ROS 2 bag (metadata.yaml) "
+            f"or depth frames: {_DEPTH_LAYOUTS}",
+        )
     suffix = uncompressed_suffix(path)
     if path.suffix.lower() in COMPRESSED_SUFFIXES and suffix in ("", ".bag"):
         if suffix == ".bag":
@@ -67,42 +86,32 @@ def guess_format(path: str | PathLike[str]) -> str:
 
 
 def read_scans(
-    paths: str | PathLike[str] | Sequence[str | PathLike[str]],
-    format: str | None = None,
-    origin: Sequence[float] | None = None,
-    poses: str | PathLike[str] | None = None,
-    calib: str | PathLike[str] | None = None,
-    every: int = 1,
-    limit: int | None = None,
-    topic: str | None = None,
-    frame: str | None = None,
-    odometry: str | None = None,
+    paths: str | PathLike[str] | Sequence[str | PathLike[str]], **options: Any
 ) -> list[Scan]:
-    """Scans from one or more files of one format, in world frame, all read now (see
-    ScanFiles for the arguments, scan_stream for reading them one at a time)."""
-    return list(
-        scan_stream(paths, format, origin, poses, calib, every, limit, topic, frame, odometry)
-    )
+    """Scans from one or more files of one format, in world frame, all read now (`options`:
+    those of ScanFiles; scan_stream reads them one at a time)."""
+    return list(ScanFiles(paths, **options))
 
 
 def scan_stream(
-    paths: str | PathLike[str] | Sequence[str | PathLike[str]],
-    format: str | None = None,
-    origin: Sequence[float] | None = None,
-    poses: str | PathLike[str] | None = None,
-    calib: str | PathLike[str] | None = None,
-    every: int = 1,
-    limit: int | None = None,
-    topic: str | None = None,
-    frame: str | None = None,
-    odometry: str | None = None,
+    paths: str | PathLike[str] | Sequence[str | PathLike[str]], **options: Any
 ) -> Iterator[Scan]:
     """Scans from one or more files of one format, in world frame, each read when it is asked
-    for, so mapping starts with the first and memory holds one at a time (see ScanFiles for
-    the arguments and the checks made before any scan is read)."""
-    return iter(
-        ScanFiles(paths, format, origin, poses, calib, every, limit, topic, frame, odometry)
-    )
+    for, so mapping starts with the first and memory holds one at a time (`options`: those of
+    ScanFiles, which checks everything it can before any scan is read)."""
+    return iter(ScanFiles(paths, **options))
+
+
+class _FileScan(NamedTuple):
+    """A scan that is one file: its path, the (4, 4) pose placing its points in world frame
+    (None: they are), its sensor origin in that file's frame (None: the format's own), its
+    time (seconds; None: unknown) and, for a depth image, the camera that took it."""
+
+    path: Path
+    T_world_file: np.ndarray | None
+    sensor: np.ndarray | None = None
+    time: float | None = None
+    camera: DepthCamera | None = None
 
 
 class ScanFiles:
@@ -111,22 +120,29 @@ class ScanFiles:
     picklable, so processes of a cluster can each read the scans they need.
 
     Everything that can be checked before reading scans is checked when it is made (files
-    exist, options fit the format, poses and calibration files read); a scan that cannot be
-    read raises when it is reached.
+    exist, options fit the format, poses, calibration and cameras read); a scan that cannot
+    be read raises when it is reached. What a reader has to assume (a depth camera, units)
+    it says in an ehm.AssumptionWarning, when it is made.
 
+    format: one of FORMATS (None: guessed from the names, guess_format).
     origin: sensor position (3,), metres, world frame, for point clouds (xyz, ply, pcd, las),
         which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
+        For KITTI .bin scans without poses, where the LiDAR's own frame is placed.
     poses: a poses file. For KITTI .bin scans the sequence's poses (line i places frame i);
         for point clouds one T_world_sensor per file, in the order given (KITTI or TUM layout,
         ehm.io.poses), each file's points in its sensor's frame (PCD: the VIEWPOINT's frame).
-    calib: KITTI's calib.txt, or "identity" (ehm.io.kitti.read_kitti).
+    calib: KITTI's calib.txt (default: the sequence's), or "identity" for poses that already
+        place the LiDAR (ehm.io.kitti).
+    intrinsics, depth_scale: for folders of depth images (tum, 7scenes, redwood), the camera
+        (fx, fy, cx, cy, pixels) and the raw depth units a metre, in place of the layout's own.
+    fov: for CARMEN logs, the field of view of FLASER lines, radians (None: pi).
     every: take every `every`-th scan (1: all); limit: stop after this many (None: no limit).
     topic, frame, odometry: for ROS bags, the scans' topic (None: the only scan topic), the
         fixed frame they are placed in by /tf, and an odometry topic to place them by instead
         (see ehm.io.bags); `poses` gives one pose per message instead.
 
-    Files of one scan each (xyz, ply, pcd, las, kitti) are read by index directly; logs,
-    graphs, TUM folders and bags hold many scans and are read from their start.
+    Files of one scan each (point clouds, KITTI scans, depth images) are read by index
+    directly; logs, graphs and bags hold many scans and are read from their start.
     Raises FileReadError naming the file for anything it cannot read, InputError for options
     that do not fit the format.
     """
@@ -135,9 +151,13 @@ class ScanFiles:
         self,
         paths: str | PathLike[str] | Sequence[str | PathLike[str]],
         format: str | None = None,
+        *,
         origin: Sequence[float] | None = None,
         poses: str | PathLike[str] | None = None,
         calib: str | PathLike[str] | None = None,
+        intrinsics: Sequence[float] | None = None,
+        depth_scale: float | None = None,
+        fov: float | None = None,
         every: int = 1,
         limit: int | None = None,
         topic: str | None = None,
@@ -151,8 +171,17 @@ class ScanFiles:
         if fmt not in FORMATS:
             raise InputError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
         _check_options(fmt, origin, poses, calib)
-        if fmt != "bag" and (topic, frame, odometry) != (None, None, None):
-            raise InputError(f"topic, frame and odometry are for ROS bags, not {fmt} files")
+        unused = {
+            "topic, frame and odometry are for ROS bags": fmt != "bag"
+            and (topic, frame, odometry) != (None, None, None),
+            "intrinsics and depth_scale are for depth frames": fmt not in DEPTH_FORMATS
+            and (intrinsics, depth_scale) != (None, None),
+            "fov is for CARMEN logs": fmt != "carmen" and fov is not None,
+        }
+        for message, wrong in unused.items():
+            if wrong:
+                raise InputError(f"{message}, not {fmt} files")
+        check_depth_options(intrinsics, depth_scale)
         if not (isinstance(every, int) and every >= 1):
             raise InputError(f"every must be an integer >= 1, got {every!r}")
         if limit is not None and not (isinstance(limit, int) and limit >= 0):
@@ -160,16 +189,21 @@ class ScanFiles:
         for item in items:
             if not Path(item).exists():
                 raise FileReadError(item, "no such file or folder")
+            _check_fits(Path(item), fmt)
         self.format = fmt
-        self._every, self._limit = every, limit
-        # One (path, T_world_file, origin, time) per scan for files of one scan each, else None.
-        self._files: (
-            list[tuple[Path, np.ndarray | None, np.ndarray | None, float | None]] | None
-        ) = None
+        self._every, self._limit, self._fov = every, limit, fov
+        self._files: list[_FileScan] | None = None  # None: files of many scans each
         self._streams: list = []
         if fmt == "kitti":
-            bins, poses_path = kitti_files(items, poses)
-            files = [(path, T, None, t) for path, T, t in kitti_frames(bins, poses_path, calib)]
+            frames = kitti_frames(kitti_files(items), sequence_poses(items, poses), calib, origin)
+            files = [_FileScan(path, T, None, time) for path, T, time in frames]
+        elif fmt in DEPTH_FORMATS:
+            files = []
+            for item in items:
+                camera, frames = DEPTH_FORMATS[fmt](item, intrinsics, depth_scale)
+                files += [
+                    _FileScan(f.image, f.T_world_camera, None, f.time, camera) for f in frames
+                ]
         elif fmt == "bag":
             self._streams = [BagScans(item, topic, frame, odometry, poses) for item in items]
             return
@@ -179,7 +213,9 @@ class ScanFiles:
         else:
             sensor = None if origin is None else np.asarray(origin, dtype=np.float64)
             T_world_files = _file_poses(poses, len(items))
-            files = [(Path(p), T, sensor, None) for p, T in zip(items, T_world_files, strict=True)]
+            files = [
+                _FileScan(Path(p), T, sensor) for p, T in zip(items, T_world_files, strict=True)
+            ]
         self._files = files[::every][:limit]
 
     def count(self) -> int | None:
@@ -193,7 +229,7 @@ class ScanFiles:
         if self.format == "bag":
             scans = (scan for bag in self._streams for scan in bag)
         else:
-            scans = _posed_scans(self._streams, self.format)
+            scans = _posed_scans(self._streams, self.format, self._fov)
         stop = None if self._limit is None else self._limit * self._every
         return islice(scans, 0, stop, self._every)
 
@@ -210,22 +246,38 @@ class ScanFiles:
         return ((i, scan) for i, scan in enumerate(self) if i in chosen)
 
     def _read_file(self, index: int) -> Scan:
-        path, T_world_file, sensor, time = self._files[index]
+        scan = self._files[index]
         if self.format == "kitti":
-            return read_kitti_scan(path, T_world_file, time)
-        return _point_cloud_scan(path, self.format, sensor, T_world_file)
+            return read_kitti_scan(scan.path, scan.T_world_file, scan.time)
+        if scan.camera is not None:
+            return depth_scan(scan.path, scan.T_world_file, scan.camera, scan.time)
+        return _point_cloud_scan(scan.path, self.format, scan.sensor, scan.T_world_file)
 
 
-def _posed_scans(items: list[str | PathLike[str]], fmt: str) -> Iterator[Scan]:
-    """The scans of graph, TUM or CARMEN files, one file after the other."""
-    readers = {"graph": read_octomap_graph, "tum": tum_scans, "carmen": read_carmen}
+def _posed_scans(items: list[str | PathLike[str]], fmt: str, fov: float | None) -> Iterator[Scan]:
+    """The scans of graph or CARMEN files, one file after the other."""
     for item in items:
         found = 0
-        for scan in readers[fmt](item):
+        scans = read_octomap_graph(item) if fmt == "graph" else read_carmen(item, fov)
+        for scan in scans:
             found += 1
             yield scan
         if not found:
             raise FileReadError(item, "no scans")
+
+
+def _check_fits(path: Path, fmt: str) -> None:
+    """FileReadError for an input that cannot be of `fmt` whatever it holds: a file given as a
+    folder format, a folder as a file format, a bag that is no bag."""
+    folders = {"tum": is_tum, "7scenes": is_seven_scenes, "redwood": is_redwood}
+    if fmt == "bag" and not is_bag(path):
+        raise FileReadError(
+            path, "is not a ROS bag (a .bag file, or a ROS 2 bag folder holding metadata.yaml)"
+        )
+    if fmt in folders and not (path.is_dir() and folders[fmt](path)):
+        raise FileReadError(path, f"is not a folder of {fmt} depth frames ({_DEPTH_LAYOUTS})")
+    if fmt not in (*folders, "bag", "kitti") and path.is_dir():
+        raise FileReadError(path, f"is a folder; {fmt} scans are files")
 
 
 def _one_format(items: list[str | PathLike[str]]) -> str:
@@ -253,12 +305,14 @@ def _check_options(
         raise InputError(
             f"{fmt} files hold each scan's sensor pose: {' and '.join(given)} would be ignored"
         )
-    if fmt in ("kitti", "bag") and origin is not None:
-        raise InputError(f"{fmt} scans are placed by their poses: origin would be ignored")
+    if fmt == "bag" and origin is not None:
+        raise InputError("bag scans are placed by their poses: origin would be ignored")
     if origin is not None and poses is not None:
         raise InputError("give an origin or poses, not both: each pose places its sensor")
     if calib is not None and fmt != "kitti":
         raise InputError(f"calib is for KITTI scans, not {fmt} files")
+    if calib is not None and origin is not None:
+        raise InputError("calib places the LiDAR in a sequence's poses, not at an origin")
     if origin is not None:
         values = np.asarray(origin, dtype=np.float64)
         if values.shape != (3,) or not np.all(np.isfinite(values)):

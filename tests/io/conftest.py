@@ -18,7 +18,7 @@ def cloud(rng):
 def input_files(tmp_path, cloud):
     """One small valid input of each reader, by name: {name: (path, read_scans keywords)}.
     The KITTI scan sits in a sequence folder with calib.txt and poses.txt; the TUM frames in
-    a folder with poses.txt and depth/."""
+    a folder named for its Freiburg 2 camera, with poses.txt and depth/."""
     n = len(cloud)
     xyz_text = "\n".join(" ".join(f"{v:.9g}" for v in p) for p in cloud) + "\n"
     files = {
@@ -52,7 +52,7 @@ def input_files(tmp_path, cloud):
     (sequence / "calib.txt").write_text("Tr: 0 -1 0 0 0 0 -1 0 1 0 0 0\n")
     (sequence / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
     found["000000.bin"] = (sequence / "velodyne" / "000000.bin", {"poses": sequence / "poses.txt"})
-    found["tum"] = (_tum_folder(tmp_path / "tum"), {})
+    found["tum"] = (_tum_folder(tmp_path / "tum_fr2"), {})
     found["a.las"] = (_las_file(tmp_path / "a.las", cloud), {})
     return found
 

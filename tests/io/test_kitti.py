@@ -28,8 +28,28 @@ def sequence(tmp_path, cloud):
 
 def expected_points(cloud, pose_line):
     T_world_camera = np.vstack([np.array(pose_line.split(), float).reshape(3, 4), [0, 0, 0, 1]])
-    T = T_world_camera @ T_CAMERA_VELODYNE
+    T = np.linalg.inv(T_CAMERA_VELODYNE) @ T_world_camera @ T_CAMERA_VELODYNE
     return cloud @ T[:3, :3].T + T[:3, 3], T[:3, 3]
+
+
+def test_maps_are_in_the_first_lidar_frame_with_z_up(sequence, cloud):
+    """A camera that drives 5 m along its optical axis (KITTI's z forward) moves its LiDAR 5 m
+    along the world's x, level: the ground stays under the sensor."""
+    (sequence / "poses.txt").write_text(
+        "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 5\n1 0 0 0 0 1 0 0 0 0 1 0\n"
+    )
+    first, second, _ = read_scans(sequence, poses=sequence / "poses.txt")
+    np.testing.assert_allclose(first.origin, [0.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(second.origin, [5.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(first.points_world, cloud, atol=1e-6)
+
+
+def test_scans_without_poses_are_placed_at_an_origin(sequence, cloud):
+    (scan,) = read_scans(sequence / "velodyne" / "000001.bin", origin=[1.0, 2.0, 3.0])
+    np.testing.assert_allclose(scan.origin, [1.0, 2.0, 3.0])
+    np.testing.assert_allclose(scan.points_world, cloud + np.array([1.0, 2.0, 3.0]), atol=1e-6)
+    with pytest.raises(InputError, match="--origin X,Y,Z to map them in the LiDAR's own frame"):
+        read_scans(sequence / "velodyne" / "000001.bin")
 
 
 def test_calibration_places_the_velodyne(sequence, cloud):
@@ -67,7 +87,7 @@ def test_kitti_mistakes_are_named(sequence):
     poses = sequence / "poses.txt"
     with pytest.raises(InputError, match="need the sequence's poses file"):
         read_scans(bins)
-    with pytest.raises(InputError, match="origin would be ignored"):
+    with pytest.raises(InputError, match="give an origin or poses, not both"):
         read_scans(bins, poses=poses, origin=[0, 0, 0])
     (sequence / "calib.txt").unlink()
     with pytest.raises(InputError, match=r"calib\.txt is missing: give its calib\.txt"):
@@ -105,7 +125,7 @@ def test_a_sequence_folder_finds_its_scans_and_poses(tmp_path, cloud):
         scans[2].points_world, expected_points(cloud, POSES.splitlines()[2])[0], rtol=1e-6
     )
     (tmp_path / "dataset" / "poses" / "07.txt").unlink()
-    with pytest.raises(InputError, match=r"need the sequence's poses file \(--poses\)"):
+    with pytest.raises(InputError, match=r"need the sequence's poses file \(--poses\), or"):
         read_scans(sequence)
 
 

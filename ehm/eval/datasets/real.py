@@ -15,7 +15,8 @@ import numpy as np
 from ehm.core.sensor.scan import Scan
 from ehm.io.carmen import read_carmen
 from ehm.io.pcd import read_pcd
-from ehm.io.tum import read_tum
+from ehm.io.readers import read_scans
+from ehm.io.tum import FREIBURG_CAMERAS
 from ehm.io.xyz import read_xyz
 
 # The scan lines of OctoMap's sample scan meet here, 0.47 m from the file's origin.
@@ -60,9 +61,16 @@ def pcl_room() -> list[Scan]:
     return scans
 
 
-def tum_fr2_pioneer_slam2(pixel_stride: int = 2) -> list[Scan]:
-    """Ten Kinect depth frames of TUM fr2/pioneer_slam2 with ground-truth poses."""
-    return read_tum(_require("tum_fr2_pioneer_slam2"), pixel_stride=pixel_stride)
+def tum_fr2_pioneer_slam2() -> list[Scan]:
+    """Ten Kinect depth frames of TUM fr2/pioneer_slam2 with ground-truth poses, through the
+    Freiburg 2 camera."""
+    camera = FREIBURG_CAMERAS[2]
+    return read_scans(
+        _require("tum_fr2_pioneer_slam2"),
+        format="tum",
+        intrinsics=camera.intrinsics,
+        depth_scale=camera.depth_scale,
+    )
 
 
 def intel_lab() -> list[Scan]:
