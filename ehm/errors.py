@@ -10,6 +10,7 @@ exception out of `ehm` is a bug.
 
 from __future__ import annotations
 
+import warnings
 from os import PathLike
 
 
@@ -48,3 +49,8 @@ class AssumptionWarning(UserWarning):
     """A reader assumed something its input does not record (a camera, units, a frame); the
     message says what it assumed and how to say otherwise. The command line prints these as
     `note:` lines."""
+
+
+def assumed(message: str) -> None:
+    """Say what a reader assumed that its input does not record (an AssumptionWarning)."""
+    warnings.warn(message, AssumptionWarning, stacklevel=3)

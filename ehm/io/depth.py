@@ -8,7 +8,6 @@ layout (TUM, 7-Scenes, Redwood) shares.
 from __future__ import annotations
 
 import io
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from os import PathLike
@@ -19,7 +18,7 @@ import numpy as np
 
 from ehm.core.sensor.geometry import transform_points
 from ehm.core.sensor.scan import Scan
-from ehm.errors import AssumptionWarning, FileReadError, InputError
+from ehm.errors import FileReadError, InputError
 from ehm.io.files import read_bytes
 
 # Every depth layout reads a sub-sampled image: every second row and column (a quarter of the
@@ -101,11 +100,6 @@ def check_depth_options(intrinsics: Sequence[float] | None, depth_scale: float |
         raise InputError(
             f"depth scale is the raw units of a metre (1000 for millimetres), got {depth_scale}"
         )
-
-
-def assumed(message: str) -> None:
-    """Say what a reader assumed that its input does not record (ehm.AssumptionWarning)."""
-    warnings.warn(message, AssumptionWarning, stacklevel=3)
 
 
 def read_depth_image(path: str | PathLike[str]) -> np.ndarray:

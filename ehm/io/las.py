@@ -1,19 +1,35 @@
 """LAS and LAZ point clouds (airborne and terrestrial LiDAR), read with `laspy` (and `lazrs`
-for LAZ): (N, 3) float64 x, y, z in the file's coordinates, metres, with its scale and offset
-applied."""
+for LAZ): (N, 3) float64 x, y, z in the file's coordinates with its scale and offset applied,
+in metres.
+
+Georeferenced files say their units in their coordinate system's records: GeoTIFF keys
+(ProjLinearUnitsGeoKey, VerticalUnitsGeoKey) or an OGC WKT. Coordinates in feet (State Plane
+systems often use US survey feet) are turned into metres, and the reader says so; files that
+record no units are taken as metres.
+"""
 
 from __future__ import annotations
 
 import io
+import re
 import struct
 from os import PathLike
 
 import numpy as np
 
-from ehm.errors import FileReadError
+from ehm.errors import FileReadError, assumed
 from ehm.io.files import read_input
 
 INSTALL_HINT = "LAS and LAZ files need laspy (and lazrs for LAZ): pip install 'ehm[las]'"
+# EPSG's linear units: code -> (name, metres in one).
+LINEAR_UNITS = {
+    9001: ("metres", 1.0),
+    9002: ("feet", 0.3048),
+    9003: ("US survey feet", 1200 / 3937),
+    9036: ("kilometres", 1000.0),
+}
+PROJ_LINEAR_UNITS_KEY, VERTICAL_UNITS_KEY = 3076, 4099
+_WKT_UNIT = re.compile(r'UNIT\s*\[\s*"([^"]+)"\s*,\s*([0-9.eE+-]+)')
 
 
 def read_las(path: str | PathLike[str]) -> np.ndarray:
@@ -28,12 +44,51 @@ def read_las(path: str | PathLike[str]) -> np.ndarray:
     try:
         cloud = laspy.read(io.BytesIO(data))
         points = np.column_stack([np.asarray(cloud.x), np.asarray(cloud.y), np.asarray(cloud.z)])
+        units = _units(cloud.header.vlrs)
     except Exception as error:
         # laspy and its LAZ backends report bad files in many exception types.
         raise FileReadError(path, f"not a readable LAS/LAZ file ({error!r})") from None
     if len(points) == 0:
         raise FileReadError(path, "no points")
-    return points.astype(np.float64)
+    points = points.astype(np.float64)
+    (horizontal, h_metres), (vertical, v_metres), source = units
+    if (h_metres, v_metres) != (1.0, 1.0):
+        points *= [h_metres, h_metres, v_metres]
+        assumed(
+            f"{path}: coordinates in {horizontal} ({h_metres:.10g} m) horizontally and "
+            f"{vertical} ({v_metres:.10g} m) vertically, as {source} say: read as metres"
+        )
+    return points
+
+
+Unit = tuple[str, float]
+
+
+def _units(vlrs) -> tuple[Unit, Unit, str]:
+    """(horizontal unit, vertical unit, where they were found) of a LAS file's coordinate
+    system records, each (name, metres in one); metres where they record none."""
+    metres = LINEAR_UNITS[9001]
+    for vlr in vlrs:
+        keys = {key.id: key.value_offset for key in getattr(vlr, "geo_keys", [])}
+        if PROJ_LINEAR_UNITS_KEY in keys:
+            horizontal = LINEAR_UNITS.get(keys[PROJ_LINEAR_UNITS_KEY], metres)
+            vertical = LINEAR_UNITS.get(keys.get(VERTICAL_UNITS_KEY, -1), horizontal)
+            return horizontal, vertical, "its GeoTIFF keys"
+        # An OGC WKT: a projected system's length unit is its last UNIT before any vertical
+        # system (an angular one comes first, in its geographic system).
+        wkt = str(getattr(vlr, "string", ""))
+        projected, *vertical_part = re.split("VERT_?CS|VERTCRS", wkt, maxsplit=1)
+        found = _WKT_UNIT.findall(projected) if "PROJCS" in wkt or "PROJCRS" in wkt else []
+        if found:
+            horizontal = _wkt_unit(found[-1])
+            below = _WKT_UNIT.findall(vertical_part[0]) if vertical_part else []
+            return horizontal, _wkt_unit(below[-1]) if below else horizontal, "its WKT"
+    return metres, metres, "no coordinate system recorded"
+
+
+def _wkt_unit(found: tuple[str, str]) -> Unit:
+    name, factor = found
+    return name, float(factor)
 
 
 def _check_header(data: bytes, path: str | PathLike[str]) -> None:

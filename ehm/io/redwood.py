@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.errors import FileReadError, InputError
-from ehm.io.depth import INTRINSICS_HINT, DepthCamera, DepthFrame, assumed
+from ehm.errors import FileReadError, InputError, assumed
+from ehm.io.depth import INTRINSICS_HINT, DepthCamera, DepthFrame
 from ehm.io.files import read_text
 from ehm.io.poses import matrix_pose
 

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 from os import PathLike
 from pathlib import Path
 
-from ehm.errors import FileReadError, InputError
-from ehm.io.depth import DepthCamera, DepthFrame, assumed
+from ehm.errors import FileReadError, InputError, assumed
+from ehm.io.depth import DepthCamera, DepthFrame
 from ehm.io.poses import matrix_pose, read_matrix
 
 SEVEN_SCENES_CAMERA = DepthCamera(585.0, 585.0, 320.0, 240.0, 1000.0, no_reading=(0, 65535))

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from ehm.core.sensor.geometry import quaternion_to_matrix
-from ehm.errors import FileReadError, InputError
-from ehm.io.depth import INTRINSICS_HINT, DepthCamera, DepthFrame, assumed
+from ehm.errors import FileReadError, InputError, assumed
+from ehm.io.depth import INTRINSICS_HINT, DepthCamera, DepthFrame
 from ehm.io.files import read_text
 
 # TUM's calibration of each Kinect (its depth images are registered to the colour camera), and

@@ -48,3 +48,68 @@ def test_las_headers_the_file_cannot_hold_are_named(tmp_path, cloud, offset, val
     (tmp_path / "bad.las").write_bytes(bytes(data))
     with pytest.raises(FileReadError, match=message):
         read_scans(tmp_path / "bad.las")
+
+
+def _georeferenced(path, cloud, vlr):
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = np.array([0.001, 0.001, 0.001])
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = cloud.T
+    las.vlrs.append(vlr)
+    las.write(path)
+    return path
+
+
+def test_feet_are_read_as_metres_and_said(tmp_path, cloud):
+    """State Plane tiles in US survey feet (GeoTIFF keys 3076 and 4099 = EPSG unit 9003)."""
+    from laspy.vlrs.known import GeoKeyDirectoryVlr, GeoKeyEntryStruct
+
+    from ehm.errors import AssumptionWarning
+
+    keys = GeoKeyDirectoryVlr()
+    for key_id, value in ((1024, 1), (3072, 2903), (3076, 9003), (4099, 9003)):
+        entry = GeoKeyEntryStruct()
+        entry.id, entry.tiff_tag_location, entry.count, entry.value_offset = key_id, 0, 1, value
+        keys.geo_keys.append(entry)
+    keys.geo_keys_header.number_of_keys = len(keys.geo_keys)
+    path = _georeferenced(tmp_path / "feet.las", cloud, keys)
+    with pytest.warns(AssumptionWarning, match=r"US survey feet \(0\.3048006096 m\) horiz"):
+        (scan,) = read_scans(path)
+    np.testing.assert_allclose(scan.points_world, cloud * 1200 / 3937, atol=0.001)
+
+
+def test_a_wkt_in_metres_needs_no_note_and_one_in_feet_is_scaled(tmp_path, cloud):
+    import warnings
+
+    from laspy.vlrs.known import WktCoordinateSystemVlr
+
+    geographic = 'GEOGCS["NAD83",DATUM["D",SPHEROID["GRS 1980",6378137,298.257222101]],'
+    geographic += 'UNIT["degree",0.0174532925199433]]'
+    metres = f'PROJCS["UTM 13N",{geographic},UNIT["metre",1]]'
+    path = _georeferenced(tmp_path / "m.las", cloud, WktCoordinateSystemVlr(metres))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        (scan,) = read_scans(path)
+    np.testing.assert_allclose(scan.points_world, cloud, atol=0.001)
+    feet = (
+        f'COMPD_CS["x",PROJCS["SP",{geographic},UNIT["foot",0.3048]],VERT_CS["h",UNIT["metre",1]]]'
+    )
+    path = _georeferenced(tmp_path / "ft.las", cloud, WktCoordinateSystemVlr(feet))
+    with pytest.warns(UserWarning, match=r"in foot \(0\.3048 m\) horizontally and metre \(1 m\)"):
+        (scan,) = read_scans(path)
+    np.testing.assert_allclose(scan.points_world, cloud * [0.3048, 0.3048, 1.0], atol=0.001)
+
+
+def test_the_shared_state_plane_tile_is_61_metres_across():
+    """PDAL's 4_6_crop.las (EPSG:2903, US survey feet): 200 ft = 61 m a side, 19 m of relief."""
+    from ehm.errors import AssumptionWarning
+    from ehm.eval.datasets.real import data_dir
+    from ehm.io.las import read_las
+
+    path = data_dir() / "las_georeferenced" / "4_6_crop.las"
+    if not path.exists():
+        pytest.skip(f"{path} not found (set EHM_DATA_DIR to the data folder)")
+    with pytest.warns(AssumptionWarning, match="US survey feet"):
+        points = read_las(path)
+    extent = points.max(axis=0) - points.min(axis=0)
+    np.testing.assert_allclose(extent, [60.95, 60.95, 18.83], atol=0.01)
