@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Iterable
+from functools import partial
 from os import PathLike
 from typing import Any
 
@@ -44,6 +45,8 @@ from ehm.core.queries.raycast import (
     log_odds_level,
     refine_guesses,
     segment_rays,
+    stop_at_unknown,
+    unknown_is_obstacle,
 )
 from ehm.core.queries.surfels import ReadNear
 from ehm.core.search.anchors import AnchorLayers
@@ -575,18 +578,23 @@ class HilbertMap:
         max_range: float | np.ndarray,
         level: float = 0.5,
         mode: str | None = None,
+        unknown: str = "occupied",
     ) -> np.ndarray:
         """(n,) distance, metres, along each ray to the first point whose occupancy rises
-        above `level`; inf where none does within `max_range`. origins: (n, d) or one (d,)
+        above `level`, or with unknown 'occupied' (the default) to the first point of unknown
+        space (see `known`) where that is nearer, as OctoMap's castRay stops there; inf where
+        neither comes within `max_range`. origins: (n, d) or one (d,)
         point, metres, world frame; directions: (n, d), any length but 0; max_range: metres,
         one for all rays or (n,). Rays march cluster_radius / 2 apart through a grid of the
         log-odds (made on the first call, then kept up to date as the map learns, in each
         update's stage 'grids': ehm.grid.planner_support), and the crossing near the grid's is
         found in the exact log-odds and located to cluster_radius / 10
         (ehm.core.queries.raycast); in mode 'batch' the rays' points share neighbour searches
-        in cells RAY_QUERY_CELLS times query_cell wide. A ray starting inside reads 0. Unknown
-        space reads 0.5: it stops no ray at the default level."""
+        in cells RAY_QUERY_CELLS times query_cell wide. A ray starting inside reads 0. With
+        unknown 'free', unknown space reads as its occupancy, 0.5: it stops no ray at the
+        default level."""
         self._learned("cast rays through it")
+        stop = unknown_is_obstacle(unknown)
         origins, directions, max_range = checked_rays(origins, directions, max_range, self.dim)
         threshold = log_odds_level(level)
         mode = self._checked_mode(mode or self.config.query_mode)
@@ -627,16 +635,37 @@ class HilbertMap:
             radius / 10.0,
             self._planner.cells(self.snapshot, threshold),
         )
+        if stop:
+            known = partial(self.known, mode=mode)
+            return stop_at_unknown(
+                known, origins, directions, distance, max_range, radius / 2.0, radius / 10.0
+            )
         return distance
 
     def segment_free(
-        self, starts: np.ndarray, ends: np.ndarray, level: float = 0.5, mode: str | None = None
+        self,
+        starts: np.ndarray,
+        ends: np.ndarray,
+        level: float = 0.5,
+        mode: str | None = None,
+        unknown: str = "occupied",
     ) -> np.ndarray:
         """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
         one (d,) point each, metres, world frame) has occupancy above `level`, as `raycast`
-        finds it. Unknown space (0.5) counts as free at the default level."""
+        finds it; with unknown 'occupied' (the default), nor lies in unknown space (see
+        `known`): never-seen space is never free. unknown 'free' lets segments cross it."""
         starts, directions, lengths = segment_rays(starts, ends, self.dim)
-        return np.isinf(self.raycast(starts, directions, lengths, level, mode))
+        return np.isinf(self.raycast(starts, directions, lengths, level, mode, unknown))
+
+    def known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n,) bool: True where the map has evidence at each of (n, d) points, metres, world
+        frame: some cluster's kernel reaches it (clusters form where scans gave samples, free
+        and occupied); False where none does (no ray came near: occupancy reads 0.5 there, std
+        the prior's) and for rows that are not finite. Planner queries stop there unless
+        asked not to (`raycast`, `segment_free`)."""
+        points = self._query_points(points)[0]
+        _, sums = self._summed(points, mode, with_variance=True)
+        return sums[:, 1] > 0.0
 
     def distance(
         self,
@@ -770,6 +799,22 @@ class HilbertMap:
         """(n,) log-odds at `points` and, when with_variance, (n,) their variance under the
         weights' posterior (else an empty array); NaN for rows that are not finite. cell:
         metres, the query groups' cells in mode 'batch' (default config.query_cell)."""
+        scores, sums = self._summed(points, mode, with_variance, cell)
+        variance = np.zeros(0)
+        if with_variance:
+            variance = logit_variance(sums[:, 0], sums[:, 1], self.config.prior_precision)
+        return scores, variance
+
+    def _summed(
+        self,
+        points: np.ndarray,
+        mode: str | None,
+        with_variance: bool,
+        cell: float | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) log-odds at (n, d) points and, when with_variance, their (n, 2) sums
+        [sum_m phi_m^2 / lambda_m, sum_m phi_m] over the kernels that reach them (else (0, 2));
+        NaN for rows that are not finite (see `_scores`)."""
         clusters = self._learned("query it")
         mode = self._checked_mode(mode or self.config.query_mode)
         points, finite, query = self._query_points(points)
@@ -792,11 +837,10 @@ class HilbertMap:
             )
         scores = np.full(len(points), np.nan)
         scores[finite] = found
-        variance = np.full(len(points) if with_variance else 0, np.nan)
+        sums = np.full((len(points), 2), np.nan) if with_variance else variance_sums
         if with_variance:
-            prior = self.config.prior_precision
-            variance[finite] = logit_variance(variance_sums[:, 0], variance_sums[:, 1], prior)
-        return scores, variance
+            sums[finite] = variance_sums
+        return scores, sums
 
     # ------------------------------------------------------------------ grids
     def grid(

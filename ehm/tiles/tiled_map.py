@@ -18,6 +18,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
+from functools import partial
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,14 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.model.logistic import sigmoid
-from ehm.core.queries.raycast import checked_rays, first_crossings, log_odds_level, segment_rays
+from ehm.core.queries.raycast import (
+    checked_rays,
+    first_crossings,
+    log_odds_level,
+    segment_rays,
+    stop_at_unknown,
+    unknown_is_obstacle,
+)
 from ehm.core.sensor.scan import Scan
 from ehm.core.weights.uncertainty import logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError, SettingsError
@@ -439,14 +447,18 @@ class TiledMap:
         max_range: float | np.ndarray,
         level: float = 0.5,
         mode: str | None = None,
+        unknown: str = "occupied",
     ) -> np.ndarray:
         """(n,) distance, metres, along each ray to the first point whose blended occupancy
-        rises above `level`; inf where none does within `max_range` (see HilbertMap.raycast
-        for the arguments). Rays march the blended log-odds cluster_radius / 2 apart all the
-        way (a single map's grid and candidate cells are not kept across tiles), and each
-        crossing is located to cluster_radius / 10 (ehm.core.queries.raycast.first_crossings)."""
+        rises above `level`, or with unknown 'occupied' (the default) to the first point no
+        tile knows (`known`) where that is nearer; inf where neither comes within `max_range`
+        (see HilbertMap.raycast for the arguments). Rays march the blended log-odds
+        cluster_radius / 2 apart all the way (a single map's grid and candidate cells are not
+        kept across tiles), and each crossing is located to cluster_radius / 10
+        (ehm.core.queries.raycast.first_crossings)."""
         dim = self._require_dim("cast rays through it")
         origins, directions, max_range = checked_rays(origins, directions, max_range, dim)
+        stop = unknown_is_obstacle(unknown)
         threshold = log_odds_level(level)
         radius = self.config.cluster_radius
 
@@ -454,16 +466,42 @@ class TiledMap:
             return self.decision_function(points, mode)
 
         step, tolerance = radius / 2.0, radius / 10.0
-        return first_crossings(log_odds, origins, directions, max_range, threshold, step, tolerance)
+        distance = first_crossings(
+            log_odds, origins, directions, max_range, threshold, step, tolerance
+        )
+        if not stop:
+            return distance
+        known = partial(self.known, mode=mode)
+        return stop_at_unknown(known, origins, directions, distance, max_range, step, tolerance)
 
     def segment_free(
-        self, starts: np.ndarray, ends: np.ndarray, level: float = 0.5, mode: str | None = None
+        self,
+        starts: np.ndarray,
+        ends: np.ndarray,
+        level: float = 0.5,
+        mode: str | None = None,
+        unknown: str = "occupied",
     ) -> np.ndarray:
         """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
-        one (d,) point each, metres, world frame) has blended occupancy above `level`, as
-        `raycast` finds it."""
+        one (d,) point each, metres, world frame) has blended occupancy above `level`, nor,
+        with unknown 'occupied' (the default), lies where no tile knows, as `raycast` finds
+        it."""
         starts, directions, lengths = segment_rays(starts, ends, self._require_dim("query it"))
-        return np.isinf(self.raycast(starts, directions, lengths, level, mode))
+        return np.isinf(self.raycast(starts, directions, lengths, level, mode, unknown))
+
+    def known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n,) bool: True where a tile that weighs in the blend at each of (n, d) points,
+        metres, world frame, has evidence there (HilbertMap.known); False elsewhere and for
+        rows that are not finite."""
+        points = self._checked_points(points)
+        rows, keys, weights = self.tiling.blend(points)
+        found = np.zeros(len(points), dtype=bool)
+        for key, entries in _by_tile(np.arange(len(rows)), keys):
+            tile_map = self._answering(key)
+            chosen = rows[entries][weights[entries] > 0]
+            if tile_map is not None and len(chosen):
+                found[chosen] |= tile_map.known(points[chosen], mode)
+        return found
 
     def distance(
         self,

@@ -201,3 +201,44 @@ def test_the_ray_grid_follows_updates_as_a_fresh_one_would(rng):
         finite = np.isfinite(kept)
         tolerance = hilbert_map.config.cluster_radius / 10
         np.testing.assert_allclose(kept[finite], fresh[finite], rtol=0, atol=tolerance + 1e-9)
+
+
+def test_rays_stop_where_the_known_space_ends():
+    """stop_at_unknown against a known region x < 2: rays along +x stop at its edge, within
+    the tolerance; one starting outside reads 0; one already stopped nearer keeps its stop."""
+    from ehm.core.queries.raycast import stop_at_unknown
+
+    def known(points):
+        return points[:, 0] < 2.0
+
+    origins = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 1.0], [0.0, 0.0]])
+    directions = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [-1.0, 0.0]])
+    distance = np.array([np.inf, np.inf, 1.0, np.inf])
+    found = stop_at_unknown(known, origins, directions, distance, np.full(4, 10.0), 0.1, 0.01)
+    assert abs(found[0] - 2.0) <= 0.01
+    assert found[1] == 0.0 and found[2] == 1.0 and found[3] == np.inf
+
+
+def test_never_seen_space_is_not_free_unless_asked():
+    """One 2D scan of a wall 3 m ahead: space behind the sensor no ray reached is unknown, so a
+    ray into it stops where the evidence ends and a segment through it is not free; with
+    unknown='free' both pass, as the map's occupancy there reads 0.5."""
+    angles = np.radians(np.linspace(-15.0, 15.0, 121))
+    wall = np.column_stack([np.full_like(angles, 3.0), 3.0 * np.tan(angles)])
+    hilbert_map = ehm.HilbertMap().integrate(wall, np.zeros(2)).flush()
+    assert hilbert_map.known(np.array([[1.5, 0.0], [-4.0, 0.0], [np.nan, 0.0]])).tolist() == [
+        True,
+        False,
+        False,
+    ]
+    assert hilbert_map.occupancy(np.array([[-4.0, 0.0]]))[0] == pytest.approx(0.5)
+    ahead, behind = np.array([[1.0, 0.0]]), np.array([[-1.0, 0.0]])
+    assert hilbert_map.raycast(np.zeros(2), ahead, 10.0)[0] == pytest.approx(3.0, abs=0.15)
+    stop = hilbert_map.raycast(np.zeros(2), behind, 10.0)[0]
+    assert 0.0 <= stop < 1.0
+    assert hilbert_map.raycast(np.zeros(2), behind, 10.0, unknown="free")[0] == np.inf
+    assert not hilbert_map.segment_free(np.zeros(2), np.array([-5.0, 0.0]))[0]
+    assert hilbert_map.segment_free(np.zeros(2), np.array([-5.0, 0.0]), unknown="free")[0]
+    assert hilbert_map.segment_free(np.zeros(2), np.array([2.0, 0.0]))[0]
+    with pytest.raises(ehm.InputError, match="unknown must be 'occupied' or 'free'"):
+        hilbert_map.raycast(np.zeros(2), ahead, 10.0, unknown="maybe")

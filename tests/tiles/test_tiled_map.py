@@ -83,6 +83,10 @@ def test_queries_take_the_same_checks_as_a_hilbert_map(tiled_room):
     # Far from every tile: unknown, the prior's answer.
     far, far_std = tiled_room.occupancy(np.array([[500.0, 0.0, 0.0]]), return_std=True)
     assert far[0] == 0.5
+    assert tiled_room.known(np.array([[500.0, 0.0, 0.0], [0.0, 0.0, 1.0]])).tolist() == [
+        False,
+        True,
+    ]
     prior = 1.0 / tiled_room.config.prior_precision
     assert far_std[0] == pytest.approx(occupancy_std(np.zeros(1), np.full(1, prior))[0])
 
@@ -218,7 +222,7 @@ def test_rays_stop_where_the_blended_map_rises_above_the_level(tiled_room, room)
     rays = rng.choice(np.flatnonzero(scan.hit_mask), 300, replace=False)
     offsets = scan.points_world[rays] - scan.origin
     directions = offsets / np.linalg.norm(offsets, axis=1)[:, None]
-    distance = tiled_room.raycast(scan.origin, directions, 12.0)
+    distance = tiled_room.raycast(scan.origin, directions, 12.0, unknown="free")
     dense = first_crossings_reference(
         tiled_room.decision_function,
         np.broadcast_to(scan.origin, directions.shape),
@@ -236,6 +240,10 @@ def test_rays_stop_where_the_blended_map_rises_above_the_level(tiled_room, room)
     beyond = scan.origin + directions * (exact[:, None] + 0.3)
     assert tiled_room.segment_free(scan.origin, before).mean() > 0.9
     assert tiled_room.segment_free(scan.origin, beyond).mean() < 0.05
+    # Away from every tile no ray has been: not free unless asked.
+    away = np.array([[500.0, 0.0, 1.0]])
+    assert not tiled_room.segment_free(np.array([499.0, 0.0, 1.0]), away)[0]
+    assert tiled_room.segment_free(np.array([499.0, 0.0, 1.0]), away, unknown="free")[0]
     with pytest.raises(InputError, match=r"ray directions must have shape \(n, 3\)"):
         tiled_room.raycast(np.zeros(3), np.ones((4, 2)), 5.0)
     with pytest.raises(InputError, match="segment ends must be"):

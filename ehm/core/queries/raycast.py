@@ -86,6 +86,36 @@ def log_odds_level(level: float) -> float:
     return float(np.log(level / (1.0 - level)))
 
 
+def unknown_is_obstacle(unknown: str) -> bool:
+    """Whether planner queries stop at space without evidence: unknown 'occupied' (their
+    default: a planner must not enter what no ray has seen) or 'free'; InputError otherwise."""
+    if unknown not in ("occupied", "free"):
+        raise InputError(f"unknown must be 'occupied' or 'free', got {unknown!r}")
+    return unknown == "occupied"
+
+
+def stop_at_unknown(
+    known: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    distance: np.ndarray,
+    max_range: np.ndarray,
+    step: float,
+    tolerance: float,
+) -> np.ndarray:
+    """(n,) `distance` along each ray, or the distance to the ray's first point of unknown
+    space (`known`, (m, d) points -> (m,) bool, False) where that is nearer: 0 for a ray that
+    starts in it. Only the part of each ray before its `distance` (or its max_range) is
+    marched, `step` apart, the boundary located within `tolerance`."""
+
+    def unknown_sign(points: np.ndarray) -> np.ndarray:
+        return np.where(known(points), -1.0, 1.0)
+
+    reach = np.where(np.isfinite(distance), distance, max_range)
+    entry = first_crossings(unknown_sign, origins, directions, reach, 0.0, step, tolerance)
+    return np.minimum(distance, entry)
+
+
 def first_crossings(
     log_odds: Callable[[np.ndarray], np.ndarray],
     origins: np.ndarray,
