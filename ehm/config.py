@@ -441,6 +441,12 @@ class MapConfig:
         scaled = {name: getattr(defaults, name) * scale for name in LENGTH_SETTINGS}
         return defaults.replace(**{**scaled, **overrides})
 
+    @property
+    def resolution(self) -> float:
+        """The map's detail, metres: the resolution `for_resolution` was given, read back from
+        the cluster radius it scaled. Grids, meshes, exports and distance fields default to it."""
+        return DEFAULT_RESOLUTION * self.cluster_radius / _DEFAULT_CLUSTER_RADIUS
+
     def replace(self, **overrides: Any) -> MapConfig:
         """A copy with some settings changed; unknown names raise SettingsError."""
         known = {f.name for f in dataclasses.fields(self)}
@@ -463,3 +469,6 @@ class MapConfig:
     def from_dict(cls, values: dict[str, Any]) -> MapConfig:
         """Build from a mapping such as `to_dict()` wrote; unknown names raise SettingsError."""
         return cls().replace(**values)
+
+
+_DEFAULT_CLUSTER_RADIUS = MapConfig().cluster_radius

@@ -3,7 +3,7 @@
 m = HilbertMap(neighbours=8)
 m.integrate(points_world, origin)      # one scan, Alg. 2
 p = m.occupancy(query_points)          # (n,) probability of occupied, Alg. 3
-g = m.grid(resolution=0.05)            # OccupancyGrid over the mapped region (Sec. 3.5)
+g = m.grid()                           # OccupancyGrid at the map's resolution (Sec. 3.5)
 m.save("room.ehm"); m2 = ehm.load("room.ehm")
 
 Each method calls one function per step of the paper's algorithms (ehm.core); the map holds
@@ -846,7 +846,7 @@ class HilbertMap:
     def grid(
         self,
         bounds: np.ndarray | None = None,
-        resolution: float = 0.05,
+        resolution: float | None = None,
         follow: bool = False,
         max_bytes: int = DEFAULT_MAX_BYTES,
         std: bool = False,
@@ -854,7 +854,8 @@ class HilbertMap:
         """Occupancy grid by incremental grid reconstruction (Sec. 3.5).
 
         bounds: (2, d) metres, world frame, [low corner, high corner]; None: the box holding
-        every kernel's support. resolution: voxel side, metres. follow: keep the grid up to
+        every kernel's support. resolution: voxel side, metres (None: the map's own,
+        config.resolution). follow: keep the grid up to
         date whenever the map learns (each batch of scans, see MapConfig.batch_rays, and each
         fit), for as long as it is referenced (several grids, at any resolutions, can follow
         one map); its bounds stay as they were made. max_bytes:
@@ -863,7 +864,8 @@ class HilbertMap:
         of 16.
         """
         self._learned("build a grid")
-        grid = OccupancyGrid.of(self.snapshot(), bounds, resolution, max_bytes, std)
+        voxel = self.config.resolution if resolution is None else resolution
+        grid = OccupancyGrid.of(self.snapshot(), bounds, voxel, max_bytes, std)
         if follow:
             self._followers.add(grid)
         return grid

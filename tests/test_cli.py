@@ -136,6 +136,13 @@ def test_map_at_another_resolution_scales_its_settings(plan_log, tmp_path):
     assert result.exit_code == 0, result.output
     config = ehm.load(output).config
     assert config.cluster_radius == pytest.approx(0.24) and config.min_std == 0.03
+    # The map keeps its resolution, and its outputs default to it.
+    info = runner.invoke(app, ["info", str(output)])
+    assert "resolution" in info.output and "0.1 m (outputs default to it)" in info.output
+    grid_path = tmp_path / "coarse.npz"
+    result = runner.invoke(app, ["grid", str(output), "-o", str(grid_path)])
+    assert result.exit_code == 0, result.output
+    assert load_grid(grid_path).resolution == pytest.approx(0.1)
 
 
 def test_demo_writes_map_mesh_and_pictures(tmp_path):

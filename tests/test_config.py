@@ -82,3 +82,9 @@ def test_settings_for_another_resolution_scale_every_length():
     for bad in (0.0, -0.1, float("inf"), float("nan"), "0.2"):
         with pytest.raises(ValueError, match="map resolution must be a positive number"):
             MapConfig.for_resolution(bad)
+
+
+def test_a_configuration_knows_the_resolution_it_was_made_for():
+    assert MapConfig().resolution == DEFAULT_RESOLUTION
+    assert MapConfig.for_resolution(0.2).resolution == pytest.approx(0.2)
+    assert MapConfig.for_resolution(0.1, max_range=30.0).resolution == pytest.approx(0.1)

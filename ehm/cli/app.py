@@ -73,7 +73,19 @@ def _options(
     """Efficient Hilbert Maps: continuous occupancy maps from range scans."""
 
 
-Resolution = Annotated[float, typer.Option(help="Voxel side of the grid, metres.")]
+Resolution = Annotated[
+    float | None,
+    typer.Option(help="Voxel side of the grid, metres.  [default: the map's resolution]"),
+]
+
+
+def output_resolution(any_map, resolution: float | None) -> float:
+    """`resolution`, metres, or the map's own (MapConfig.resolution) when None; InputError
+    unless it is a positive number."""
+    chosen = any_map.config.resolution if resolution is None else resolution
+    if not 0.0 < chosen < math.inf:
+        raise InputError(f"--resolution must be a positive number of metres, got {chosen}")
+    return chosen
 
 
 Bounds = Annotated[
@@ -145,9 +157,11 @@ def parse_box(hilbert_map, bounds: str | None):
     return box.reshape(2, hilbert_map.dim)
 
 
-def map_grid(hilbert_map, box, resolution: float, max_gib: float, std: bool = False):
-    """The map's grid over `box` ((2, d) or None: all of the map), with the std when asked."""
-    return hilbert_map.grid(box, resolution, max_bytes=grid_bytes(max_gib), std=std)
+def map_grid(hilbert_map, box, resolution: float | None, max_gib: float, std: bool = False):
+    """The map's grid over `box` ((2, d) or None: all of the map) at `resolution` (None: the
+    map's own), with the std when asked."""
+    voxel = output_resolution(hilbert_map, resolution)
+    return hilbert_map.grid(box, voxel, max_bytes=grid_bytes(max_gib), std=std)
 
 
 def grid_bytes(max_gib: float) -> int:

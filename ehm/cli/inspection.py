@@ -18,6 +18,7 @@ from ehm.cli.app import (
     console,
     grid_bytes,
     load_map,
+    output_resolution,
     parse_box,
     serve_until_stopped,
 )
@@ -60,6 +61,7 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
         console.print(table)
         return
     table.add_row("dimensions", str(hilbert_map.dim))
+    table.add_row("resolution", f"{hilbert_map.config.resolution:g} m (outputs default to it)")
     table.add_row("clusters", str(hilbert_map.n_clusters))
     table.add_row("scans", str(hilbert_map.n_scans_))
     if hilbert_map.time_ is not None:
@@ -93,7 +95,7 @@ def diff(
         Path | None,
         typer.Option(help="Also write the voxel centres (.npz: appeared, vanished, stayed)."),
     ] = None,
-    resolution: Resolution = 0.05,
+    resolution: Resolution = None,
     bounds: Bounds = None,
     occupied: Annotated[
         float | None,
@@ -123,7 +125,7 @@ def diff(
     changes = map_diff(
         old,
         new,
-        resolution,
+        output_resolution(new, resolution),
         parse_box(new, bounds),
         max_bytes=max_bytes,
         **{name: level for name, level in levels.items() if level is not None},

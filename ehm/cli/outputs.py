@@ -19,6 +19,7 @@ from ehm.cli.app import (
     grid_bytes,
     load_map,
     map_grid,
+    output_resolution,
     parse_box,
 )
 from ehm.errors import InputError
@@ -77,7 +78,7 @@ def query(
 def grid(
     map_path: Annotated[Path, typer.Argument(help="Map file.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Grid file to write (.npz).")],
-    resolution: Resolution = 0.05,
+    resolution: Resolution = None,
     bounds: Bounds = None,
     max_gib: MaxGiB = 1.0,
     std: Annotated[
@@ -101,7 +102,7 @@ def grid(
 def mesh(
     map_path: Annotated[Path, typer.Argument(help="Map file (3D).")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Mesh file to write (.ply).")],
-    resolution: Resolution = 0.05,
+    resolution: Resolution = None,
     bounds: Bounds = None,
     level: Level = 0.5,
     max_gib: MaxGiB = 1.0,
@@ -132,7 +133,7 @@ def mesh(
 def render(
     map_path: Annotated[Path, typer.Argument(help="Map file.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Picture to write (.png).")],
-    resolution: Resolution = 0.05,
+    resolution: Resolution = None,
     bounds: Bounds = None,
     level: Level = 0.5,
     cut_above: Annotated[
@@ -194,7 +195,7 @@ def export(
             "voxel centres), .npz with --distance.",
         ),
     ],
-    resolution: Resolution = 0.05,
+    resolution: Resolution = None,
     bounds: Bounds = None,
     level: Annotated[
         float,
@@ -241,8 +242,7 @@ def export(
     if output.suffix == ".pgm":
         check_output(output.with_suffix(".yaml"), [map_path], force)
     hilbert_map = load_map(map_path)
-    if not 0.0 < resolution < math.inf:
-        raise InputError(f"--resolution must be a positive number of metres, got {resolution}")
+    resolution = output_resolution(hilbert_map, resolution)
     box = parse_box(hilbert_map, bounds)
     aligned = exports.aligned_bounds(hilbert_map.extent() if box is None else box, resolution)
     if distance:

@@ -573,16 +573,18 @@ class TiledMap:
     def grid(
         self,
         bounds: np.ndarray | None = None,
-        resolution: float = 0.05,
+        resolution: float | None = None,
         max_bytes: int = DEFAULT_MAX_BYTES,
         std: bool = False,
     ) -> OccupancyGrid:
         """Occupancy grid over `bounds` ((2, d) metres, world frame; None: `extent()`) at
-        `resolution` metres: each tile's grid (HilbertMap.grid, Sec. 3.5) over its part,
-        blended as `occupancy` blends; with std, also each voxel's standard deviation.
+        `resolution` metres (None: the map's own, config.resolution): each tile's grid
+        (HilbertMap.grid, Sec. 3.5) over its part, blended as `occupancy` blends; with std,
+        also each voxel's standard deviation.
         InputError for grids over `max_bytes`, before allocating. Reads the tiles it needs;
         memory holds the grid and one tile's part of it."""
         dim = self._require_dim("build a grid")
+        resolution = self.config.resolution if resolution is None else resolution
         if bounds is None:
             bounds = self.extent()
         origin, shape = grid_shape(bounds, resolution, dim, max_bytes, bytes_per_voxel(std))
