@@ -36,10 +36,28 @@ TF_TOPICS = ("/tf", "/tf_static")
 FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
 
+# The files a ROS 2 bag folder keeps its messages in.
+ROS2_SUFFIXES = (".db3", ".mcap")
+
 def is_bag(path: str | PathLike[str]) -> bool:
-    """A ROS 1 .bag file, or a ROS 2 bag folder (holding metadata.yaml)."""
+    """A ROS 1 .bag file, or a ROS 2 bag: its folder (holding metadata.yaml) or one of its
+    .db3 or .mcap files."""
     path = Path(path)
-    return path.suffix == ".bag" or (path.is_dir() and (path / "metadata.yaml").exists())
+    return path.suffix == ".bag" or (bag_folder(path) / "metadata.yaml").exists()
+
+
+def bag_folder(path: Path) -> Path:
+    """The folder of a ROS 2 bag that `path` names: itself, or the folder of a .db3 or .mcap
+    file; FileReadError for such a file outside a bag folder."""
+    if path.suffix.lower() not in ROS2_SUFFIXES:
+        return path
+    if not (path.parent / "metadata.yaml").exists():
+        raise FileReadError(
+            path,
+            "a ROS 2 bag is the folder holding metadata.yaml beside its .db3 or .mcap files, and "
+            "there is none here: give the bag's folder, or make one with `ros2 bag reindex`",
+        )
+    return path.parent
 
 
 class BagScans:
@@ -54,7 +72,7 @@ class BagScans:
         odometry: str | None = None,
         poses: str | PathLike[str] | None = None,
     ) -> None:
-        self.path = Path(path)
+        self.path = bag_folder(Path(path))
         self.skipped = 0
         self._frame, self._odometry = frame, odometry
         with self._reader() as reader:

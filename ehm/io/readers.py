@@ -41,6 +41,12 @@ FORMATS = (
 DEPTH_FORMATS = {"tum": tum_frames, "7scenes": seven_scenes_frames, "redwood": redwood_frames}
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "carmen", *DEPTH_FORMATS)
+# Raw sensor packets, which no reader here decodes, and what to do with them.
+PACKET_CAPTURES = {
+    ".pcap": "a packet capture holds a LiDAR's raw UDP packets, which ehm does not decode: "
+    "save its scans as PCD or PLY with the sensor's own tools first (Ouster: ouster-cli's "
+    "`save`; Velodyne: VeloView), then map those",
+}
 _DEPTH_LAYOUTS = (
     "tum: depth.txt and groundtruth.txt, or poses.txt; 7scenes: frame-*.depth.png and "
     "frame-*.pose.txt; redwood: depth/ and a .log trajectory"
@@ -73,6 +79,8 @@ def guess_format(path: str | PathLike[str]) -> str:
             f"or depth frames: {_DEPTH_LAYOUTS}",
         )
     suffix = uncompressed_suffix(path)
+    if suffix in PACKET_CAPTURES:
+        raise FileReadError(path, PACKET_CAPTURES[suffix])
     if path.suffix.lower() in COMPRESSED_SUFFIXES and suffix in ("", ".bag"):
         if suffix == ".bag":
             raise FileReadError(path, "a compressed bag is not read; decompress it first")

@@ -100,6 +100,13 @@ def test_laser_scans_placed_by_odometry_in_ros2_bags(tmp_path, storage):
     # (float32 angles: to 1e-6 m)
     np.testing.assert_allclose(scan.points_world, [[1.0, 4.5], [-9.0, 2.5]], atol=1e-6)
     np.testing.assert_array_equal(scan.hit_mask, [True, False])
+    # The bag's own .db3 or .mcap file, given by path, reads as its folder.
+    (data,) = [p for p in bag.iterdir() if p.suffix in (".db3", ".mcap")]
+    (by_file,) = read_scans(data, topic="/scan", frame="odom", odometry="/odom")
+    np.testing.assert_array_equal(by_file.points_world, scan.points_world)
+    (bag / "metadata.yaml").unlink()
+    with pytest.raises(FileReadError, match=r"a ROS 2 bag is the folder holding metadata\.yaml"):
+        read_scans(data, topic="/scan")
 
 
 def test_bag_mistakes_are_named(lidar_bag, tmp_path):
