@@ -39,6 +39,7 @@ FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8:
 # The files a ROS 2 bag folder keeps its messages in.
 ROS2_SUFFIXES = (".db3", ".mcap")
 
+
 def is_bag(path: str | PathLike[str]) -> bool:
     """A ROS 1 .bag file, or a ROS 2 bag: its folder (holding metadata.yaml) or one of its
     .db3 or .mcap files."""
