@@ -37,8 +37,10 @@ from ehm.io.xyz import read_xyz
 FORMATS = (
     "xyz", "ply", "pcd", "las", "kitti", "graph", "tum", "7scenes", "redwood", "carmen", "bag",
 )  # fmt: skip
-# Folders of depth images, each with its camera and poses, and the reader of each layout.
+# Folders of depth images, each with its camera and poses: the reader of each layout, and
+# what tells a folder of it.
 DEPTH_FORMATS = {"tum": tum_frames, "7scenes": seven_scenes_frames, "redwood": redwood_frames}
+_IS_DEPTH_LAYOUT = {"tum": is_tum, "7scenes": is_seven_scenes, "redwood": is_redwood}
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "carmen", *DEPTH_FORMATS)
 # Raw sensor packets, which no reader here decodes, and what to do with them.
@@ -69,8 +71,7 @@ def guess_format(path: str | PathLike[str]) -> str:
     if path.is_dir() and (path / "velodyne").is_dir():
         return "kitti"
     if path.is_dir():
-        for fmt, is_layout in (("tum", is_tum), ("7scenes", is_seven_scenes),
-                               ("redwood", is_redwood)):  # fmt: skip
+        for fmt, is_layout in _IS_DEPTH_LAYOUT.items():
             if is_layout(path):
                 return fmt
         raise FileReadError(
@@ -277,14 +278,13 @@ def _posed_scans(items: list[str | PathLike[str]], fmt: str, fov: float | None) 
 def _check_fits(path: Path, fmt: str) -> None:
     """FileReadError for an input that cannot be of `fmt` whatever it holds: a file given as a
     folder format, a folder as a file format, a bag that is no bag."""
-    folders = {"tum": is_tum, "7scenes": is_seven_scenes, "redwood": is_redwood}
     if fmt == "bag" and not is_bag(path):
         raise FileReadError(
             path, "is not a ROS bag (a .bag file, or a ROS 2 bag folder holding metadata.yaml)"
         )
-    if fmt in folders and not (path.is_dir() and folders[fmt](path)):
+    if fmt in _IS_DEPTH_LAYOUT and not (path.is_dir() and _IS_DEPTH_LAYOUT[fmt](path)):
         raise FileReadError(path, f"is not a folder of {fmt} depth frames ({_DEPTH_LAYOUTS})")
-    if fmt not in (*folders, "bag", "kitti") and path.is_dir():
+    if fmt not in (*DEPTH_FORMATS, "bag", "kitti") and path.is_dir():
         raise FileReadError(path, f"is a folder; {fmt} scans are files")
 
 
