@@ -239,3 +239,27 @@ def test_what_a_reader_assumes_is_said_in_a_note(tmp_path):
     assert "note: seq-01: no camera-intrinsics.txt, so 7-Scenes' Kinect is assumed" in " ".join(
         result.stderr.split()
     )
+
+
+def test_notes_come_while_scans_are_read_too(tmp_path, cloud_in_feet):
+    """A LAS file's units are read with its points, while mapping: the note still comes, once
+    a file, as a `note:` line."""
+    result = runner.invoke(
+        app, ["map", *map(str, cloud_in_feet), "-o", str(tmp_path / "m.ehm"), "--quiet"]
+    )
+    assert result.exit_code == 0, result.output
+    notes = [line for line in result.stderr.splitlines() if line.startswith("note:")]
+    assert len(notes) == 2 and all("US survey feet" in note for note in notes)
+
+
+@pytest.fixture
+def cloud_in_feet(tmp_path):
+    """Two LAS files whose GeoTIFF keys say US survey feet."""
+    pytest.importorskip("laspy")
+    from las_files import geo_keys, write_las
+
+    rng = np.random.default_rng(0)
+    return [
+        write_las(tmp_path / name, rng.uniform(-5, 5, (500, 3)), geo_keys((3076, 9003)))
+        for name in ("a.las", "b.las")
+    ]

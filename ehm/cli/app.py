@@ -21,11 +21,13 @@ from ehm.errors import EhmError, InputError
 
 
 class _Commands(TyperGroup):
-    """The command group: turns ehm's errors into one line on stderr (see the module)."""
+    """The command group: turns ehm's errors into one line on stderr (see the module), and
+    what readers assume into `note:` lines, as they come."""
 
     def invoke(self, ctx: Any) -> Any:
         try:
-            return super().invoke(ctx)
+            with reported_assumptions():
+                return super().invoke(ctx)
         except (EhmError, ImportError) as error:
             # An ImportError is a mistake only where an optional part is missing (its message
             # names the extra to install); any other is a bug.

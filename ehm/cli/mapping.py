@@ -18,7 +18,6 @@ from ehm.cli.app import (
     load_map,
     parse_numbers,
     parse_settings,
-    reported_assumptions,
     serve_until_stopped,
     timings_table,
 )
@@ -220,12 +219,11 @@ def map_command(
     given = [*inputs, *(p for p in (poses, calib) if p is not None)]
     sensor = parse_numbers(origin, float, "--origin") if origin else None
     camera = parse_numbers(intrinsics, float, "--intrinsics") if intrinsics else None
-    with reported_assumptions():
-        files = ScanFiles(
-            inputs, format, origin=sensor, poses=poses, calib=calib, intrinsics=camera,
-            depth_scale=depth_scale, fov=None if fov is None else math.radians(fov),
-            every=every, limit=limit, topic=topic, frame=frame, odometry=odometry,
-        )  # fmt: skip
+    files = ScanFiles(
+        inputs, format, origin=sensor, poses=poses, calib=calib, intrinsics=camera,
+        depth_scale=depth_scale, fov=None if fov is None else math.radians(fov),
+        every=every, limit=limit, topic=topic, frame=frame, odometry=odometry,
+    )  # fmt: skip
     ranges = {"min_range": min_range, "max_range": max_range}
     overrides = {k: v for k, v in ranges.items() if v is not None}
     settings = parse_settings(setting or [])

@@ -14,7 +14,7 @@ from os import PathLike
 import numpy as np
 
 from ehm.core.sensor.scan import Scan
-from ehm.errors import FileReadError
+from ehm.errors import FileReadError, InputError
 from ehm.io.files import read_text
 
 # FLASER lines do not say their laser's range; SICK LMS lasers log no-returns at 81.83 m.
@@ -36,7 +36,7 @@ def read_carmen(path: str | PathLike[str], fov: float | None = None) -> list[Sca
     malformed line (a pose that is not finite, a reading that is NaN or negative), or for a
     log without laser lines."""
     if fov is not None and not 0 < fov <= 2 * np.pi:
-        raise FileReadError(path, f"a laser's field of view is in (0, 2 pi] radians, got {fov}")
+        raise InputError(f"a laser's field of view is in (0, 2 pi] radians, got {fov}")
     scans, n_lines = [], 0
     for number, line in enumerate(read_text(path).splitlines(), start=1):
         words = line.split()

@@ -28,7 +28,11 @@ LINEAR_UNITS = {
     9003: ("US survey feet", 1200 / 3937),
     9036: ("kilometres", 1000.0),
 }
-PROJ_LINEAR_UNITS_KEY, VERTICAL_UNITS_KEY = 3076, 4099
+PROJECTED_CS_KEY, PROJ_LINEAR_UNITS_KEY, VERTICAL_UNITS_KEY = 3072, 3076, 4099
+UNITS_UNSAID = (
+    "its GeoTIFF keys name a projected system but not its units: read as metres; a State Plane "
+    "system in feet maps 3.28x too large"
+)
 _WKT_UNIT = re.compile(r'UNIT\s*\[\s*"([^"]+)"\s*,\s*([0-9.eE+-]+)')
 
 
@@ -44,15 +48,20 @@ def read_las(path: str | PathLike[str]) -> np.ndarray:
     try:
         cloud = laspy.read(io.BytesIO(data))
         points = np.column_stack([np.asarray(cloud.x), np.asarray(cloud.y), np.asarray(cloud.z)])
-        units = _units(cloud.header.vlrs)
+        vlrs = list(cloud.header.vlrs)
     except Exception as error:
         # laspy and its LAZ backends report bad files in many exception types.
         raise FileReadError(path, f"not a readable LAS/LAZ file ({error!r})") from None
     if len(points) == 0:
         raise FileReadError(path, "no points")
+    try:
+        (horizontal, h_metres), (vertical, v_metres), source = _units(vlrs)
+    except ValueError as error:
+        raise FileReadError(path, str(error)) from None
     points = points.astype(np.float64)
-    (horizontal, h_metres), (vertical, v_metres), source = units
-    if (h_metres, v_metres) != (1.0, 1.0):
+    if source == UNITS_UNSAID:
+        assumed(f"{path}: {source}")
+    elif (h_metres, v_metres) != (1.0, 1.0):
         points *= [h_metres, h_metres, v_metres]
         assumed(
             f"{path}: coordinates in {horizontal} ({h_metres:.10g} m) horizontally and "
@@ -66,14 +75,20 @@ Unit = tuple[str, float]
 
 def _units(vlrs) -> tuple[Unit, Unit, str]:
     """(horizontal unit, vertical unit, where they were found) of a LAS file's coordinate
-    system records, each (name, metres in one); metres where they record none."""
+    system records, each (name, metres in one); metres where they record none, or
+    UNITS_UNSAID where they name a system without its units. ValueError for a unit code this
+    reader does not know."""
     metres = LINEAR_UNITS[9001]
     for vlr in vlrs:
         keys = {key.id: key.value_offset for key in getattr(vlr, "geo_keys", [])}
         if PROJ_LINEAR_UNITS_KEY in keys:
-            horizontal = LINEAR_UNITS.get(keys[PROJ_LINEAR_UNITS_KEY], metres)
-            vertical = LINEAR_UNITS.get(keys.get(VERTICAL_UNITS_KEY, -1), horizontal)
+            horizontal = _geotiff_unit(keys[PROJ_LINEAR_UNITS_KEY])
+            vertical = horizontal
+            if VERTICAL_UNITS_KEY in keys:
+                vertical = _geotiff_unit(keys[VERTICAL_UNITS_KEY])
             return horizontal, vertical, "its GeoTIFF keys"
+        if PROJECTED_CS_KEY in keys:  # units implied by an EPSG code this reader cannot look up
+            return metres, metres, UNITS_UNSAID
         # An OGC WKT: a projected system's length unit is its last UNIT before any vertical
         # system (an angular one comes first, in its geographic system).
         wkt = str(getattr(vlr, "string", ""))
@@ -84,6 +99,14 @@ def _units(vlrs) -> tuple[Unit, Unit, str]:
             below = _WKT_UNIT.findall(vertical_part[0]) if vertical_part else []
             return horizontal, _wkt_unit(below[-1]) if below else horizontal, "its WKT"
     return metres, metres, "no coordinate system recorded"
+
+
+def _geotiff_unit(code: int) -> Unit:
+    """The EPSG linear unit `code` names; ValueError for one this reader does not know."""
+    if code not in LINEAR_UNITS:
+        names = ", ".join(f"{c} ({name})" for c, (name, _) in LINEAR_UNITS.items())
+        raise ValueError(f"its GeoTIFF keys give linear unit {code}, not one of {names}")
+    return LINEAR_UNITS[code]
 
 
 def _wkt_unit(found: tuple[str, str]) -> Unit:

@@ -204,7 +204,13 @@ class ScanFiles:
         self._files: list[_FileScan] | None = None  # None: files of many scans each
         self._streams: list = []
         if fmt == "kitti":
-            frames = kitti_frames(kitti_files(items), sequence_poses(items, poses), calib, origin)
+            poses_path = sequence_poses(items, poses)
+            if origin is not None and poses_path is not None:
+                raise InputError(
+                    f"the sequence's poses are at {poses_path}: an origin would put every scan "
+                    "at one place; leave out origin"
+                )
+            frames = kitti_frames(kitti_files(items), poses_path, calib, origin)
             files = [_FileScan(path, T, None, time) for path, T, time in frames]
         elif fmt in DEPTH_FORMATS:
             files = []

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ehm.errors import FileReadError, InputError, assumed
-from ehm.io.depth import INTRINSICS_HINT, DepthCamera, DepthFrame
+from ehm.io.depth import INTRINSICS_HINT, DepthCamera, DepthFrame, check_depth_options
 from ehm.io.files import read_text
 from ehm.io.poses import matrix_pose
 
@@ -97,27 +97,33 @@ def _read_log(path: Path) -> list[tuple[int, np.ndarray]]:
 def _camera(
     folder: Path, intrinsics: Sequence[float] | None, depth_scale: float | None
 ) -> DepthCamera:
-    files = sorted(folder.glob("*.json")) + sorted(folder.parent.glob("camera*.json"))
-    found = next((p for p in files if "intrinsic_matrix" in read_text(p)), None)
-    if found is None and intrinsics is None:
-        raise InputError(
-            f"{folder}: no camera file (Open3D's PinholeCameraIntrinsic JSON) beside the frames: "
-            f"{INTRINSICS_HINT}"
-        )
-    fx = fy = 1.0
-    cx = cy = 0.0
-    if found is not None:
-        try:
-            K = np.array(json.loads(read_text(found))["intrinsic_matrix"], dtype=np.float64)
-            if K.size != 9:
-                raise ValueError(f"{K.size} numbers, a 3x3 matrix has 9")
-            fx, fy, cx, cy = K.ravel()[[0, 4, 6, 7]]
-        except (ValueError, KeyError, IndexError, TypeError) as error:
-            raise FileReadError(found, f"not a camera's intrinsic_matrix ({error!r})") from None
-    camera = DepthCamera(fx, fy, cx, cy, REDWOOD_DEPTH_SCALE).with_options(intrinsics, depth_scale)
+    if intrinsics is None:
+        intrinsics = _camera_file_intrinsics(folder)
+    camera = DepthCamera(*intrinsics, REDWOOD_DEPTH_SCALE).with_options(None, depth_scale)
     if depth_scale is None:
         assumed(
             f"{folder.name}: Redwood depth images read as millimetres, Open3D's convention "
             f"({camera.describe()}); --depth-scale says otherwise"
         )
     return camera
+
+
+def _camera_file_intrinsics(folder: Path) -> tuple[float, float, float, float]:
+    """(fx, fy, cx, cy), pixels, of the Open3D camera file beside the frames (a JSON file with
+    `intrinsic_matrix`, in the folder or a camera*.json above it); InputError without one."""
+    files = sorted(folder.glob("*.json")) + sorted(folder.parent.glob("camera*.json"))
+    found = next((p for p in files if "intrinsic_matrix" in read_text(p)), None)
+    if found is None:
+        raise InputError(
+            f"{folder}: no camera file (Open3D's PinholeCameraIntrinsic JSON) beside the frames: "
+            f"{INTRINSICS_HINT}"
+        )
+    try:
+        K = np.array(json.loads(read_text(found))["intrinsic_matrix"], dtype=np.float64)
+        if K.size != 9:
+            raise ValueError(f"{K.size} numbers, a 3x3 matrix has 9")
+        fx, fy, cx, cy = K.ravel()[[0, 4, 6, 7]]  # column by column
+        check_depth_options((fx, fy, cx, cy), None)
+    except (ValueError, KeyError, TypeError) as error:  # InputError too
+        raise FileReadError(found, f"not a camera's intrinsic_matrix ({error})") from None
+    return fx, fy, cx, cy

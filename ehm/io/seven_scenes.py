@@ -58,7 +58,10 @@ def _camera(
     camera = SEVEN_SCENES_CAMERA
     if found is not None:
         K = read_matrix(found, (3, 3))
-        camera = SEVEN_SCENES_CAMERA.with_options((K[0, 0], K[1, 1], K[0, 2], K[1, 2]), None)
+        try:
+            camera = SEVEN_SCENES_CAMERA.with_options((K[0, 0], K[1, 1], K[0, 2], K[1, 2]), None)
+        except InputError as error:
+            raise FileReadError(found, str(error)) from None
     camera = camera.with_options(intrinsics, depth_scale)
     if found is None and intrinsics is None:
         assumed(

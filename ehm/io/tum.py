@@ -24,12 +24,13 @@ from ehm.errors import FileReadError, InputError, assumed
 from ehm.io.depth import INTRINSICS_HINT, DepthCamera, DepthFrame
 from ehm.io.files import read_text
 
-# TUM's calibration of each Kinect (its depth images are registered to the colour camera), and
-# its depth unit: 5000 a metre.
+# TUM's depth unit, a metre in raw image values, and its calibration of each Kinect (the
+# depth images are registered to the colour camera).
+TUM_DEPTH_SCALE = 5000.0
 FREIBURG_CAMERAS = {
-    1: DepthCamera(517.3, 516.5, 318.6, 255.3, 5000.0),
-    2: DepthCamera(520.9, 521.0, 325.1, 249.7, 5000.0),
-    3: DepthCamera(535.4, 539.2, 320.1, 247.6, 5000.0),
+    1: DepthCamera(517.3, 516.5, 318.6, 255.3, TUM_DEPTH_SCALE),
+    2: DepthCamera(520.9, 521.0, 325.1, 249.7, TUM_DEPTH_SCALE),
+    3: DepthCamera(535.4, 539.2, 320.1, 247.6, TUM_DEPTH_SCALE),
 }
 # TUM's associate.py pairs time stamps no further apart than this, seconds.
 MAX_TIME_DIFFERENCE = 0.02
@@ -68,20 +69,18 @@ def _camera(
             f"rgbd_dataset_freiburg2_pioneer_slam2) and this folder's name names none: "
             f"{INTRINSICS_HINT}"
         )
-    base = (
-        DepthCamera(1.0, 1.0, 0.0, 0.0, 5000.0)
-        if match is None
-        else (FREIBURG_CAMERAS[int(match.group(1))])
-    )
-    camera = base.with_options(intrinsics, depth_scale)
-    if intrinsics is None or depth_scale is None:
-        source = (
-            "the given camera"
-            if intrinsics is not None
-            else (f"Freiburg {match.group(1)}'s camera (the folder's name says which)")
-        )
+    if match is None:
+        camera = DepthCamera(*intrinsics, TUM_DEPTH_SCALE).with_options(None, depth_scale)
+    else:
+        camera = FREIBURG_CAMERAS[int(match.group(1))].with_options(intrinsics, depth_scale)
+    assumptions = []
+    if intrinsics is None:
+        assumptions.append(f"Freiburg {match.group(1)}'s camera (the folder's name)")
+    if depth_scale is None:
+        assumptions.append("TUM's depth unit")
+    if assumptions:
         assumed(
-            f"{folder.name}: TUM depth frames read with {source} and TUM's depth unit: "
+            f"{folder.name}: TUM depth frames read with {' and '.join(assumptions)}: "
             f"{camera.describe()}; --intrinsics and --depth-scale say otherwise"
         )
     return camera
@@ -116,13 +115,13 @@ def _associated_frames(folder: Path) -> list[DepthFrame]:
     ]
     if not images or not truth:
         raise FileReadError(depth_path if not images else truth_path, "no frames")
-    depth_times = np.array([time for time, _ in images])
     truth_times = np.array([time for time, _, _ in truth])
     order = np.argsort(truth_times)
+    by_time = truth_times[order]
     pairs = []
-    for i, time in enumerate(depth_times):
-        low = np.searchsorted(truth_times[order], time - MAX_TIME_DIFFERENCE, "left")
-        high = np.searchsorted(truth_times[order], time + MAX_TIME_DIFFERENCE, "right")
+    for i, (time, _) in enumerate(images):
+        low = np.searchsorted(by_time, time - MAX_TIME_DIFFERENCE, "left")
+        high = np.searchsorted(by_time, time + MAX_TIME_DIFFERENCE, "right")
         pairs += [(abs(truth_times[j] - time), i, j) for j in order[low:high]]
     pairs.sort()
     matched: dict[int, int] = {}

@@ -6,6 +6,7 @@ import struct
 
 import numpy as np
 import pytest
+from las_files import write_las
 
 
 @pytest.fixture
@@ -53,19 +54,8 @@ def input_files(tmp_path, cloud):
     (sequence / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
     found["000000.bin"] = (sequence / "velodyne" / "000000.bin", {"poses": sequence / "poses.txt"})
     found["tum"] = (_tum_folder(tmp_path / "tum_fr2"), {})
-    found["a.las"] = (_las_file(tmp_path / "a.las", cloud), {})
+    found["a.las"] = (write_las(tmp_path / "a.las", cloud), {})
     return found
-
-
-def _las_file(path, cloud):
-    import laspy
-
-    header = laspy.LasHeader(point_format=3, version="1.2")
-    header.scales = np.array([0.001, 0.001, 0.001])
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = cloud.T
-    las.write(path)
-    return path
 
 
 def _ply_header(fmt: str, n: int) -> str:

@@ -7,7 +7,7 @@ import lzma
 import numpy as np
 import pytest
 
-from ehm.errors import FileReadError
+from ehm.errors import FileReadError, InputError
 from ehm.io.readers import read_scans
 from ehm.io.xyz import read_xyz
 
@@ -82,7 +82,7 @@ def test_flaser_lines_take_the_field_of_view_they_are_given(tmp_path):
     (scan,) = read_scans(tmp_path / "a.log", fov=np.radians(240))
     angles = np.degrees(np.arctan2(scan.points_world[:, 1], scan.points_world[:, 0]))
     np.testing.assert_allclose(angles, [-120.0, -40.0, 40.0], atol=1e-9)
-    with pytest.raises(FileReadError, match=r"field of view is in \(0, 2 pi\] radians"):
+    with pytest.raises(InputError, match=r"field of view is in \(0, 2 pi\] radians"):
         read_scans(tmp_path / "a.log", fov=7.0)
 
 

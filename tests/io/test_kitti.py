@@ -124,6 +124,8 @@ def test_a_sequence_folder_finds_its_scans_and_poses(tmp_path, cloud):
     np.testing.assert_allclose(
         scans[2].points_world, expected_points(cloud, POSES.splitlines()[2])[0], rtol=1e-6
     )
+    with pytest.raises(InputError, match=r"07\.txt: an origin would put every scan at one"):
+        read_scans(sequence, origin=[0.0, 0.0, 0.0])
     (tmp_path / "dataset" / "poses" / "07.txt").unlink()
     with pytest.raises(InputError, match=r"need the sequence's poses file \(--poses\), or"):
         read_scans(sequence)

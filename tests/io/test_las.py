@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from las_files import geo_keys, write_las
 
 from ehm.errors import FileReadError
 from ehm.io.readers import read_scans
@@ -50,32 +51,27 @@ def test_las_headers_the_file_cannot_hold_are_named(tmp_path, cloud, offset, val
         read_scans(tmp_path / "bad.las")
 
 
-def _georeferenced(path, cloud, vlr):
-    header = laspy.LasHeader(point_format=3, version="1.2")
-    header.scales = np.array([0.001, 0.001, 0.001])
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = cloud.T
-    las.vlrs.append(vlr)
-    las.write(path)
-    return path
-
-
 def test_feet_are_read_as_metres_and_said(tmp_path, cloud):
     """State Plane tiles in US survey feet (GeoTIFF keys 3076 and 4099 = EPSG unit 9003)."""
-    from laspy.vlrs.known import GeoKeyDirectoryVlr, GeoKeyEntryStruct
-
     from ehm.errors import AssumptionWarning
 
-    keys = GeoKeyDirectoryVlr()
-    for key_id, value in ((1024, 1), (3072, 2903), (3076, 9003), (4099, 9003)):
-        entry = GeoKeyEntryStruct()
-        entry.id, entry.tiff_tag_location, entry.count, entry.value_offset = key_id, 0, 1, value
-        keys.geo_keys.append(entry)
-    keys.geo_keys_header.number_of_keys = len(keys.geo_keys)
-    path = _georeferenced(tmp_path / "feet.las", cloud, keys)
+    keys = geo_keys((1024, 1), (3072, 2903), (3076, 9003), (4099, 9003))
+    path = write_las(tmp_path / "feet.las", cloud, keys)
     with pytest.warns(AssumptionWarning, match=r"US survey feet \(0\.3048006096 m\) horiz"):
         (scan,) = read_scans(path)
     np.testing.assert_allclose(scan.points_world, cloud * 1200 / 3937, atol=0.001)
+
+
+def test_units_a_file_does_not_say_are_said_and_unknown_ones_refused(tmp_path, cloud):
+    from ehm.errors import AssumptionWarning
+
+    unsaid = write_las(tmp_path / "unsaid.las", cloud, geo_keys((1024, 1), (3072, 2903)))
+    with pytest.warns(AssumptionWarning, match="name a projected system but not its units"):
+        (scan,) = read_scans(unsaid)
+    np.testing.assert_allclose(scan.points_world, cloud, atol=0.001)
+    odd = write_las(tmp_path / "odd.las", cloud, geo_keys((3072, 2903), (3076, 9030)))
+    with pytest.raises(FileReadError, match=r"odd\.las: its GeoTIFF keys give linear unit 9030"):
+        read_scans(odd)
 
 
 def test_a_wkt_in_metres_needs_no_note_and_one_in_feet_is_scaled(tmp_path, cloud):
@@ -83,10 +79,12 @@ def test_a_wkt_in_metres_needs_no_note_and_one_in_feet_is_scaled(tmp_path, cloud
 
     from laspy.vlrs.known import WktCoordinateSystemVlr
 
+    from ehm.errors import AssumptionWarning
+
     geographic = 'GEOGCS["NAD83",DATUM["D",SPHEROID["GRS 1980",6378137,298.257222101]],'
     geographic += 'UNIT["degree",0.0174532925199433]]'
     metres = f'PROJCS["UTM 13N",{geographic},UNIT["metre",1]]'
-    path = _georeferenced(tmp_path / "m.las", cloud, WktCoordinateSystemVlr(metres))
+    path = write_las(tmp_path / "m.las", cloud, WktCoordinateSystemVlr(metres))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         (scan,) = read_scans(path)
@@ -94,8 +92,8 @@ def test_a_wkt_in_metres_needs_no_note_and_one_in_feet_is_scaled(tmp_path, cloud
     feet = (
         f'COMPD_CS["x",PROJCS["SP",{geographic},UNIT["foot",0.3048]],VERT_CS["h",UNIT["metre",1]]]'
     )
-    path = _georeferenced(tmp_path / "ft.las", cloud, WktCoordinateSystemVlr(feet))
-    with pytest.warns(UserWarning, match=r"in foot \(0\.3048 m\) horizontally and metre \(1 m\)"):
+    path = write_las(tmp_path / "ft.las", cloud, WktCoordinateSystemVlr(feet))
+    with pytest.warns(AssumptionWarning, match=r"foot \(0\.3048 m\) horizontally and metre \(1 m"):
         (scan,) = read_scans(path)
     np.testing.assert_allclose(scan.points_world, cloud * [0.3048, 0.3048, 1.0], atol=0.001)
 

@@ -38,6 +38,10 @@ def test_redwood_frames_are_millimetres_through_the_camera_file(tmp_path):
 
 def test_redwood_mistakes_are_named(tmp_path):
     folder = _sequence(tmp_path / "seq")
+    camera = json.loads((folder / "camera.json").read_text())
+    (folder / "camera.json").write_text(json.dumps({**camera, "intrinsic_matrix": [0] * 9}))
+    with pytest.raises(FileReadError, match=r"camera\.json: not a camera's intrinsic_matrix"):
+        read_scans(folder)
     (folder / "camera.json").unlink()
     with pytest.raises(InputError, match=r"no camera file .* --intrinsics FX,FY,CX,CY"):
         read_scans(folder)

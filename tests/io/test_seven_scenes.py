@@ -52,3 +52,10 @@ def test_a_frame_without_its_pose_is_named(tmp_path):
     (folder / "frame-000001.pose.txt").write_text("1 0 0\n")
     with pytest.raises(FileReadError, match=r"frame-000001\.pose\.txt: expected 4x4"):
         read_scans(folder, intrinsics=[2, 2, 0, 0])
+
+
+def test_a_camera_file_that_is_no_camera_is_named(tmp_path):
+    folder = _frames(tmp_path / "seq", [2000])
+    (folder / "camera-intrinsics.txt").write_text("0 0 320\n0 0 240\n0 0 1\n")
+    with pytest.raises(FileReadError, match=r"camera-intrinsics\.txt: camera fx 0\.0"):
+        read_scans(folder)
