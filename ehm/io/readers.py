@@ -18,7 +18,7 @@ import numpy as np
 
 from ehm.core.sensor.geometry import transform_points
 from ehm.core.sensor.scan import Scan
-from ehm.errors import FileReadError, InputError
+from ehm.errors import FileReadError, InputError, assumed
 from ehm.io.bags import BagScans, is_bag
 from ehm.io.carmen import read_carmen
 from ehm.io.depth import DepthCamera, check_depth_options, depth_scan
@@ -26,6 +26,7 @@ from ehm.io.files import COMPRESSED_SUFFIXES, uncompressed_suffix
 from ehm.io.kitti import kitti_files, kitti_frames, read_kitti_scan, sequence_poses
 from ehm.io.las import read_las
 from ehm.io.octomap_graph import read_octomap_graph
+from ehm.io.ouster import OusterSensor, capture_sensor, ouster_scans
 from ehm.io.pcd import read_pcd
 from ehm.io.ply import read_ply
 from ehm.io.poses import read_poses
@@ -36,6 +37,7 @@ from ehm.io.xyz import read_xyz
 
 FORMATS = (
     "xyz", "ply", "pcd", "las", "kitti", "graph", "tum", "7scenes", "redwood", "carmen", "bag",
+    "ouster",
 )  # fmt: skip
 # Folders of depth images, each with its camera and poses: the reader of each layout, and
 # what tells a folder of it.
@@ -43,12 +45,6 @@ DEPTH_FORMATS = {"tum": tum_frames, "7scenes": seven_scenes_frames, "redwood": r
 _IS_DEPTH_LAYOUT = {"tum": is_tum, "7scenes": is_seven_scenes, "redwood": is_redwood}
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "carmen", *DEPTH_FORMATS)
-# Raw sensor packets, which no reader here decodes, and what to do with them.
-PACKET_CAPTURES = {
-    ".pcap": "a packet capture holds a LiDAR's raw UDP packets, which ehm does not decode: "
-    "save its scans as PCD or PLY with the sensor's own tools first (Ouster: ouster-cli's "
-    "`save`; Velodyne: VeloView), then map those",
-}
 _DEPTH_LAYOUTS = (
     "tum: depth.txt and groundtruth.txt, or poses.txt; 7scenes: frame-*.depth.png and "
     "frame-*.pose.txt; redwood: depth/ and a .log trajectory"
@@ -56,7 +52,7 @@ _DEPTH_LAYOUTS = (
 _EXTENSIONS = {
     ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".ply": "ply", ".pcd": "pcd",
     ".las": "las", ".laz": "las", ".bin": "kitti", ".graph": "graph", ".log": "carmen",
-    ".clf": "carmen", ".bag": "bag",
+    ".clf": "carmen", ".bag": "bag", ".pcap": "ouster",
 }  # fmt: skip
 
 
@@ -80,8 +76,6 @@ def guess_format(path: str | PathLike[str]) -> str:
             f"or depth frames: {_DEPTH_LAYOUTS}",
         )
     suffix = uncompressed_suffix(path)
-    if suffix in PACKET_CAPTURES:
-        raise FileReadError(path, PACKET_CAPTURES[suffix])
     if path.suffix.lower() in COMPRESSED_SUFFIXES and suffix in ("", ".bag"):
         if suffix == ".bag":
             raise FileReadError(path, "a compressed bag is not read; decompress it first")
@@ -136,8 +130,10 @@ class ScanFiles:
     format: one of FORMATS (None: guessed from the names, guess_format).
     origin: sensor position (3,), metres, world frame, for point clouds (xyz, ply, pcd, las),
         which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
-        For KITTI .bin scans without poses, where the LiDAR's own frame is placed.
+        For KITTI .bin scans without poses and Ouster captures, where the LiDAR's own frame is
+        placed.
     poses: a poses file. For KITTI .bin scans the sequence's poses (line i places frame i);
+        for Ouster captures one T_world_sensor per frame, over all captures in order;
         for point clouds one T_world_sensor per file, in the order given (KITTI or TUM layout,
         ehm.io.poses), each file's points in its sensor's frame (PCD: the VIEWPOINT's frame).
     calib: KITTI's calib.txt (default: the sequence's), or "identity" for poses that already
@@ -225,6 +221,10 @@ class ScanFiles:
         elif fmt in POSED_FORMATS:
             self._streams = items
             return
+        elif fmt == "ouster":
+            self._streams = [(item, capture_sensor(item)) for item in items]
+            self._T_world_sensors = _capture_poses(self._streams, origin, poses)
+            return
         else:
             sensor = None if origin is None else np.asarray(origin, dtype=np.float64)
             T_world_files = _file_poses(poses, len(items))
@@ -243,6 +243,8 @@ class ScanFiles:
             return (self._read_file(i) for i in range(len(self._files)))
         if self.format == "bag":
             scans = (scan for bag in self._streams for scan in bag)
+        elif self.format == "ouster":
+            scans = _capture_scans(self._streams, self._T_world_sensors)
         else:
             scans = _posed_scans(self._streams, self.format, self._fov)
         stop = None if self._limit is None else self._limit * self._every
@@ -279,6 +281,56 @@ def _posed_scans(items: list[str | PathLike[str]], fmt: str, fov: float | None) 
             yield scan
         if not found:
             raise FileReadError(item, "no scans")
+
+
+def _capture_poses(
+    captures: list[tuple[str | PathLike[str], OusterSensor]],
+    origin: Sequence[float] | None,
+    poses: str | PathLike[str] | None,
+) -> list[np.ndarray] | None:
+    """T_world_sensor of each frame of LiDAR captures (paths and sensors): one per frame
+    from `poses` (the frames are counted first), or one placing every frame at `origin`;
+    None: the sensor's frame."""
+    if origin is not None:
+        T_world_sensor = np.eye(4)
+        T_world_sensor[:3, 3] = origin
+        return [T_world_sensor]
+    if poses is None:
+        return None
+    T_world_sensors = read_poses(poses)
+    frames = sum(1 for capture in captures for _ in ouster_scans(*capture))
+    if len(T_world_sensors) != frames:
+        raise FileReadError(poses, f"{len(T_world_sensors)} poses for {frames} frames")
+    return T_world_sensors
+
+
+def _capture_scans(
+    captures: list[tuple[str | PathLike[str], OusterSensor]],
+    T_world_sensors: list[np.ndarray] | None,
+) -> Iterator[Scan]:
+    """The frames of LiDAR captures (paths and sensors), each placed by its pose (one pose:
+    all frames; None: left in the sensor's frame, said once a second frame shows the sensor
+    may have moved)."""
+    for index, scan in enumerate(scan for capture in captures for scan in ouster_scans(*capture)):
+        if index == 1 and (T_world_sensors is None or len(T_world_sensors) == 1):
+            assumed(
+                "the capture's frames are all mapped from one sensor pose (no poses given): "
+                "right for a sensor standing still; give poses, one per frame, if it moved"
+            )
+        if T_world_sensors is None:
+            yield scan
+        else:
+            yield _placed(scan, T_world_sensors[min(index, len(T_world_sensors) - 1)])
+
+
+def _placed(scan: Scan, T_world_sensor: np.ndarray) -> Scan:
+    """`scan`, given in its sensor's frame, moved into world frame by its (4, 4) pose."""
+    return Scan(
+        transform_points(T_world_sensor, scan.points_world),
+        transform_points(T_world_sensor, scan.origin[None])[0],
+        scan.hit_mask,
+        scan.time,
+    )
 
 
 def _check_fits(path: Path, fmt: str) -> None:
@@ -351,11 +403,8 @@ def _point_cloud_scan(
     else:
         points = {"xyz": read_xyz, "ply": read_ply, "las": read_las}[fmt](path)
         viewpoint = np.zeros(3)
-    sensor = viewpoint if origin is None else origin
-    if T_world_file is not None:
-        points = transform_points(T_world_file, points)
-        sensor = transform_points(T_world_file, sensor[None])[0]
     try:
-        return Scan(points, sensor)
+        scan = Scan(points, viewpoint if origin is None else origin)
     except InputError as error:
         raise FileReadError(path, str(error)) from None
+    return scan if T_world_file is None else _placed(scan, T_world_file)
