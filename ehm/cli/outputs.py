@@ -18,7 +18,9 @@ from ehm.cli.app import (
     console,
     grid_bytes,
     load_map,
+    map_blocks,
     map_grid,
+    map_mesh,
     output_resolution,
     parse_box,
 )
@@ -120,9 +122,9 @@ def mesh(
             f"{map_path}: a 2D map has no surface mesh: 'ehm render' draws it as a PNG and "
             "'ehm grid' saves its grid"
         )
-    vertices, faces = map_grid(
-        hilbert_map, parse_box(hilbert_map, bounds), resolution, max_gib
-    ).mesh(level)
+    voxel = output_resolution(hilbert_map, resolution)
+    box = parse_box(hilbert_map, bounds)
+    vertices, faces = map_mesh(hilbert_map, box, voxel, level, max_gib)
     if len(faces) == 0:
         raise InputError(f"nothing to mesh: the map does not cross {level} in these bounds")
     write_ply_mesh(output, vertices, faces, vertex_colors(vertices))
@@ -168,13 +170,16 @@ def render(
     if cut_above is not None and not math.isfinite(cut_above):
         raise InputError(f"--cut-above must be a finite height, got {cut_above}")
     hilbert_map = load_map(map_path)
-    occupancy_grid = map_grid(hilbert_map, parse_box(hilbert_map, bounds), resolution, max_gib)
-    if occupancy_grid.dim == 2:
+    if hilbert_map.dim == 2:
+        occupancy_grid = map_grid(hilbert_map, parse_box(hilbert_map, bounds), resolution, max_gib)
         grid_picture(occupancy_grid, output, title=map_path.name)
+        low, high = occupancy_grid.bounds
     else:
-        vertices, faces = occupancy_grid.mesh(level)
+        voxel = output_resolution(hilbert_map, resolution)
+        box = parse_box(hilbert_map, bounds)
+        vertices, faces = map_mesh(hilbert_map, box, voxel, level, max_gib)
         mesh_picture(vertices, faces, output, camera, cut_above, title=map_path.name)
-    low, high = occupancy_grid.bounds
+        low, high = hilbert_map.extent() if box is None else box
     if slices is not None:
         occupancy_slices(hilbert_map, low, high, slices)
     if std is not None:
@@ -253,13 +258,16 @@ def export(
     if output.suffix == ".pgm":
         _export_map_server(hilbert_map, aligned, resolution, max_gib, output)
         return
-    occupancy_grid = map_grid(hilbert_map, aligned, resolution, max_gib)
+    grids = map_blocks(hilbert_map, None if box is None else aligned, resolution, max_gib)
     if output.suffix in exports.OCTOMAP_SUFFIXES:
-        known = exports.write_octomap(occupancy_grid, output)
-        console.print(f"{occupancy_grid!r}: {known} known voxels\nwrote {output}")
+        known = exports.write_octomap(grids, output)
+        console.print(f"{known} known voxels of {resolution:g} m\nwrote {output}")
     else:
-        points = exports.occupied_voxels(occupancy_grid, level)
-        if occupancy_grid.dim == 2:
+        points = np.concatenate(
+            [np.zeros((0, hilbert_map.dim))]
+            + [exports.occupied_voxels(grid, level) for grid in grids]
+        )
+        if hilbert_map.dim == 2:
             points = np.column_stack([points, np.zeros(len(points))])
         exports.write_point_cloud(points, output)
         console.print(f"{len(points)} occupied voxels\nwrote {output}")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from ehm.errors import InputError
@@ -23,11 +25,37 @@ def marching_cubes(
     if not 0.0 < level < 1.0:
         raise InputError(f"level must be a probability between 0 and 1, got {level}")
     empty = np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-    if min(probability.shape) < 2 or probability.max() <= level or probability.min() >= level:
+    if min(probability.shape) < 2 or probability.max() <= level or probability.min() > level:
         return empty
-    vertices, faces, _, _ = skimage_marching_cubes(
-        probability, level, spacing=(resolution,) * 3, allow_degenerate=False
-    )
+    try:
+        vertices, faces, _, _ = skimage_marching_cubes(
+            probability, level, spacing=(resolution,) * 3, allow_degenerate=False
+        )
+    except RuntimeError:  # the crossing makes degenerate faces only, which are left out
+        return empty
     vertices = vertices.astype(np.float64) + origin + 0.5 * resolution
     # scikit-image winds faces toward larger values; reverse them to face free space.
     return vertices, faces[:, ::-1].astype(np.int64)
+
+
+def joined_meshes(
+    meshes: Iterable[tuple[np.ndarray, np.ndarray]], resolution: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """One mesh of meshes that meet along shared faces (the blocks of ehm.grid.blocks):
+    vertices closer than a ten-thousandth of `resolution` become one, so the surface stays
+    closed across the seams. Returns vertices (V, 3) float64 and faces (F, 3) int64."""
+    all_vertices, all_faces, count = [], [], 0
+    for vertices, faces in meshes:
+        all_vertices.append(vertices)
+        all_faces.append(faces + count)
+        count += len(vertices)
+    if count == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    vertices, faces = np.concatenate(all_vertices), np.concatenate(all_faces)
+    keys = np.round(vertices / (resolution * 1e-4)).astype(np.int64)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    faces = inverse.ravel()[faces]
+    whole = (
+        (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+    )
+    return vertices[first], faces[whole]

@@ -89,6 +89,27 @@ class OccupancyGrid:
         return grid
 
     @classmethod
+    def of_clusters(
+        cls,
+        snapshot: MapSnapshot,
+        rows: np.ndarray,
+        origin: np.ndarray,
+        resolution: float,
+        shape: tuple[int, ...],
+        with_std: bool = False,
+    ) -> OccupancyGrid:
+        """The grid summing only the snapshot's clusters `rows` (int64) over `shape` voxels from
+        `origin` ((d,) metres, low corner): a whole map's grid wherever no other cluster
+        reaches (the blocks of ehm.grid.blocks). `update` rebuilds it from all clusters."""
+        grid = cls(origin, resolution, shape, with_std)
+        grid.intercept = snapshot.intercept
+        grid.prior_precision = snapshot.prior_precision
+        lattice = Lattice.lift(grid.origin, grid.resolution, grid.shape)
+        local = LocalGrids.of(snapshot, np.asarray(rows, dtype=np.int64), lattice, 1.0, with_std)
+        accumulate_local_grids(grid._fields_3d(), lattice, local)
+        return grid
+
+    @classmethod
     def of_log_odds(
         cls,
         origin: np.ndarray,

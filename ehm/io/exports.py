@@ -11,6 +11,7 @@ of OctoMap trees, never occupied.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from os import PathLike
 from pathlib import Path
 
@@ -40,15 +41,16 @@ def aligned_bounds(bounds: np.ndarray, resolution: float) -> np.ndarray:
     return np.stack([low, high])
 
 
-def write_octomap(grid: OccupancyGrid, path: str | PathLike[str]) -> int:
-    """Write a 3D grid, aligned to multiples of its resolution (aligned_bounds), as an OctoMap
-    OcTree: `.ot` keeps each known voxel's occupancy as log-odds, `.bt` its maximum
-    likelihood (occupied above 0.5, else free), pruned. Written by OctoMap itself
-    (octomap-python), so octovis and octomap_server open it. Returns the known voxels."""
+def write_octomap(grids: OccupancyGrid | Iterable[OccupancyGrid], path: str | PathLike[str]) -> int:
+    """Write a 3D grid, or the blocks of one (ehm.grid.blocks), aligned to multiples of the
+    resolution (aligned_bounds), as an OctoMap OcTree: `.ot` keeps each known voxel's
+    occupancy as log-odds, `.bt` its maximum likelihood (occupied above 0.5, else free),
+    pruned. Written by OctoMap itself (octomap-python), so octovis and octomap_server open
+    it. Returns the known voxels."""
     path = Path(path)
     if path.suffix not in OCTOMAP_SUFFIXES:
         raise OutputError(f"{path}: OctoMap files end in .ot or .bt")
-    tree = octree_of_grid(grid)
+    tree, known = octree_of_grids([grids] if isinstance(grids, OccupancyGrid) else grids)
     written = (
         tree.writeBinary(str(path).encode())
         if path.suffix == ".bt"
@@ -56,12 +58,37 @@ def write_octomap(grid: OccupancyGrid, path: str | PathLike[str]) -> int:
     )
     if not written:
         raise OutputError(f"{path}: OctoMap could not write it")
-    return int(np.count_nonzero(grid.scores))
+    return known
 
 
-def octree_of_grid(grid: OccupancyGrid):
-    """The octomap.OcTree holding the known voxels of a 3D grid at their log-odds (clamped by
-    OctoMap at +-13.8, probabilities 1e-6 from 0 and 1)."""
+def octree_of_grids(grids: Iterable[OccupancyGrid]):
+    """The octomap.OcTree holding the known voxels of 3D grids of one resolution that do not
+    overlap, at their log-odds (clamped by OctoMap at +-13.8, probabilities 1e-6 from 0 and
+    1), and how many voxels it holds."""
+    tree, known = None, 0
+    for grid in grids:
+        _check_octomap_grid(grid)
+        if tree is None:
+            tree = octomap_module().OcTree(grid.resolution)
+            tree.setClampingThresMin(1e-6)
+            tree.setClampingThresMax(1.0 - 1e-6)
+        elif tree.getResolution() != grid.resolution:
+            raise InputError("one OctoMap tree holds voxels of one resolution")
+        voxels = np.argwhere(grid.scores != 0.0)
+        centres = grid.origin + (voxels + 0.5) * grid.resolution
+        log_odds = grid.scores[tuple(voxels.T)] + grid.intercept
+        for centre, value in zip(centres, log_odds, strict=True):
+            tree.updateNode(centre, float(value), True)
+        known += len(voxels)
+    if tree is None:
+        raise InputError("no voxels to write: the map has no kernels within the bounds")
+    tree.updateInnerOccupancy()
+    return tree, known
+
+
+def _check_octomap_grid(grid: OccupancyGrid) -> None:
+    """InputError for a grid whose voxels are not OctoMap's: 2D, off its voxel boundaries or
+    beyond its keys' reach."""
     if grid.dim != 3:
         raise InputError("OctoMap trees are 3D; a 2D map exports as a map_server image (.pgm)")
     cells = grid.origin / grid.resolution
@@ -77,17 +104,6 @@ def octree_of_grid(grid: OccupancyGrid):
             f"OctoMap's keys reach {reach:g} m from the origin at {grid.resolution} m; the grid "
             f"spans {low.tolist()} .. {high.tolist()}"
         )
-    octomap = octomap_module()
-    tree = octomap.OcTree(grid.resolution)
-    tree.setClampingThresMin(1e-6)
-    tree.setClampingThresMax(1.0 - 1e-6)
-    known = np.argwhere(grid.scores != 0.0)
-    centres = grid.origin + (known + 0.5) * grid.resolution
-    log_odds = grid.scores[tuple(known.T)] + grid.intercept
-    for centre, value in zip(centres, log_odds, strict=True):
-        tree.updateNode(centre, float(value), True)
-    tree.updateInnerOccupancy()
-    return tree
 
 
 def write_map_server(grid: NavigationGrid, path: str | PathLike[str]) -> Path:
