@@ -29,12 +29,12 @@ from ehm.eval.datasets import DataMissingError, load_dataset
 from ehm.eval.datasets.simulated import corridor_2d
 from ehm.eval.metrics import f1_score
 from ehm.eval.protocol import HeldOutSplit, held_out_rays
+from ehm.grid.bounds import aligned_bounds
 from ehm.grid.navigation import navigation_grid
 from ehm.io.exports import (
     MAP_SERVER_FREE,
     MAP_SERVER_OCCUPIED,
     MAP_SERVER_UNKNOWN_PIXEL,
-    aligned_bounds,
     write_map_server,
 )
 from ehm.pipeline import MappingPipeline

@@ -13,7 +13,7 @@ the learned state and hands grids a snapshot of it.
 from __future__ import annotations
 
 import weakref
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from functools import partial
 from os import PathLike
 from typing import Any
@@ -61,6 +61,7 @@ from ehm.core.weights.posterior import update_posterior
 from ehm.core.weights.sgd import loss_weights, train_weights
 from ehm.core.weights.uncertainty import add_curvature, logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError
+from ehm.grid.blocks import grid_blocks
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.grid.planner_support import PlannerSupport
@@ -869,6 +870,22 @@ class HilbertMap:
         if follow:
             self._followers.add(grid)
         return grid
+
+    def grid_blocks(
+        self,
+        bounds: np.ndarray | None = None,
+        resolution: float | None = None,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+        std: bool = False,
+    ) -> Iterator[OccupancyGrid]:
+        """The map's grid in blocks of 32^3 voxels (ehm.grid.blocks), made one at a time and
+        only where kernels reach: what `grid` holds there, for maps whose extent no single
+        grid fits (a LiDAR sweep to 100 m). bounds: (2, d) metres, the voxels of `grid` over
+        them; None: every kernel, on multiples of the resolution (OctoMap's voxels).
+        resolution: metres (None: config.resolution). InputError, before any block is made,
+        when the blocks would hold more than `max_bytes`."""
+        voxel = self.config.resolution if resolution is None else resolution
+        return grid_blocks(self.snapshot(), voxel, bounds, std, max_bytes)
 
     def _update_followers(self) -> None:
         """Bring every following grid and what rays march up to date, timed as the stage

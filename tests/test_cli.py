@@ -285,7 +285,17 @@ def test_export_writes_each_format(room_map_file, map_file, tmp_path):
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.bt")])
     assert result.exit_code == 2 and "OctoMap trees are 3D" in result.stderr
     result = runner.invoke(app, ["export", str(room_map_file), "-o", str(tmp_path / "r.pgm")])
-    assert result.exit_code == 2 and "map_server maps are 2D" in result.stderr
+    assert result.exit_code == 0, result.output
+    assert re.search(r"note: projected heights 0\.[2-4]\d to 2\.[0-2]\d m", result.stderr)
+    heights = ["--z-min", "0.5", "--z-max", "1.5"]
+    result = runner.invoke(
+        app, ["export", str(room_map_file), "-o", str(tmp_path / "band.pgm"), *heights]
+    )
+    assert result.exit_code == 0 and "note:" not in result.stderr, result.output
+    result = runner.invoke(
+        app, ["export", str(room_map_file), "-o", str(tmp_path / "r.bt"), *heights]
+    )
+    assert result.exit_code == 2 and "heights a .pgm export projects" in result.stderr
     result = runner.invoke(app, ["export", str(room_map_file), "-o", str(tmp_path / "r.obj")])
     assert result.exit_code == 2 and "expected a name ending in .ot, .bt, .pgm" in result.stderr
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.pgm")])

@@ -166,21 +166,6 @@ def map_grid(hilbert_map, box, resolution: float | None, max_gib: float, std: bo
     return hilbert_map.grid(box, voxel, max_bytes=grid_bytes(max_gib), std=std)
 
 
-def map_blocks(any_map, box, resolution: float, max_gib: float):
-    """The map's grid over `box` ((2, d) metres on multiples of `resolution`, or None: all of
-    the map) in grids that tile it: the blocks a map's kernels reach (ehm.grid.blocks), never
-    one array over the whole extent; a tiled map's as one grid, refused over --max-gib."""
-    from ehm.grid.blocks import grid_blocks
-    from ehm.hilbert_map import HilbertMap
-    from ehm.io.exports import aligned_bounds
-
-    if isinstance(any_map, HilbertMap):
-        return grid_blocks(any_map.snapshot(), resolution, box, max_bytes=grid_bytes(max_gib))
-    if box is None:
-        box = aligned_bounds(any_map.extent(), resolution)
-    return [any_map.grid(box, resolution, max_bytes=grid_bytes(max_gib))]
-
-
 def map_mesh(any_map, box, resolution: float, level: float, max_gib: float):
     """Vertices (V, 3) and faces (F, 3) where a 3D map's occupancy crosses `level`, over `box`
     as in map_blocks: block by block for a map, from one grid for a tiled map."""

@@ -18,7 +18,6 @@ from ehm.cli.app import (
     console,
     grid_bytes,
     load_map,
-    map_blocks,
     map_grid,
     map_mesh,
     output_resolution,
@@ -196,8 +195,8 @@ def export(
             "--output",
             "-o",
             help="File to write, by its suffix: .ot (OctoMap, log-odds), .bt (OctoMap, "
-            "occupied or free), .pgm (+ .yaml, ROS map_server, 2D), .ply or .pcd (occupied "
-            "voxel centres), .npz with --distance.",
+            "occupied or free), .pgm (+ .yaml, ROS map_server; a 3D map's height band "
+            "projected), .ply or .pcd (occupied voxel centres), .npz with --distance.",
         ),
     ],
     resolution: Resolution = None,
@@ -221,6 +220,20 @@ def export(
             "--unknown-is-occupied", help="With --distance: unknown space is an obstacle."
         ),
     ] = False,
+    z_min: Annotated[
+        float | None,
+        typer.Option(
+            help="With .pgm from a 3D map: the lowest height projected, metres (default: "
+            "0.3 m above the floor under the first sensor pose)."
+        ),
+    ] = None,
+    z_max: Annotated[
+        float | None,
+        typer.Option(
+            help="With .pgm from a 3D map: the highest height projected, metres (default: "
+            "2 m above that floor)."
+        ),
+    ] = None,
     max_gib: MaxGiB = 1.0,
     force: Force = False,
 ) -> None:
@@ -230,6 +243,7 @@ def export(
     OctoMap's."""
     import numpy as np
 
+    from ehm.grid.bounds import aligned_bounds
     from ehm.io import exports
     from ehm.io.outputs import check_output
 
@@ -243,22 +257,26 @@ def export(
         )
     if unknown_is_occupied and not distance:
         raise InputError("--unknown-is-occupied goes with --distance")
+    if (z_min, z_max) != (None, None) and output.suffix.lower() != ".pgm":
+        raise InputError("--z-min and --z-max choose the heights a .pgm export projects")
     check_output(output, [map_path], force)
     if output.suffix == ".pgm":
         check_output(output.with_suffix(".yaml"), [map_path], force)
     hilbert_map = load_map(map_path)
     resolution = output_resolution(hilbert_map, resolution)
     box = parse_box(hilbert_map, bounds)
-    aligned = exports.aligned_bounds(hilbert_map.extent() if box is None else box, resolution)
+    aligned = aligned_bounds(hilbert_map.extent() if box is None else box, resolution)
     if distance:
         _export_distance(
             hilbert_map, aligned, resolution, level, unknown_is_occupied, max_gib, output
         )
         return
     if output.suffix == ".pgm":
-        _export_map_server(hilbert_map, aligned, resolution, max_gib, output)
+        _export_map_server(hilbert_map, aligned, resolution, (z_min, z_max), max_gib, output)
         return
-    grids = map_blocks(hilbert_map, None if box is None else aligned, resolution, max_gib)
+    grids = hilbert_map.grid_blocks(
+        None if box is None else aligned, resolution, max_bytes=grid_bytes(max_gib)
+    )
     if output.suffix in exports.OCTOMAP_SUFFIXES:
         known = exports.write_octomap(grids, output)
         console.print(f"{known} known voxels of {resolution:g} m\nwrote {output}")
@@ -273,14 +291,29 @@ def export(
         console.print(f"{len(points)} occupied voxels\nwrote {output}")
 
 
-def _export_map_server(any_map, bounds, resolution: float, max_gib: float, output: Path) -> None:
-    """Write the map's navigation grid (ehm.grid.navigation) as a map_server map."""
-    from ehm.grid.navigation import FREE, OCCUPIED, navigation_grid
+def _export_map_server(
+    any_map, bounds, resolution: float, heights, max_gib: float, output: Path
+) -> None:
+    """Write the map's navigation grid (ehm.grid.navigation) as a map_server map: a 2D map's
+    own, a 3D map's band of `heights` (z_min, z_max; None each: the default band) projected."""
+    from ehm.grid.navigation import (
+        FREE,
+        OCCUPIED,
+        default_heights,
+        navigation_grid,
+        projected_navigation_grid,
+    )
     from ehm.io import exports
 
-    if any_map.dim not in (None, 2):  # an empty map is refused by navigation_grid
-        raise InputError("map_server maps are 2D; export a 3D map as .ot, .bt, .ply or .pcd")
-    grid = navigation_grid(any_map, bounds, resolution, grid_bytes(max_gib))
+    if any_map.dim == 3:
+        if None in heights:
+            defaults = default_heights(any_map, resolution)
+            heights = tuple(d if h is None else h for h, d in zip(heights, defaults, strict=True))
+        grid = projected_navigation_grid(
+            any_map, heights, bounds[:, :2], resolution, grid_bytes(max_gib)
+        )
+    else:
+        grid = navigation_grid(any_map, bounds, resolution, grid_bytes(max_gib))
     yaml_path = exports.write_map_server(grid, output)
     shares = ", ".join(
         f"{name} {(grid.states == state).mean():.0%}"

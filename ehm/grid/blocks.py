@@ -129,7 +129,7 @@ def _check_size(blocks: int, block_bytes: int, resolution: float, max_bytes: flo
             f"the map's kernels reach at least {blocks} blocks of {BLOCK_VOXELS}^3 voxels at "
             f"{resolution:g} m, {blocks * block_bytes / 2**30:.2f} GiB as grids, more than the "
             f"limit of {max_bytes / 2**30:.2f} GiB: coarsen the resolution, shrink the bounds "
-            "or raise max_bytes"
+            "or raise the limit (max_bytes; --max-gib)"
         )
 
 

@@ -58,9 +58,18 @@ def grid_shape(
         raise InputError(
             f"a grid of {shape} voxels at {resolution} m would take {n_bytes / 2**30:.2f} GiB, "
             f"more than the limit of {max_bytes / 2**30:.2f} GiB: coarsen the resolution, "
-            "shrink the bounds or raise max_bytes"
+            "shrink the bounds or raise the limit (max_bytes; --max-gib)"
         )
     return low.copy(), tuple(int(c) for c in counts)
+
+
+def aligned_bounds(bounds: np.ndarray, resolution: float) -> np.ndarray:
+    """(2, d) `bounds`, metres, widened outward to multiples of `resolution`, metres, so
+    that the grid's voxels are OctoMap's voxels (ehm.io.exports)."""
+    box = np.asarray(bounds, dtype=np.float64)
+    low = np.floor(box[0] / resolution - 1e-9) * resolution
+    high = np.ceil(box[1] / resolution + 1e-9) * resolution
+    return np.stack([low, high])
 
 
 def support_bounds(snapshot: MapSnapshot) -> np.ndarray:

@@ -5,8 +5,7 @@ the occupied voxels (.ply, .pcd).
 Voxels that no kernel reaches (log-odds exactly 0 before the intercept) are unknown: left out
 of OctoMap trees, never occupied.
 
-    grid = hilbert_map.grid(aligned_bounds(hilbert_map.extent(), 0.1), 0.1)
-    write_octomap(grid, "map.bt")
+    write_octomap(hilbert_map.grid_blocks(resolution=0.1), "map.bt")
 """
 
 from __future__ import annotations
@@ -32,21 +31,12 @@ MAP_SERVER_FREE = 0.196
 MAP_SERVER_OCCUPIED_PIXEL, MAP_SERVER_FREE_PIXEL, MAP_SERVER_UNKNOWN_PIXEL = 0, 254, 205
 
 
-def aligned_bounds(bounds: np.ndarray, resolution: float) -> np.ndarray:
-    """(2, d) `bounds`, metres, widened outward to multiples of `resolution`, metres, so
-    that the grid's voxels are OctoMap's voxels."""
-    box = np.asarray(bounds, dtype=np.float64)
-    low = np.floor(box[0] / resolution - 1e-9) * resolution
-    high = np.ceil(box[1] / resolution + 1e-9) * resolution
-    return np.stack([low, high])
-
-
 def write_octomap(grids: OccupancyGrid | Iterable[OccupancyGrid], path: str | PathLike[str]) -> int:
-    """Write a 3D grid, or the blocks of one (ehm.grid.blocks), aligned to multiples of the
-    resolution (aligned_bounds), as an OctoMap OcTree: `.ot` keeps each known voxel's
-    occupancy as log-odds, `.bt` its maximum likelihood (occupied above 0.5, else free),
-    pruned. Written by OctoMap itself (octomap-python), so octovis and octomap_server open
-    it. Returns the known voxels."""
+    """Write a 3D grid, or the blocks of one (HilbertMap.grid_blocks), on multiples of the
+    resolution (ehm.grid.bounds.aligned_bounds), as an OctoMap OcTree: `.ot` keeps each
+    known voxel's occupancy as log-odds, `.bt` its maximum likelihood (occupied above 0.5,
+    else free), pruned. Written by OctoMap itself (octomap-python), so octovis and
+    octomap_server open it. Returns the known voxels."""
     path = Path(path)
     if path.suffix not in OCTOMAP_SUFFIXES:
         raise OutputError(f"{path}: OctoMap files end in .ot or .bt")
@@ -95,7 +85,7 @@ def _check_octomap_grid(grid: OccupancyGrid) -> None:
     if not np.allclose(cells, np.round(cells), atol=1e-6):
         raise InputError(
             f"grid origin {grid.origin.tolist()} is not on OctoMap's voxel boundaries, "
-            f"multiples of {grid.resolution} m (see aligned_bounds)"
+            f"multiples of {grid.resolution} m (see ehm.grid.bounds.aligned_bounds)"
         )
     reach = OCTOMAP_KEY_HALF * grid.resolution
     low, high = grid.bounds
@@ -119,7 +109,10 @@ def write_map_server(grid: NavigationGrid, path: str | PathLike[str]) -> Path:
             "unknown: ehm.grid.navigation.navigation_grid(map, bounds, resolution)"
         )
     if grid.dim != 2:
-        raise InputError("map_server maps are 2D; export a 3D map as .ot, .bt, .ply or .pcd")
+        raise InputError(
+            "map_server maps are 2D: project a 3D map's height band first "
+            "(ehm.grid.navigation.projected_navigation_grid)"
+        )
     if path.suffix != ".pgm":
         raise OutputError(f"{path}: map_server images end in .pgm")
     pixels = np.full(grid.shape, MAP_SERVER_UNKNOWN_PIXEL, dtype=np.uint8)

@@ -38,7 +38,7 @@ from ehm.core.queries.raycast import (
 from ehm.core.sensor.scan import Scan
 from ehm.core.weights.uncertainty import logit_variance, occupancy_std
 from ehm.errors import EmptyMapError, InputError, SettingsError
-from ehm.grid.bounds import DEFAULT_MAX_BYTES, bytes_per_voxel, grid_shape
+from ehm.grid.bounds import DEFAULT_MAX_BYTES, aligned_bounds, bytes_per_voxel, grid_shape
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap
 from ehm.io.map_file import map_bytes, map_state_of_bytes
@@ -570,6 +570,21 @@ class TiledMap:
         return self._dim
 
     # ------------------------------------------------------------------ grids
+    def grid_blocks(
+        self,
+        bounds: np.ndarray | None = None,
+        resolution: float | None = None,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+        std: bool = False,
+    ) -> Iterator[OccupancyGrid]:
+        """The grid over `bounds` (None: `extent()`, widened to multiples of the resolution,
+        OctoMap's voxels) as HilbertMap.grid_blocks gives it; a tiled map's is one grid,
+        refused over `max_bytes`."""
+        resolution = self.config.resolution if resolution is None else resolution
+        if bounds is None:
+            bounds = aligned_bounds(self.extent(), resolution)
+        yield self.grid(bounds, resolution, max_bytes=max_bytes, std=std)
+
     def grid(
         self,
         bounds: np.ndarray | None = None,

@@ -4,15 +4,18 @@ import numpy as np
 import pytest
 
 from ehm.grid.blocks import block_layout, block_mesh, grid_blocks
+from ehm.grid.bounds import aligned_bounds
 from ehm.grid.mesh import joined_meshes
-from ehm.io.exports import aligned_bounds
 
 
 def _surface_area(vertices, faces):
     corners = vertices[faces]
-    return np.linalg.norm(
-        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
-    ).sum() / 2
+    return (
+        np.linalg.norm(
+            np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+        ).sum()
+        / 2
+    )
 
 
 def _open_edges(faces):

@@ -4,16 +4,18 @@ import numpy as np
 import pytest
 
 import ehm
+from ehm.grid.bounds import aligned_bounds
 from ehm.grid.navigation import (
     FREE,
     KNOWN_VARIANCE_SHARE,
     OCCUPIED,
     UNKNOWN,
     NavigationGrid,
+    default_heights,
     navigation_grid,
+    projected_navigation_grid,
 )
 from ehm.grid.occupancy_grid import OccupancyGrid
-from ehm.io.exports import aligned_bounds
 
 
 def test_cells_take_occupied_anywhere_free_where_known_else_unknown():
@@ -115,3 +117,34 @@ def test_a_3d_map_gives_voxels_occupied_where_it_was_hit(room, room_map):
     assert np.mean(cell_states(grid, hits[inside]) == OCCUPIED) > 0.85
     origin = room.scans[0].origin
     assert cell_states(grid, origin[None])[0] == FREE  # the sensor stood in free space
+
+
+def test_a_3d_map_projects_its_height_band_as_octomap_server_does(room, room_map):
+    with pytest.warns(ehm.AssumptionWarning, match=r"above the floor found at -?0\.[01]\d m"):
+        z_min, z_max = default_heights(room_map, 0.1)
+    assert z_min == pytest.approx(0.3, abs=0.15) and z_max - z_min == pytest.approx(1.7)
+    xy = np.array([[-4.5, -3.5], [4.5, 3.5]])
+    grid = projected_navigation_grid(room_map, (z_min, z_max), xy, 0.1)
+    assert grid.dim == 2 and grid.resolution == 0.1
+    # Built block by block, it is the band of one 3D navigation grid, reduced over height.
+    band = navigation_grid(room_map, np.column_stack([xy, [z_min, z_max]]), 0.1).states
+    occupied = (band == OCCUPIED).any(axis=2)
+    free = (band == FREE).any(axis=2)
+    expected = np.where(occupied, OCCUPIED, np.where(free, FREE, UNKNOWN))
+    np.testing.assert_array_equal(grid.states, expected)
+    hits = np.concatenate([s.points_world[s.hit_mask] for s in room.scans])
+    walls = hits[(hits[:, 2] > z_min) & (hits[:, 2] < z_max) & (np.abs(hits[:, 0]) > 3.85)]
+    assert np.mean(cell_states(grid, walls[:, :2]) == OCCUPIED) > 0.9
+    origins = np.array([s.origin[:2] for s in room.scans])
+    assert np.all(cell_states(grid, origins) == FREE)
+    outside = np.array([[-4.4, 0.0], [4.4, 0.5], [0.0, 3.4]])  # behind the walls, never seen
+    assert np.all(cell_states(grid, outside) == UNKNOWN)
+
+
+def test_bands_that_cannot_be_projected_are_refused(room_map, plan_navigation):
+    with pytest.raises(ehm.InputError, match="z_min < z_max"):
+        projected_navigation_grid(room_map, (1.0, 0.5))
+    with pytest.raises(ehm.InputError, match="a 2D map is already flat"):
+        projected_navigation_grid(plan_navigation[0], (0.0, 1.0))
+    with pytest.raises(ehm.InputError, match="no floor found under the first sensor pose"):
+        default_heights(ehm.HilbertMap(), 0.1)

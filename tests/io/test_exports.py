@@ -6,9 +6,9 @@ import pytest
 from PIL import Image
 
 import ehm
+from ehm.grid.bounds import aligned_bounds
 from ehm.grid.navigation import FREE, OCCUPIED, UNKNOWN, NavigationGrid, navigation_grid
 from ehm.io.exports import (
-    aligned_bounds,
     occupied_voxels,
     write_map_server,
     write_octomap,
