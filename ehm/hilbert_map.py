@@ -673,7 +673,7 @@ class HilbertMap:
         points: np.ndarray,
         level: float = 0.5,
         return_gradient: bool = False,
-        unknown_is_occupied: bool = False,
+        unknown: str = "occupied",
         unknown_box: np.ndarray | None = None,
         obstacle_box: np.ndarray | None = None,
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
@@ -682,7 +682,8 @@ class HilbertMap:
         negative inside; with return_gradient, also its (n, d) gradient (unit vectors away from
         the nearest obstacle; 0 beyond reach). Distances are kept up to
         config.distance_reach: farther points read that. Unknown space (no kernel reaches it)
-        is free unless unknown_is_occupied; unknown_box, (2, d) metres [low, high] corners,
+        is an obstacle, as raycast and segment_free stop at it (unknown="occupied"), or free
+        (unknown="free"); unknown_box, (2, d) metres [low, high] corners,
         world frame, makes it an obstacle only inside that box (a planner's workspace);
         obstacle_box, alike, counts obstacles (occupied, and unknown when asked) only inside
         it (a tile's core). Read from a signed distance field of surfels on
@@ -701,7 +702,7 @@ class HilbertMap:
             self.snapshot,
             query,
             threshold,
-            bool(unknown_is_occupied),
+            unknown_is_obstacle(unknown),
             return_gradient,
             self._checked_box("unknown_box", unknown_box),
             self._checked_box("obstacle_box", obstacle_box),

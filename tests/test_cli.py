@@ -320,7 +320,8 @@ def test_query_tells_distances_to_obstacles(map_file, tmp_path):
 def test_export_writes_a_distance_field(map_file, tmp_path):
     output = tmp_path / "field.npz"
     args = ["export", str(map_file), "-o", str(output), "--distance", "--resolution", "0.1"]
-    result = runner.invoke(app, [*args, "--bounds", "-4.95,-3.45,4.95,3.45"])
+    args += ["--bounds", "-4.95,-3.45,4.95,3.45"]
+    result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     assert "100 x 70 voxels of 0.1 m" in result.output
     field = load_distance_grid(output)
@@ -330,16 +331,25 @@ def test_export_writes_a_distance_field(map_file, tmp_path):
     expected, slope = ehm.load(map_file).distance(centres, return_gradient=True)
     np.testing.assert_allclose(field.distance[[20, 70], [20, 30]], expected, atol=1e-12)
     np.testing.assert_allclose(field.gradient[[20, 70], [20, 30]], slope, atol=1e-12)
-    assert field.level == 0.5 and not field.unknown_is_occupied
+    assert field.level == 0.5 and field.unknown_is_occupied
     assert field.distance.min() < 0.0 < field.distance.max()  # walls and the rooms between
-    result = runner.invoke(app, [*args, "--unknown-is-occupied", "--force"])
+    result = runner.invoke(app, [*args, "--unknown", "free", "--force"])
     assert result.exit_code == 0, result.output
-    assert load_distance_grid(output).unknown_is_occupied
+    free = load_distance_grid(output)
+    # Without unknown space as an obstacle, distances grow or stay (but for the field's own
+    # error, a voxel or two where surfels are placed differently).
+    assert not free.unknown_is_occupied
+    assert np.mean(free.distance > field.distance + 0.1) > 0.05
+    assert np.mean(free.distance < field.distance - 0.1) < 0.01
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "f.npz")])
     assert result.exit_code == 2 and "--distance writes .npz files" in result.stderr
-    args = ["export", str(map_file), "-o", str(tmp_path / "f.pgm"), "--unknown-is-occupied"]
+    args = ["export", str(map_file), "-o", str(tmp_path / "f.pgm"), "--unknown", "free"]
     result = runner.invoke(app, args)
-    assert result.exit_code == 2 and "--unknown-is-occupied goes with --distance" in result.stderr
+    assert result.exit_code == 2 and "--unknown goes with --distance" in result.stderr
+    result = runner.invoke(app, [*args[:4], "-o", str(output), "--distance", "--unknown", "yes"])
+    assert (
+        result.exit_code == 2 and "--unknown must be occupied or free, got 'yes'" in result.stderr
+    )
 
 
 def test_map_takes_every_nth_scan_up_to_a_limit_quietly(plan_log, tmp_path):

@@ -25,6 +25,22 @@ from ehm.cli.app import (
 )
 from ehm.errors import InputError
 
+Unknown = Annotated[
+    str,
+    typer.Option(
+        help="With --distance: space no ray has reached is an obstacle (occupied), as rays "
+        "stop at it, or free.",
+    ),
+]
+
+
+def check_unknown(unknown: str, distance: bool) -> None:
+    """InputError for an --unknown that is not a rule, or given without --distance."""
+    if unknown not in ("occupied", "free"):
+        raise InputError(f"--unknown must be occupied or free, got {unknown!r}")
+    if unknown != "occupied" and not distance:
+        raise InputError("--unknown goes with --distance")
+
 
 @app.command()
 def query(
@@ -47,6 +63,7 @@ def query(
             "reaches 0.5 (negative inside): the last column.",
         ),
     ] = False,
+    unknown: Unknown = "occupied",
     force: Force = False,
 ) -> None:
     """Occupancy probability of each point (with --std its standard deviation, with
@@ -58,6 +75,7 @@ def query(
 
     if mode not in (None, "batch", "exact"):
         raise InputError(f"--mode must be batch or exact, got {mode!r}")
+    check_unknown(unknown, distance)
     if output is not None:
         check_output(output, [map_path, points], force)
     hilbert_map = load_map(map_path)
@@ -65,7 +83,7 @@ def query(
     answers = hilbert_map.occupancy(asked, mode=mode, return_std=std)
     answers = list(answers) if std else [answers]
     if distance:
-        answers.append(hilbert_map.distance(asked))
+        answers.append(hilbert_map.distance(asked, unknown=unknown))
     columns = np.column_stack(answers) if len(answers) > 1 else answers[0]
     if output is None:
         typer.echo("\n".join(",".join(f"{v:.6f}" for v in np.atleast_1d(row)) for row in columns))
@@ -214,12 +232,7 @@ def export(
             "(ehm.io.distance_file).",
         ),
     ] = False,
-    unknown_is_occupied: Annotated[
-        bool,
-        typer.Option(
-            "--unknown-is-occupied", help="With --distance: unknown space is an obstacle."
-        ),
-    ] = False,
+    unknown: Unknown = "occupied",
     z_min: Annotated[
         float | None,
         typer.Option(
@@ -255,8 +268,7 @@ def export(
             "--distance writes .npz files, and an .npz export is a distance field: give both "
             "(`ehm grid` writes occupancy grids)"
         )
-    if unknown_is_occupied and not distance:
-        raise InputError("--unknown-is-occupied goes with --distance")
+    check_unknown(unknown, distance)
     if (z_min, z_max) != (None, None) and output.suffix.lower() != ".pgm":
         raise InputError("--z-min and --z-max choose the heights a .pgm export projects")
     check_output(output, [map_path], force)
@@ -267,9 +279,7 @@ def export(
     box = parse_box(hilbert_map, bounds)
     aligned = aligned_bounds(hilbert_map.extent() if box is None else box, resolution)
     if distance:
-        _export_distance(
-            hilbert_map, aligned, resolution, level, unknown_is_occupied, max_gib, output
-        )
+        _export_distance(hilbert_map, aligned, resolution, level, unknown, max_gib, output)
         return
     if output.suffix == ".pgm":
         _export_map_server(hilbert_map, aligned, resolution, (z_min, z_max), max_gib, output)
@@ -328,19 +338,19 @@ def _export_distance(
     bounds,
     resolution: float,
     level: float,
-    unknown_is_occupied: bool,
+    unknown: str,
     max_gib: float,
     output: Path,
 ) -> None:
     """Write the signed distances of `any_map` at the centres of the voxels of `bounds` ((2, d)
-    metres) to `output` (.npz)."""
+    metres) to `output` (.npz), unknown space an obstacle or free (`unknown`)."""
     from ehm.grid.bounds import grid_shape
     from ehm.io.distance_file import DistanceGrid, save_distance_grid
 
     dim = any_map.dim
     # Per voxel: its centre, distance and gradient, float64.
     origin, shape = grid_shape(bounds, resolution, dim, grid_bytes(max_gib), 8 * (1 + 2 * dim))
-    field = DistanceGrid.at_centres(any_map, origin, resolution, shape, level, unknown_is_occupied)
+    field = DistanceGrid.at_centres(any_map, origin, resolution, shape, level, unknown)
     save_distance_grid(field, output)
     voxels = " x ".join(str(n) for n in shape)
     near, far = field.distance.min(), field.distance.max()

@@ -35,20 +35,21 @@ class DistanceGrid:
         resolution: float,
         shape: tuple[int, ...],
         level: float = 0.5,
-        unknown_is_occupied: bool = False,
+        unknown: str = "occupied",
     ) -> DistanceGrid:
         """The distances `any_map` (a HilbertMap or a TiledMap) tells at the centres of voxels
-        of `resolution` metres, `shape` voxels per axis from `origin` ((d,) metres)."""
+        of `resolution` metres, `shape` voxels per axis from `origin` ((d,) metres), unknown
+        space an obstacle ("occupied") or free ("free")."""
         axes = [origin[a] + (np.arange(n) + 0.5) * resolution for a, n in enumerate(shape)]
         centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(shape))
-        distance, gradient = any_map.distance(centres, level, True, unknown_is_occupied)
+        distance, gradient = any_map.distance(centres, level, True, unknown)
         return cls(
             np.asarray(origin, dtype=np.float64),
             float(resolution),
             distance.reshape(shape),
             gradient.reshape(*shape, len(shape)),
             float(level),
-            bool(unknown_is_occupied),
+            unknown == "occupied",
         )
 
 

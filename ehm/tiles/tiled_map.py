@@ -508,17 +508,18 @@ class TiledMap:
         points: np.ndarray,
         level: float = 0.5,
         return_gradient: bool = False,
-        unknown_is_occupied: bool = False,
+        unknown: str = "occupied",
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
         frame) to the nearest point whose occupancy reaches `level`, and with return_gradient
         its (n, d) gradient, as HilbertMap.distance tells them. Each tile tells of the
         obstacles in its core (where it weighs most in the blend; its field's obstacle_box),
-        occupied space and, when asked, unknown space (points in the core of a tile that
-        learned nothing read -reach). The nearest wins, and a point inside any obstacle is
+        occupied space and, unless unknown="free", unknown space (points in the core of a
+        tile that learned nothing read -reach). The nearest wins, and a point inside any obstacle is
         inside (the deepest wins). Each tile keeps its field as it learns. NaN rows for points
         that are not finite."""
         points = self._checked_points(points)
+        unknown_is_occupied = unknown_is_obstacle(unknown)
         finite = np.all(np.isfinite(points), axis=1)
         reach = self.config.distance_reach
         distance = np.where(finite, reach, np.nan)
@@ -535,9 +536,7 @@ class TiledMap:
             tile_map = self._answering(key) if len(near) else None
             if tile_map is None:
                 continue
-            found, slope = tile_map.distance(
-                points[near], level, True, unknown_is_occupied, obstacle_box=core
-            )
+            found, slope = tile_map.distance(points[near], level, True, unknown, obstacle_box=core)
             wins = _nearer(found, distance[near])
             distance[near[wins]], gradient[near[wins]] = found[wins], slope[wins]
         if unknown_is_occupied:  # points in the core of a tile that learned nothing: inside

@@ -72,7 +72,8 @@ def test_distances_agree_with_dense_sampling_of_the_map(rng):
     1 cm raster of point queries, after a nearer wall was learned over a farther one."""
     hilbert_map = wall_map(4.0)
     origin = np.zeros((1, 2))
-    first, gradient = hilbert_map.distance(origin, return_gradient=True)
+    # Unknown space free, as the raster reads it (it lies just behind the origin).
+    first, gradient = hilbert_map.distance(origin, return_gradient=True, unknown="free")
     # Distances are told up to distance_reach (2 m): the wall 4 m away is beyond it.
     assert first[0] == hilbert_map.config.distance_reach
     np.testing.assert_array_equal(gradient, 0.0)
@@ -80,7 +81,7 @@ def test_distances_agree_with_dense_sampling_of_the_map(rng):
     points = np.vstack([origin, rng.uniform([-0.5, -3.0], [4.5, 3.0], (5000, 2))])
     raster = raster_of([-1.0, -6.0], [6.5, 6.0], 0.01)
     expected = nearest_level_distances(hilbert_map, raster, points, 2.0)
-    distance, gradient = hilbert_map.distance(points, return_gradient=True)
+    distance, gradient = hilbert_map.distance(points, return_gradient=True, unknown="free")
     error = np.abs(distance - expected)
     assert np.median(error) < 0.03
     assert np.percentile(error, 95) < 0.1
@@ -99,7 +100,8 @@ def test_distances_in_3d_agree_with_dense_sampling_of_the_map(room_map, rng):
     low, high = np.array([1.5, -0.5, 0.2]), np.array([3.5, 1.5, 1.6])  # the table, a wall
     points = rng.uniform(low + 0.3, high - 0.3, (3000, 3))
     expected = nearest_level_distances(room_map, raster_of(low, high, 0.02), points, 0.3)
-    error = np.abs(room_map.distance(points) - expected)
+    # Unknown space free, as nearest_level_distances reads it.
+    error = np.abs(room_map.distance(points, unknown="free") - expected)
     near = np.abs(expected) < 0.3
     assert near.sum() > 700
     assert np.median(error[near]) < 0.03
@@ -155,35 +157,37 @@ def test_surfels_read_the_log_odds_around_them_from_one_search_each(room, room_m
     )
 
 
-def test_unknown_space_is_an_obstacle_only_when_asked():
+def test_unknown_space_is_an_obstacle_unless_asked_free():
     hilbert_map = wall_map(4.0)
     behind_the_wall = np.array([[7.0, 0.0]])
     beside_the_origin = np.array([[0.0, -0.5]])  # rays swept +-69 degrees: behind is unknown
     reach = hilbert_map.config.distance_reach
-    assert hilbert_map.distance(behind_the_wall)[0] == reach
-    assert hilbert_map.distance(behind_the_wall, unknown_is_occupied=True)[0] == -reach
-    free = hilbert_map.distance(beside_the_origin)[0]
-    bounded = hilbert_map.distance(beside_the_origin, unknown_is_occupied=True)[0]
+    assert hilbert_map.distance(behind_the_wall, unknown="free")[0] == reach
+    assert hilbert_map.distance(behind_the_wall)[0] == -reach
+    free = hilbert_map.distance(beside_the_origin, unknown="free")[0]
+    bounded = hilbert_map.distance(beside_the_origin)[0]
     assert free == reach
     assert 0.0 < bounded < 0.5
     # Unknown space an obstacle only in a box ahead of the sensor (x > 1 m): behind it, and
     # beside the origin, space is free; a box holding everything changes nothing.
     ahead = np.array([[1.0, -20.0], [20.0, 20.0]])
     boxed = hilbert_map.distance(
-        np.vstack([behind_the_wall, beside_the_origin]), unknown_is_occupied=True, unknown_box=ahead
+        np.vstack([behind_the_wall, beside_the_origin]), unknown="occupied", unknown_box=ahead
     )
     assert boxed[0] == -reach and boxed[1] == reach
     everything = np.array([[-50.0, -50.0], [50.0, 50.0]])
     points = np.array([[7.0, 0.0], [0.0, -0.5], [2.0, 1.0]])
     np.testing.assert_array_equal(
-        hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=everything),
-        hilbert_map.distance(points, unknown_is_occupied=True),
+        hilbert_map.distance(points, unknown="occupied", unknown_box=everything),
+        hilbert_map.distance(points, unknown="occupied"),
     )
+    with pytest.raises(InputError, match="unknown must be 'occupied' or 'free', got 'yes'"):
+        hilbert_map.distance(points, unknown="yes")
     with pytest.raises(InputError, match=r"unknown_box must have shape \(2, 2\)"):
-        hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=np.zeros((2, 3)))
+        hilbert_map.distance(points, unknown="occupied", unknown_box=np.zeros((2, 3)))
     for bad in ([[1.0, 0.0], [0.0, 1.0]], [[np.nan, 0.0], [1.0, 1.0]]):
         with pytest.raises(InputError, match="low <= high and no NaN"):
-            hilbert_map.distance(points, unknown_is_occupied=True, unknown_box=np.array(bad))
+            hilbert_map.distance(points, unknown="occupied", unknown_box=np.array(bad))
 
 
 def test_a_map_counts_only_obstacles_inside_the_obstacle_box():
@@ -198,12 +202,10 @@ def test_a_map_counts_only_obstacles_inside_the_obstacle_box():
     # The nearest wall point left: (3.8, 1.25) on the circle, 1.48 m away.
     assert boxed[0] == pytest.approx(np.hypot(0.8, np.sqrt(16.0 - 3.8**2)), abs=0.1)
     everything = np.array([[-50.0, -50.0], [50.0, 50.0]])
-    for unknown_is_occupied in (False, True):
+    for unknown in ("free", "occupied"):
         np.testing.assert_array_equal(
-            hilbert_map.distance(points, unknown_is_occupied=unknown_is_occupied),
-            hilbert_map.distance(
-                points, unknown_is_occupied=unknown_is_occupied, obstacle_box=everything
-            ),
+            hilbert_map.distance(points, unknown=unknown),
+            hilbert_map.distance(points, unknown=unknown, obstacle_box=everything),
         )
     with pytest.raises(InputError, match=r"obstacle_box must have shape \(2, 2\)"):
         hilbert_map.distance(points, obstacle_box=np.zeros((2, 3)))

@@ -291,8 +291,8 @@ def test_distances_over_the_room_miss_no_blended_surface(tiled_room, rng):
     )
     near = np.abs(expected) < 0.5
     assert near.sum() > 800
-    for unknown_is_occupied in (False, True):
-        distance = tiled_room.distance(points, unknown_is_occupied=unknown_is_occupied)
+    for unknown in ("free", "occupied"):
+        distance = tiled_room.distance(points, unknown=unknown)
         error = np.abs(distance - expected)[near]
         assert np.median(error) < 0.04
         assert np.percentile(error, 99) < 0.4
@@ -309,9 +309,9 @@ def test_distances_in_2d_tiles_are_not_farther_than_one_maps(rng):
     tiled = TiledMap(2.0, 0.5, batch_rays=0).integrate(ends, np.zeros(2))
     radius, angle = rng.uniform(0.5, 3.9, 3000), rng.uniform(-1.05, 1.05, 3000)
     points = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
-    for unknown_is_occupied, median, farther_share in ((False, 0.02, 0.01), (True, 0.08, 0.05)):
-        kept = tiled.distance(points, unknown_is_occupied=unknown_is_occupied)
-        alone = one.distance(points, unknown_is_occupied=unknown_is_occupied)
+    for unknown, median, farther_share in (("free", 0.02, 0.01), ("occupied", 0.08, 0.05)):
+        kept = tiled.distance(points, unknown=unknown)
+        alone = one.distance(points, unknown=unknown)
         assert np.median(np.abs(kept - alone)) < median
         assert np.mean(kept - alone > 0.1) < farther_share
 
@@ -319,14 +319,14 @@ def test_distances_in_2d_tiles_are_not_farther_than_one_maps(rng):
 def test_distances_outside_every_tile_and_bad_rows(tiled_room, room_map):
     reach = tiled_room.config.distance_reach
     far = np.array([[40.0, 0.0, 1.0], [np.nan, 0.0, 1.0]])
-    found = tiled_room.distance(far)
+    found = tiled_room.distance(far, unknown="free")
     assert found[0] == reach and np.isnan(found[1])
-    assert tiled_room.distance(far[:1], unknown_is_occupied=True)[0] == -reach
+    assert tiled_room.distance(far[:1])[0] == -reach
     # Above the sensor, space no ray saw lies nearer than any surface, in tiles as in one map
     # (a tile tells of the unknown space within its learn box only: beyond it, another tile
     # knows). Where the kernels stop there moves with the clusters: one map's distance from
     # (0, 0, 1.5) to it is 0.62-0.90 m over seeds 0-4.
     above = np.column_stack([np.zeros(5), np.zeros(5), np.linspace(1.3, 1.7, 5)])
-    kept = tiled_room.distance(above, unknown_is_occupied=True)
-    assert np.all(kept < tiled_room.distance(above) - 0.2)
-    np.testing.assert_allclose(kept, room_map.distance(above, unknown_is_occupied=True), atol=0.15)
+    kept = tiled_room.distance(above, unknown="occupied")
+    assert np.all(kept < tiled_room.distance(above, unknown="free") - 0.2)
+    np.testing.assert_allclose(kept, room_map.distance(above, unknown="occupied"), atol=0.15)
