@@ -884,7 +884,8 @@ class HilbertMap:
         grid fits (a LiDAR sweep to 100 m). bounds: (2, d) metres, the voxels of `grid` over
         them; None: every kernel, on multiples of the resolution (OctoMap's voxels).
         resolution: metres (None: config.resolution). InputError, before any block is made,
-        when the blocks would hold more than `max_bytes`."""
+        when listing the blocks would take more than `max_bytes` (a resolution far finer than
+        the map's); memory holds one block at a time."""
         voxel = self.config.resolution if resolution is None else resolution
         return grid_blocks(self.snapshot(), voxel, bounds, std, max_bytes)
 

@@ -288,7 +288,7 @@ def export(
         None if box is None else aligned, resolution, max_bytes=grid_bytes(max_gib)
     )
     if output.suffix in exports.OCTOMAP_SUFFIXES:
-        known = exports.write_octomap(grids, output)
+        known = exports.write_octomap(grids, output, grid_bytes(max_gib))
         console.print(f"{known} known voxels of {resolution:g} m\nwrote {output}")
     else:
         points = np.concatenate(

@@ -16,20 +16,16 @@ import numpy as np
 
 from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError
-from ehm.grid.bounds import (
-    DEFAULT_MAX_BYTES,
-    bytes_per_voxel,
-    grid_shape,
-    support_half_widths,
-)
+from ehm.grid.bounds import DEFAULT_MAX_BYTES, grid_shape, support_half_widths
 from ehm.grid.mesh import joined_meshes
 from ehm.grid.occupancy_grid import OccupancyGrid
 
 # Voxels along a block's edge: large enough that the per-block work is vectorised, small
 # enough that blocks follow a surface instead of filling its bounding box.
 BLOCK_VOXELS = 32
-# Clusters that may reach one block before a layout is refused on its list's length alone.
-_CLUSTERS_A_BLOCK = 1024
+# Bytes a layout takes, while it is made, for each block a cluster reaches (its key, the
+# cluster, the block and their order, int64 each, and sorting's copies).
+_PAIR_BYTES = 96
 
 
 @dataclass(frozen=True)
@@ -79,8 +75,8 @@ def block_layout(
     them; None: all, on multiples of the resolution from the world origin, OctoMap's voxels).
     closed_below: also every block just below one on any axis (the blocks a marching-cubes
     cube can start in, so that a surface at a block's low face is not lost). InputError when
-    the blocks would hold more than `max_bytes` as grids, before they are made: what the
-    outputs made of them hold grows with it."""
+    listing the blocks would take more than `max_bytes` (a resolution far finer than the
+    map's), before it is made; blocks are then made one at a time."""
     dim = snapshot.dim
     anchor, limit = np.zeros(dim), None
     if bounds is not None:
@@ -96,10 +92,14 @@ def block_layout(
     high = np.floor_divide(last, size)
     spans = np.maximum(high - low + 1, 0)
     counts = np.prod(spans, axis=1)
-    block_bytes = (size + overlap) ** dim * bytes_per_voxel()
-    # Each block is listed once for every cluster reaching it: refuse lists that would only
-    # be too many blocks, before they are made.
-    _check_size(counts.sum() // _CLUSTERS_A_BLOCK, block_bytes, resolution, max_bytes)
+    pair_bytes = int(counts.sum()) * _PAIR_BYTES * (2**dim if closed_below else 1)
+    if pair_bytes > max_bytes:
+        raise InputError(
+            f"listing the blocks the map's kernels reach at {resolution:g} m takes "
+            f"{pair_bytes / 2**30:.2f} GiB, more than the limit of {max_bytes / 2**30:.2f} GiB: "
+            "coarsen the resolution, shrink the bounds or raise the limit (max_bytes; "
+            "--max-gib)"
+        )
     cluster = np.repeat(np.arange(len(counts)), counts)
     within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
     offsets = np.empty((len(cluster), dim), dtype=np.int64)
@@ -113,24 +113,12 @@ def block_layout(
         pair_keys = np.concatenate([pair_keys, extra])
         cluster = np.concatenate([cluster, np.full(len(extra), -1)])  # -1: reaches none
     keys, block = np.unique(pair_keys.reshape(-1, dim), axis=0, return_inverse=True)
-    _check_size(len(keys), block_bytes, resolution, max_bytes)
     block = block.ravel()
     order = np.lexsort((cluster, block))
     block, cluster = block[order], cluster[order]
     real = cluster >= 0
     start = np.searchsorted(block[real], np.arange(len(keys) + 1))
     return BlockLayout(anchor, float(resolution), size, overlap, keys, start, cluster[real], limit)
-
-
-def _check_size(blocks: int, block_bytes: int, resolution: float, max_bytes: float) -> None:
-    """InputError when `blocks` grids of `block_bytes` each take more than `max_bytes`."""
-    if blocks * block_bytes > max_bytes:
-        raise InputError(
-            f"the map's kernels reach at least {blocks} blocks of {BLOCK_VOXELS}^3 voxels at "
-            f"{resolution:g} m, {blocks * block_bytes / 2**30:.2f} GiB as grids, more than the "
-            f"limit of {max_bytes / 2**30:.2f} GiB: coarsen the resolution, shrink the bounds "
-            "or raise the limit (max_bytes; --max-gib)"
-        )
 
 
 def block_grids(
@@ -157,7 +145,7 @@ def grid_blocks(
     max_bytes: int = DEFAULT_MAX_BYTES,
 ) -> Iterator[OccupancyGrid]:
     """The grids of the blocks where `snapshot`'s kernels reach, at `resolution` metres,
-    within `bounds`; InputError before any is made past `max_bytes` (see block_layout)."""
+    within `bounds`; InputError when listing them takes more than `max_bytes` (block_layout)."""
     layout = block_layout(snapshot, resolution, bounds, max_bytes=max_bytes)
     for _, grid in block_grids(snapshot, layout, with_std):
         yield grid

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from ehm.errors import InputError
 from ehm.grid.blocks import block_layout, block_mesh, grid_blocks
 from ehm.grid.bounds import aligned_bounds
 from ehm.grid.mesh import joined_meshes
@@ -76,3 +77,8 @@ def test_joined_meshes_share_the_vertices_on_their_seam():
     vertices, faces = joined_meshes([left, right], resolution=0.1)
     assert len(vertices) == 4
     np.testing.assert_allclose(vertices[faces], square[[[0, 1, 2], [0, 2, 3]]], atol=1e-8)
+
+
+def test_layouts_far_finer_than_the_map_are_refused_before_they_are_made(room_map):
+    with pytest.raises(InputError, match=r"listing the blocks .* at 0\.001 m takes .* GiB"):
+        block_layout(room_map.snapshot(), 0.001)

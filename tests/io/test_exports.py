@@ -9,6 +9,7 @@ import ehm
 from ehm.grid.bounds import aligned_bounds
 from ehm.grid.navigation import FREE, OCCUPIED, UNKNOWN, NavigationGrid, navigation_grid
 from ehm.io.exports import (
+    OCTOMAP_BYTES_PER_VOXEL,
     occupied_voxels,
     write_map_server,
     write_octomap,
@@ -52,6 +53,22 @@ def test_ot_files_keep_each_known_voxel_probability(room_grid, tmp_path):
     assert np.all(np.isnan(read[~is_known]))  # no kernel reaches: unknown in the tree
     probability = room_grid.probability.ravel()[is_known]
     np.testing.assert_allclose(read[is_known], np.clip(probability, 1e-6, 1 - 1e-6), atol=1e-3)
+
+
+def test_trees_of_blocks_hold_what_the_tree_of_one_grid_holds(room_map, room_grid, tmp_path):
+    blocks = list(room_map.grid_blocks(room_grid.bounds, 0.1))
+    assert len(blocks) > 1
+    known = write_octomap(blocks, tmp_path / "blocks.ot")
+    assert known == write_octomap(room_grid, tmp_path / "room.ot")
+    tree = octomap.OcTree.read(str(tmp_path / "blocks.ot").encode())
+    centres = voxel_centres(room_grid)
+    expected = octomap.OcTree.read(str(tmp_path / "room.ot").encode())
+    np.testing.assert_allclose(
+        tree_occupancy(tree, centres[::7]), tree_occupancy(expected, centres[::7]), atol=1e-9
+    )
+    limit = (known - 1) * OCTOMAP_BYTES_PER_VOXEL
+    with pytest.raises(ehm.InputError, match=r"passes \d+ known voxels of 0\.1 m"):
+        write_octomap(room_map.grid_blocks(room_grid.bounds, 0.1), tmp_path / "x.ot", limit)
 
 
 def test_bt_files_hold_the_occupied_voxels_and_no_others(room_grid, tmp_path):
