@@ -352,6 +352,25 @@ def test_export_writes_a_distance_field(map_file, tmp_path):
     )
 
 
+def test_a_long_range_capture_maps_with_notes_of_its_decoder_and_resolution(tmp_path):
+    from ouster_captures import ouster_metadata, write_ouster
+
+    metadata = ouster_metadata(np.linspace(-5.0, 5.0, 16), 512, "RNG19_RFL8_SIG16_NIR16", 16)
+    ranges = np.full((1, 16, 512), 60_000)  # a ring of wall 60 m away
+    capture = write_ouster(tmp_path / "far.pcap", metadata, ranges)
+    output = tmp_path / "far.ehm"
+    result = runner.invoke(app, ["map", str(capture), "-o", str(output), "--quiet"])
+    assert result.exit_code == 0, result.output
+    assert "note: far.pcap: decoded with far.json (RNG19_RFL8_SIG16_NIR16, 16 x 512)" in (
+        " ".join(result.stderr.split())
+    )
+    assert re.search(r"note: the map reaches 6\d m from the sensor at 0\.05 m", result.stderr)
+    result = runner.invoke(
+        app, ["map", str(capture), "-o", str(output), "--quiet", "--force", "--resolution", "0.2"]
+    )
+    assert result.exit_code == 0 and "reaches" not in result.stderr, result.output
+
+
 def test_map_takes_every_nth_scan_up_to_a_limit_quietly(plan_log, tmp_path):
     output = tmp_path / "some.ehm"
     args = ["map", str(plan_log), "-o", str(output), "--every", "2", "--limit", "2", "--quiet"]

@@ -306,6 +306,8 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
             "[yellow]warning:[/yellow] the map has no clusters: no scan gave enough samples "
             "together, so every point reads 0.5"
         )
+    else:
+        _hint_resolution(hilbert_map)
     if not quiet:
         console.print(timings_table("Mapping, per stage", run.stage_seconds))
         console.print(
@@ -315,6 +317,29 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
         )
     if live is not None:
         serve_until_stopped(live.server, f"the map at {live.url}")
+
+
+# A map whose kernels reach farther than this from every sensor pose, metres, built finer
+# than FINE_FOR_FAR metres, is told that outdoor outputs suit a coarser resolution.
+FAR_FROM_SENSOR, FINE_FOR_FAR = 50.0, 0.1
+
+
+def _hint_resolution(hilbert_map) -> None:
+    """A note when the map is far finer than its far returns need: long-range returns at a
+    fine resolution make exports and distance fields large."""
+    from scipy.spatial import cKDTree
+
+    resolution = hilbert_map.config.resolution
+    if resolution >= FINE_FOR_FAR or len(hilbert_map.sensor_path) == 0:
+        return
+    means = hilbert_map.clusters().means
+    far = float(cKDTree(hilbert_map.sensor_path).query(means)[0].max())
+    if far > FAR_FROM_SENSOR:
+        errors.print(
+            f"[yellow]note:[/yellow] the map reaches {far:.0f} m from the sensor at "
+            f"{resolution:g} m: exports, meshes and distances of it are large or refused; "
+            "outdoor LiDAR maps suit --resolution 0.2"
+        )
 
 
 def _build_tiles(
