@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Iterable, Iterator
+from dataclasses import replace
 from functools import partial
 from os import PathLike
 from typing import Any
@@ -93,9 +94,12 @@ class HilbertMap:
     config: a MapConfig; keyword overrides replace single settings, for example
     HilbertMap(cluster_radius=0.2). Learned state ends in an underscore: clusters_ (a
     ClusterSet), anchors_ (AnchorLayers, empty unless config.anchor_layers > 1), bias_,
-    n_scans_, timings_ (seconds per stage of the last update), last_update_ (clusters added
-    and merged by it, its samples and those replayed from the memory) and time_ (seconds, the
-    latest time stamp of the scans learned; None without).
+    local_origin_ (the world point, metres, clusters_ and the memory are kept relative to,
+    see local_origin_for; None before the first scan is learned), n_scans_, timings_
+    (seconds per stage of the last update), last_update_ (clusters added and merged by it,
+    its samples and those replayed from the memory) and time_ (seconds, the latest time
+    stamp of the scans learned; None without). Everything the map takes and answers is in
+    world frame, whatever its local origin.
     """
 
     def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
@@ -108,6 +112,7 @@ class HilbertMap:
         """Forget everything learned."""
         self.clusters_: ClusterSet | None = None
         self.memory_: EvidenceMemory | None = None
+        self.local_origin_: np.ndarray | None = None
         # Scans given but not learned yet, waiting for config.batch_rays rays.
         self._waiting: list[Scan] = []
         self._waiting_rays = 0
@@ -181,7 +186,8 @@ class HilbertMap:
     def clusters(self) -> ClusterView:
         """A copy of the clusters: centres, covariances, weights, kind ('planar' or
         'volumetric'), kernel, scale and label, one row per cluster (see ClusterView)."""
-        return ClusterView.of(self._learned("look at its clusters"))
+        view = ClusterView.of(self._learned("look at its clusters"))
+        return replace(view, means=self._world(view.means))
 
     def memory_bytes(self) -> int:
         """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
@@ -213,6 +219,7 @@ class HilbertMap:
             tuple(self._waiting),
             self.sensor_path,
             self.time_,
+            self.local_origin_,
         )
 
     @classmethod
@@ -226,6 +233,7 @@ class HilbertMap:
         hilbert_map.time_ = state.time
         hilbert_map.anchors_ = state.anchors
         hilbert_map.memory_ = state.memory
+        hilbert_map.local_origin_ = state.local_origin
         if state.rng_state is not None:
             hilbert_map._rng.bit_generator.state = state.rng_state
         hilbert_map._relist(None)
@@ -236,7 +244,16 @@ class HilbertMap:
         return hilbert_map
 
     def snapshot(self) -> MapSnapshot:
-        """A read-only copy of the map's kernels and weights, for grids and pictures."""
+        """A read-only copy of the map's kernels and weights, for grids and pictures, in world
+        frame."""
+        local = self._local_snapshot()
+        if self.local_origin_ is None or not self.local_origin_.any():
+            return local
+        return replace(local, means=local.means + self.local_origin_)
+
+    def _local_snapshot(self) -> MapSnapshot:
+        """The snapshot in the map's own frame (local_origin_ at its origin), as the planner
+        support keeps it."""
         clusters = self._learned("take a snapshot")
         return MapSnapshot(
             clusters.means.copy(),
@@ -336,8 +353,7 @@ class HilbertMap:
         scans, self._waiting, self._waiting_rays = self._waiting, [], 0
         timer = StageTimer()
         with timer("samples"):
-            rays = scan_rays(scans, self.config)
-            samples = gather_evidence(rays, self.config, self._rng)
+            rays, samples = self._evidence(scans)
         self._learn(rays, samples, timer, _latest_time(scans))
         self._update_followers()
         return self
@@ -356,13 +372,44 @@ class HilbertMap:
         self._reset()
         timer = StageTimer()
         with timer("samples"):
-            rays = scan_rays(scans, self.config)
-            samples = gather_evidence(rays, self.config, self._rng)
+            rays, samples = self._evidence(scans)
         self._learn(rays, samples, timer, _latest_time(scans))
         self.n_scans_ = len(scans)
         self._origins = [scan.origin for scan in scans]
         self._update_followers()
         return self
+
+    def _evidence(self, scans: list[Scan]) -> tuple[ScanRays, TrainingSamples]:
+        """The rays and training samples of `scans` (world frame) in the map's own frame,
+        whose origin the first scans learned choose (local_origin_for)."""
+        if self.local_origin_ is None:
+            self.local_origin_ = local_origin_for(scans[0].origin)
+        config = self.config
+        if self.local_origin_.any():
+            offset = self.local_origin_
+            scans = [
+                Scan(scan.points_world - offset, scan.origin - offset, scan.hit_mask, scan.time)
+                for scan in scans
+            ]
+            if config.learn_box:
+                box = np.asarray(config.learn_box).reshape(2, -1) - offset
+                config = config.replace(learn_box=tuple(box.ravel()))
+        rays = scan_rays(scans, config)
+        return rays, gather_evidence(rays, config, self._rng)
+
+    def _local(self, points: np.ndarray) -> np.ndarray:
+        """World points (n, d) in the map's own frame; anything else as given (the query's
+        checks then name what is wrong with it)."""
+        offset = self.local_origin_
+        points = np.asarray(points, dtype=np.float64)
+        if offset is None or not offset.any() or points.shape[-1:] != offset.shape:
+            return points
+        return points - offset
+
+    def _world(self, points: np.ndarray) -> np.ndarray:
+        """Points (n, d) of the map's own frame in world frame."""
+        offset = self.local_origin_
+        return points if offset is None or not offset.any() else points + offset
 
     def _check_time(self, scan: Scan, what: str) -> None:
         """InputError for a scan without time stamp given to a map that fades."""
@@ -522,7 +569,7 @@ class HilbertMap:
         per group of nearby points) or 'exact' (one per point); default config.query_mode.
         Rows with NaN or infinite coordinates give NaN.
         """
-        scores, variance = self._scores(points, mode, return_std)
+        scores, variance = self._scores(self._local(points), mode, return_std)
         if not return_std:
             return sigmoid(scores)
         return sigmoid(scores), occupancy_std(scores, variance)
@@ -532,7 +579,7 @@ class HilbertMap:
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n, 2) float64 [p(free), p(occupied)] per point, scikit-learn style; with
         return_std, also the (n,) standard deviation of either (see `occupancy`)."""
-        scores, variance = self._scores(points, mode, return_std)
+        scores, variance = self._scores(self._local(points), mode, return_std)
         occupied = sigmoid(scores)
         proba = np.column_stack([1.0 - occupied, occupied])
         if not return_std:
@@ -546,7 +593,7 @@ class HilbertMap:
         config.query_intercept is set (Alg. 3); with return_variance, the pair (log-odds,
         variance): (n,) float64 variance of the log-odds under the weights' posterior, from
         which `occupancy`'s std follows (ehm.core.weights.uncertainty.occupancy_std)."""
-        scores, variance = self._scores(points, mode, return_variance)
+        scores, variance = self._scores(self._local(points), mode, return_variance)
         return (scores, variance) if return_variance else scores
 
     def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
@@ -556,7 +603,7 @@ class HilbertMap:
         `decision_function` in `mode`; planar-surface kernels are flat (0 or 1) and add nothing
         (ehm.core.queries.gradient). NaN rows where points are not finite."""
         clusters = self._learned("query it")
-        points, finite, query = self._query_points(points)
+        points, finite, query = self._query_points(self._local(points))
         indptr, rows = self._query_clusters(
             query, self._checked_mode(mode or self.config.query_mode)
         )
@@ -597,6 +644,7 @@ class HilbertMap:
         self._learned("cast rays through it")
         stop = unknown_is_obstacle(unknown)
         origins, directions, max_range = checked_rays(origins, directions, max_range, self.dim)
+        origins = self._local(origins)
         threshold = log_odds_level(level)
         mode = self._checked_mode(mode or self.config.query_mode)
         radius = self.config.cluster_radius
@@ -605,7 +653,7 @@ class HilbertMap:
             return self._scores(points, mode, False, RAY_QUERY_CELLS * self.config.query_cell)[0]
 
         distance = np.full(len(origins), np.nan)
-        ray_grid = self._planner.grid(self.snapshot)
+        ray_grid = self._planner.grid(self._local_snapshot)
         if ray_grid is not None:
             guess = ray_grid.crossings(origins, directions, max_range, threshold, radius / 2.0)
             guided = np.flatnonzero(np.isfinite(guess))
@@ -634,10 +682,10 @@ class HilbertMap:
             threshold,
             radius / 2.0,
             radius / 10.0,
-            self._planner.cells(self.snapshot, threshold),
+            self._planner.cells(self._local_snapshot, threshold),
         )
         if stop:
-            known = partial(self.known, mode=mode)
+            known = partial(self._known, mode=mode)
             return stop_at_unknown(
                 known, origins, directions, distance, max_range, radius / 2.0, radius / 10.0
             )
@@ -664,6 +712,10 @@ class HilbertMap:
         and occupied); False where none does (no ray came near: occupancy reads 0.5 there, std
         the prior's) and for rows that are not finite. Planner queries stop there unless
         asked not to (`raycast`, `segment_free`)."""
+        return self._known(self._local(points), mode)
+
+    def _known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """`known` of points in the map's own frame."""
         points = self._query_points(points)[0]
         _, sums = self._summed(points, mode, with_variance=True)
         return sums[:, 1] > 0.0
@@ -696,10 +748,10 @@ class HilbertMap:
         with low > high, and for maps whose grid would be too large to keep (tile them)."""
         self._learned("measure distances in it")
         threshold = log_odds_level(level)
-        points, finite, query = self._query_points(points)
+        points, finite, query = self._query_points(self._local(points))
         distance = np.full(len(points), np.nan)
         found, gradient = self._planner.distances(
-            self.snapshot,
+            self._local_snapshot,
             query,
             threshold,
             unknown_is_obstacle(unknown),
@@ -715,8 +767,8 @@ class HilbertMap:
         return distance, gradients
 
     def _checked_box(self, name: str, box: np.ndarray | None) -> np.ndarray | None:
-        """A (2, d) float64 box of [low, high] corners, metres, or None; InputError naming
-        `name` for another shape, NaN or low > high."""
+        """A (2, d) float64 box of [low, high] corners, metres, world frame, in the map's own
+        frame, or None; InputError naming `name` for another shape, NaN or low > high."""
         if box is None:
             return None
         box = np.asarray(box, dtype=np.float64)
@@ -727,7 +779,7 @@ class HilbertMap:
                 f"{name} must be [low corner, high corner] with low <= high and no NaN, "
                 f"got {box.tolist()}"
             )
-        return box
+        return self._local(box)
 
     def _point_log_odds(self, points: np.ndarray) -> np.ndarray:
         """(n,) log-odds at (n, d) points as `occupancy` reads each point alone (mode 'exact':
@@ -897,10 +949,11 @@ class HilbertMap:
             return
         timer = StageTimer()
         with timer("grids"):
-            snapshot = self.snapshot()
-            self._planner.update(snapshot)
-            for grid in self._followers:
-                grid.update(snapshot)
+            self._planner.update(self._local_snapshot())
+            if len(self._followers):
+                snapshot = self.snapshot()
+                for grid in self._followers:
+                    grid.update(snapshot)
         self.timings_.update(timer.seconds)
 
     # ------------------------------------------------------------ persistence
@@ -920,6 +973,24 @@ class HilbertMap:
     def extent(self) -> np.ndarray:
         """(2, d) metres, world frame: the box holding every kernel's support."""
         return support_bounds(self.snapshot())
+
+
+# A map whose first scan's sensor stands farther than this from the world origin, metres,
+# keeps its clusters relative to a point near that sensor (LOCAL_ORIGIN_STEP metres apart):
+# cells keyed by integers from the origin reach 15 km at the finest resolutions.
+LOCAL_ORIGIN_BEYOND = 10_000.0
+LOCAL_ORIGIN_STEP = 1024.0
+
+
+def local_origin_for(sensor: np.ndarray) -> np.ndarray:
+    """(d,) metres, world frame: the origin of a map's own frame, for the sensor position of
+    its first scan: the world origin, unless the sensor stands farther than
+    LOCAL_ORIGIN_BEYOND from it (georeferenced data: UTM, State Plane), then the sensor's
+    position rounded to LOCAL_ORIGIN_STEP, a power of two, so shifting by it is exact."""
+    sensor = np.asarray(sensor, dtype=np.float64)
+    if np.abs(sensor).max() <= LOCAL_ORIGIN_BEYOND:
+        return np.zeros_like(sensor)
+    return np.round(sensor / LOCAL_ORIGIN_STEP) * LOCAL_ORIGIN_STEP
 
 
 def _latest_time(scans: list[Scan]) -> float | None:

@@ -302,6 +302,23 @@ def test_export_writes_each_format(room_map_file, map_file, tmp_path):
     assert result.exit_code == 2 and "plan.pgm exists: --force overwrites it" in result.stderr
 
 
+def test_a_georeferenced_map_exports_its_tree_around_its_local_origin(room, tmp_path):
+    octomap = pytest.importorskip("octomap")
+    shift = np.array([499_712.0, 4_199_424.0, 2048.0])
+    path = tmp_path / "utm.ehm"
+    scan = room.scans[0]
+    ehm.HilbertMap().integrate(scan.points_world + shift, scan.origin + shift).save(path)
+    result = runner.invoke(app, ["export", str(path), "-o", str(tmp_path / "utm.bt")])
+    assert result.exit_code == 0, result.output
+    assert "note: the tree is written relative to [499712.0, 4199424.0, 2048.0] m" in (
+        " ".join(result.stderr.split())
+    )
+    tree = octomap.OcTree(0.05)
+    assert tree.readBinary(str(tmp_path / "utm.bt").encode())
+    low, high = tree.getMetricMin(), tree.getMetricMax()
+    assert np.all(low > [-6, -5, -2]) and np.all(high < [6, 5, 5])  # the room, near 0
+
+
 def test_query_tells_distances_to_obstacles(map_file, tmp_path):
     points = np.array([[-3.0, -1.5], [1.5, -0.2], [6.0, -0.2]])
     np.save(tmp_path / "q.npy", points)

@@ -341,3 +341,46 @@ def test_grid_std_matches_point_queries_within_tolerance(room_map):
     assert difference.mean() < 0.01 and np.quantile(difference, 0.95) < 0.05
     with pytest.raises(ValueError, match="made without the std: make it with std=True"):
         _ = room_map.grid(resolution=0.1).std
+
+
+def test_a_georeferenced_map_answers_as_the_same_map_near_the_origin(room, tmp_path):
+    """Scans in UTM-like coordinates: the map keeps its clusters relative to a local origin
+    near the first sensor pose and answers in world coordinates, as the same scans near the
+    world origin do (a shift by whole steps of the local origin changes nothing else)."""
+    from ehm.hilbert_map import LOCAL_ORIGIN_STEP
+
+    shift = np.array([488.0, 4101.0, 3.0]) * LOCAL_ORIGIN_STEP  # 500 km east, 4200 km north
+    near, far = ehm.HilbertMap(), ehm.HilbertMap()
+    for scan in room.scans[:2]:
+        near.integrate_scan(scan)
+        far.integrate(scan.points_world + shift, scan.origin + shift, scan.hit_mask)
+    assert near.local_origin_.tolist() == [0.0, 0.0, 0.0]
+    np.testing.assert_array_equal(far.local_origin_, shift)
+    points = np.random.default_rng(0).uniform([-4, -3, 0], [4, 3, 3], (500, 3))
+    np.testing.assert_allclose(far.occupancy(points + shift), near.occupancy(points), atol=1e-6)
+    np.testing.assert_array_equal(far.known(points + shift), near.known(points))
+    origins = np.repeat(room.scans[0].origin[None], 20, axis=0)
+    directions = np.column_stack([np.cos(np.arange(20)), np.sin(np.arange(20)), np.zeros(20)])
+    np.testing.assert_allclose(
+        far.raycast(origins + shift, directions, 10.0), near.raycast(origins, directions, 10.0)
+    )
+    np.testing.assert_allclose(far.distance(points + shift), near.distance(points), atol=1e-6)
+    np.testing.assert_allclose(far.extent() - shift, near.extent(), atol=1e-6)
+    np.testing.assert_allclose(far.clusters().means - shift, near.clusters().means, atol=1e-6)
+    np.testing.assert_allclose(far.sensor_path - shift, near.sensor_path)
+    far_grid, near_grid = far.grid(resolution=0.1), near.grid(resolution=0.1)
+    np.testing.assert_allclose(far_grid.origin - shift, near_grid.origin, atol=1e-6)
+    np.testing.assert_allclose(far_grid.scores, near_grid.scores, atol=1e-5)
+    far.save(tmp_path / "far.ehm")
+    loaded = ehm.load(tmp_path / "far.ehm")
+    np.testing.assert_array_equal(loaded.local_origin_, shift)
+    np.testing.assert_array_equal(loaded.occupancy(points + shift), far.occupancy(points + shift))
+
+
+def test_maps_near_the_world_origin_keep_it():
+    from ehm.hilbert_map import local_origin_for
+
+    assert local_origin_for(np.array([9_999.0, -50.0, 2.0])).tolist() == [0.0, 0.0, 0.0]
+    np.testing.assert_array_equal(
+        local_origin_for(np.array([499_781.6, 4_200_300.0, 2500.0])), [499_712, 4_200_448, 2048]
+    )

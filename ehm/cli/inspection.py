@@ -73,7 +73,9 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     memory = hilbert_map.memory_
     table.add_row("past evidence kept", f"{len(memory)} cells, {memory.weight.sum():.0f} samples")
     table.add_row("file size", f"{map_path.stat().st_size / 1e6:.3f} MB")
-    means = hilbert_map.clusters_.means
+    means = hilbert_map.clusters().means
+    if hilbert_map.local_origin_ is not None and hilbert_map.local_origin_.any():
+        table.add_row("local origin (m)", str(hilbert_map.local_origin_.tolist()))
     if len(means):
         low, high = means.min(axis=0).round(2).tolist(), means.max(axis=0).round(2).tolist()
         table.add_row("cluster extent (m)", f"{low} .. {high}")

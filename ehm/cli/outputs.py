@@ -16,6 +16,7 @@ from ehm.cli.app import (
     Resolution,
     app,
     console,
+    errors,
     grid_bytes,
     load_map,
     map_grid,
@@ -288,6 +289,7 @@ def export(
         None if box is None else aligned, resolution, max_bytes=grid_bytes(max_gib)
     )
     if output.suffix in exports.OCTOMAP_SUFFIXES:
+        grids = _near_octomap_origin(hilbert_map, grids)
         known = exports.write_octomap(grids, output, grid_bytes(max_gib))
         console.print(f"{known} known voxels of {resolution:g} m\nwrote {output}")
     else:
@@ -299,6 +301,26 @@ def export(
             points = np.column_stack([points, np.zeros(len(points))])
         exports.write_point_cloud(points, output)
         console.print(f"{len(points)} occupied voxels\nwrote {output}")
+
+
+def _near_octomap_origin(any_map, grids):
+    """The grids of a map kept around a far local origin (HilbertMap.local_origin_:
+    georeferenced data) moved by minus that origin, with a note: OctoMap's keys reach 2^15
+    voxels from a tree's origin; other grids as they are."""
+    offset = getattr(any_map, "local_origin_", None)
+    if offset is None or not offset.any():
+        return grids
+    errors.print(
+        f"[yellow]note:[/yellow] the tree is written relative to {offset.tolist()} m, the map's "
+        "local origin, as OctoMap's keys reach only 32768 voxels from a tree's origin: add it "
+        "back to the tree's coordinates"
+    )
+
+    def moved(grid):
+        grid.origin = grid.origin - offset  # each block is made for this export alone
+        return grid
+
+    return map(moved, grids)
 
 
 def _export_map_server(

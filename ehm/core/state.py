@@ -23,7 +23,9 @@ class MapState:
     the past evidence it replays. waiting: scans given but not learned yet, waiting for their
     batch (config.batch_rays), in the order given. sensor_path: (n, d) float64, metres, world
     frame, the origin of every scan given, in order (empty for maps saved before it was kept).
-    time: seconds, the latest time stamp of the scans learned (None without)."""
+    time: seconds, the latest time stamp of the scans learned (None without). local_origin:
+    (d,) float64, metres, world frame, the point clusters and memory are kept relative to
+    (None: the world origin)."""
 
     config: MapConfig
     clusters: ClusterSet
@@ -35,3 +37,4 @@ class MapState:
     waiting: tuple[Scan, ...] = ()
     sensor_path: np.ndarray | None = None
     time: float | None = None
+    local_origin: np.ndarray | None = None

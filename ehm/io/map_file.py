@@ -69,7 +69,10 @@ SENSOR_PATH = "sensor_path"
 # MapConfig.forget_after); older files load with none.
 # Version 17 maps may give occupied clusters kernels of their own span
 # (MapConfig.occupied_length_scale); older files made them as wide as free ones, and load so.
-FORMAT_VERSION = 17
+# Version 18 maps may keep their clusters and memory relative to a point near their first
+# sensor pose (HilbertMap.local_origin_, georeferenced data); older files keep the world
+# origin, and load so.
+FORMAT_VERSION = 18
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -114,6 +117,7 @@ def map_bytes(state: MapState) -> bytes:
             "bias_state": state.bias_state.tolist(),
             "rng_state": state.rng_state,
             "time": state.time,
+            "local_origin": None if state.local_origin is None else state.local_origin.tolist(),
             "arrays": entries,
         }
     ).encode()
@@ -237,6 +241,7 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         _waiting_scans(waiting_arrays),
         sensor_path,
         header.get("time"),
+        None if header.get("local_origin") is None else np.array(header["local_origin"], float),
     )
 
 

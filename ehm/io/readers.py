@@ -45,6 +45,9 @@ DEPTH_FORMATS = {"tum": tum_frames, "7scenes": seven_scenes_frames, "redwood": r
 _IS_DEPTH_LAYOUT = {"tum": is_tum, "7scenes": is_seven_scenes, "redwood": is_redwood}
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "carmen", *DEPTH_FORMATS)
+# A point cloud none of whose points lies within this of where its sensor is taken to stand,
+# metres, is refused: its rays would be that long (georeferenced coordinates without --origin).
+FAR_FROM_SENSOR = 10_000.0
 _DEPTH_LAYOUTS = (
     "tum: depth.txt and groundtruth.txt, or poses.txt; 7scenes: frame-*.depth.png and "
     "frame-*.pose.txt; redwood: depth/ and a .log trajectory"
@@ -403,8 +406,18 @@ def _point_cloud_scan(
     else:
         points = {"xyz": read_xyz, "ply": read_ply, "las": read_las}[fmt](path)
         viewpoint = np.zeros(3)
+    sensor = viewpoint if origin is None else origin
+    if origin is None and T_world_file is None and len(points):
+        nearest = float(np.min(np.linalg.norm(points - sensor, axis=1)))
+        if nearest > FAR_FROM_SENSOR:
+            raise FileReadError(
+                path,
+                f"its points lie {nearest / 1000:.0f} km or more from {sensor.tolist()}, where "
+                "its sensor is taken to stand as the file does not say: give the sensor's "
+                "position (--origin X,Y,Z; for an airborne tile, a point above it) or --poses",
+            )
     try:
-        scan = Scan(points, viewpoint if origin is None else origin)
+        scan = Scan(points, sensor)
     except InputError as error:
         raise FileReadError(path, str(error)) from None
     return scan if T_world_file is None else _placed(scan, T_world_file)

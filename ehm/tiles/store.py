@@ -62,8 +62,11 @@ class TileRecord:
         if n_clusters:
             reach = kernel_reach(clusters.transforms, clusters.planar_kernel)[:, None]
             box = np.asarray(tile_map.config.learn_box).reshape(2, -1)
-            low = np.maximum((clusters.means - reach).min(axis=0), box[0])
-            high = np.minimum((clusters.means + reach).max(axis=0), box[1])
+            means = clusters.means + (
+                tile_map.local_origin_ if tile_map.local_origin_ is not None else 0.0
+            )
+            low = np.maximum((means - reach).min(axis=0), box[0])
+            high = np.minimum((means + reach).max(axis=0), box[1])
             extent = [low.tolist(), high.tolist()]
         return cls(version, tile_map.n_scans_, n_clusters, n_bytes, extent)
 

@@ -124,10 +124,13 @@ def test_cell_corners_are_read_back_from_the_keys(rng, dim):
     np.testing.assert_array_equal(corners, np.floor(points / sides[:, None]) * sides[:, None])
 
 
-def test_samples_beyond_the_cells_reach_are_refused(rng):
+def test_samples_beyond_the_cells_reach_are_refused_naming_the_cause(rng):
     far = Scan(np.array([[1e9, 0.0, 0.0]]), np.zeros(3))
-    with pytest.raises(InputError, match="set max_range"):
+    with pytest.raises(InputError, match="as rays reach 1000000000 m: set max_range"):
         gather_evidence(scan_rays([far], MapConfig()), MapConfig(), rng)
+    gone = Scan(np.array([[1e9 + 5.0, 0.0, 0.0]]), np.array([1e9, 0.0, 0.0]))
+    with pytest.raises(InputError, match=r"a sensor pose lies 1000000000 m .* in tiles"):
+        gather_evidence(scan_rays([gone], MapConfig()), MapConfig(), rng)
 
 
 def test_evidence_gathered_in_parts_is_the_same_on_any_number_of_threads(rng, monkeypatch):

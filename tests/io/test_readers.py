@@ -1,5 +1,6 @@
 """Choosing the reader of an input."""
 
+import numpy as np
 import pytest
 
 from ehm.io.readers import guess_format, read_scans
@@ -68,3 +69,14 @@ def test_scan_files_read_by_index_what_iterating_reads(tmp_path, plan_log):
             np.testing.assert_array_equal(scan.points_world, everything[i].points_world)
             np.testing.assert_array_equal(scan.origin, everything[i].origin)
         assert [i for i, _ in source.read()] == list(range(len(everything)))
+
+
+def test_point_clouds_far_from_where_their_sensor_is_taken_to_stand_are_refused(tmp_path):
+    from ehm.errors import FileReadError
+
+    path = tmp_path / "utm.xyz"
+    np.savetxt(path, np.array([[499_750.0, 4_200_300.0, 2160.0], [499_760.0, 4_200_310.0, 2161.0]]))
+    with pytest.raises(FileReadError, match=r"utm\.xyz: its points lie 4230 km or more from"):
+        read_scans(path)
+    (scan,) = read_scans(path, origin=[499_755.0, 4_200_305.0, 2400.0])
+    assert len(scan) == 2

@@ -443,16 +443,27 @@ def kinds_of(samples: TrainingSamples) -> np.ndarray:
 
 
 def _check_reach(rays: ScanRays, config: MapConfig, side: float, bits: int) -> None:
-    """InputError when a sample may lie beyond the cells' reach from the world origin."""
+    """InputError when a sample may lie beyond the cells' reach from the map's origin (its
+    local origin: HilbertMap.local_origin_), naming the cause: a sensor that went too far, or
+    rays too long."""
     half = 2.0 ** (bits - 1)
     if len(rays) == 0:
         return
-    far = np.abs(rays.origins).max() + rays.lengths.max() + config.occupied_depth
-    if far >= (half - 1) * side:
+    reach = (half - 1) * side
+    sensor = np.abs(rays.origins).max()
+    if sensor + config.occupied_depth >= reach:
         raise InputError(
-            f"a training sample lies up to {far:.0f} m from the world origin, beyond the "
-            f"{(half - 1) * side:.0f} m that cells of {side:g} m reach: set max_range "
-            "(ehm map --max-range) to cut rays longer than the sensor's"
+            f"a sensor pose lies {sensor:.0f} m from the map's origin (near its first sensor "
+            f"pose), beyond the {reach:.0f} m that cells of {side:g} m reach: map so long a "
+            "trajectory in tiles (ehm map --tiles, ehm.tiles.TiledMap)"
+        )
+    far = sensor + rays.lengths.max() + config.occupied_depth
+    if far >= reach:
+        raise InputError(
+            f"a training sample lies up to {far:.0f} m from the map's origin, beyond the "
+            f"{reach:.0f} m that cells of {side:g} m reach, as rays reach "
+            f"{rays.lengths.max():.0f} m: set max_range (ehm map --max-range) to cut rays "
+            "longer than the sensor's"
         )
 
 

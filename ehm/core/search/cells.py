@@ -77,7 +77,7 @@ def packed_cell_keys(
         outside = np.any((cells < -half) | (cells >= half), axis=1)
         far = np.max(np.abs(points[outside]))
         raise InputError(
-            f"a training sample lies {far:.0f} m from the world origin, beyond the "
+            f"a training sample lies {far:.0f} m from the map's origin, beyond the "
             f"{half * side.min():.0f} m that cells of {side.min():g} m reach: set max_range "
             "(ehm map --max-range) to cut rays longer than the sensor's"
         )

@@ -637,7 +637,7 @@ class SupportHash:
         if len(rows) and not (sub_lo.min() >= -limit and sub_hi.max() < limit):
             reach = limit * self._sub_sides[0]
             raise InputError(
-                f"a kernel reaches more than {reach:.0f} m from the world origin, beyond the "
+                f"a kernel reaches more than {reach:.0f} m from the map's origin, beyond the "
                 "cells of the support hash"
             )
         self._sub_lo[rows], self._sub_hi[rows] = sub_lo, sub_hi
