@@ -128,27 +128,40 @@ def read_ouster_metadata(path: str | PathLike[str]) -> OusterSensor:
         raise FileReadError(
             path, f"lidar profile {profile!r} is not read; read are {', '.join(_PROFILES)}"
         )
-    altitude = np.radians(np.asarray(value("beam_altitude_angles"), dtype=np.float64))
-    azimuth = np.radians(np.asarray(value("beam_azimuth_angles"), dtype=np.float64))
-    pixels = int(value("pixels_per_column", len(altitude)))
+    try:
+        altitude = np.radians(np.asarray(value("beam_altitude_angles"), dtype=np.float64))
+        azimuth = np.radians(np.asarray(value("beam_azimuth_angles"), dtype=np.float64))
+        pixels = int(value("pixels_per_column", len(altitude)))
+        T_sensor_lidar = np.asarray(value("lidar_to_sensor_transform"), dtype=np.float64)
+        width = int(value("columns_per_frame", 0) or str(value("lidar_mode")).split("x")[0])
+        columns_per_packet = int(value("columns_per_packet", 16))
+        beam_offset = float(value("lidar_origin_to_beam_origin_mm")) / 1000.0
+        port = int(value("udp_port_lidar", 0) or 0)
+    except (TypeError, ValueError) as error:
+        message = f"holds a value that is not a number where one is: {error}"
+        raise FileReadError(path, message) from None
     if altitude.shape != (pixels,) or azimuth.shape != (pixels,):
         raise FileReadError(path, f"beam angles for {len(altitude)} beams, columns of {pixels}")
-    T_sensor_lidar = np.asarray(value("lidar_to_sensor_transform"), dtype=np.float64)
     if T_sensor_lidar.size != 16:
         raise FileReadError(path, "lidar_to_sensor_transform is not 16 numbers")
+    if min(width, pixels, columns_per_packet) < 1 or width % columns_per_packet:
+        raise FileReadError(
+            path, f"{width} columns a frame, {columns_per_packet} a packet: not a sensor's"
+        )
     T_sensor_lidar = T_sensor_lidar.reshape(4, 4)
     T_sensor_lidar[:3, 3] /= 1000.0  # millimetres
-    width = int(value("columns_per_frame", 0) or str(value("lidar_mode")).split("x")[0])
+    if not (np.all(np.isfinite(T_sensor_lidar)) and np.all(np.isfinite(altitude + azimuth))):
+        raise FileReadError(path, "holds beam angles or a transform that are not finite")
     return OusterSensor(
         altitude=altitude,
         azimuth=azimuth,
-        beam_offset=float(value("lidar_origin_to_beam_origin_mm")) / 1000.0,
+        beam_offset=beam_offset,
         T_sensor_lidar=T_sensor_lidar,
         width=width,
         pixels=pixels,
-        columns_per_packet=int(value("columns_per_packet", 16)),
+        columns_per_packet=columns_per_packet,
         profile=profile,
-        port=int(value("udp_port_lidar", 0) or 0),
+        port=port,
     )
 
 

@@ -24,6 +24,8 @@ _PCAPNG = b"\x0a\x0d\x0d\x0a"
 # Link layers: how many bytes precede the EtherType field, and the field's length.
 _LINK_HEADERS = {1: 12, 113: 14}  # Ethernet, Linux cooked capture (SLL)
 _IPV4, _VLAN, _UDP = 0x0800, 0x8100, 17
+# Larger than any frame a link carries (an IPv4 datagram is at most 64 KiB).
+_LARGEST_FRAME = 2**18
 
 
 def udp_payloads(path: str | PathLike[str]) -> Iterator[tuple[int, bytes]]:
@@ -48,6 +50,8 @@ def udp_payloads(path: str | PathLike[str]) -> Iterator[tuple[int, bytes]]:
             if len(record) < 16:
                 raise FileReadError(path, "ends inside a packet record (a cut capture)")
             size = struct.unpack(order + "I", record[8:12])[0]
+            if size > _LARGEST_FRAME:
+                raise FileReadError(path, f"holds a packet of {size} bytes: a damaged capture")
             frame = file.read(size)
             if len(frame) < size:
                 raise FileReadError(path, "ends inside a packet (a cut capture)")

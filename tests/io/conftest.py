@@ -7,6 +7,7 @@ import struct
 import numpy as np
 import pytest
 from las_files import write_las
+from ouster_captures import ouster_metadata, write_ouster
 
 
 @pytest.fixture
@@ -35,6 +36,10 @@ def input_files(tmp_path, cloud):
             b"FLASER 4 1.0 81.83 2.0 1.5 1.0 2.0 0.0 0 0 0 0 host 0\n"
             b"FLASER 3 1.0 2.0 1.5 1.0 2.5 0.1 0 0 0 0 host 1\n"
         ),
+        "b.clf": (
+            b"ROBOTLASER1 0 -1.570796 3.141593 0.017453 81.9 0.01 0 3 2.0 81.91 3.0 0 "
+            b"1.22 0.0 1.570796 1.0 0.0 1.570796 0 0 0 0 0 55.5 host 55.6\n"
+        ),
     }
     field_major = cloud.T.astype("<f4").tobytes()
     packed = _lzf_compress(field_major)
@@ -55,6 +60,9 @@ def input_files(tmp_path, cloud):
     found["000000.bin"] = (sequence / "velodyne" / "000000.bin", {"poses": sequence / "poses.txt"})
     found["tum"] = (_tum_folder(tmp_path / "tum_fr2"), {})
     found["a.las"] = (write_las(tmp_path / "a.las", cloud), {})
+    metadata = ouster_metadata([-10.0, 0.0, 10.0], 16, "RNG19_RFL8_SIG16_NIR16", 8)
+    ranges = 1000 + np.arange(2 * 3 * 16).reshape(2, 3, 16)  # two frames, millimetres
+    found["os.pcap"] = (write_ouster(tmp_path / "os.pcap", metadata, ranges), {})
     return found
 
 

@@ -56,6 +56,9 @@ def targets(input_files, tmp_path) -> dict[str, tuple]:
         if name == "tum":
             found["tum poses"] = (path / "poses.txt", read)
             found["tum depth"] = (path / "depth" / "0.png", read)
+        elif name == "os.pcap":
+            found["ouster capture"] = (path, read)
+            found["ouster metadata"] = (path.with_suffix(".json"), read)
         elif name == "000000.bin":
             found["kitti scan"] = (path, read)
             found["kitti poses"] = (options["poses"], read)
