@@ -43,6 +43,10 @@ _PROFILES = {
     "RNG15_RFL8_NIR8": _Profile(32, 12, 4, 0, 32, 1),
 }
 _LIDAR_PACKET = 1  # packet_type of lidar data in the non-legacy header
+# What Ouster's SDK takes for metadata of early firmware, which does not record them.
+_DEFAULT_LIDAR_TO_SENSOR = [-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 36.18, 0, 0, 0, 1]
+_DEFAULT_BEAM_OFFSET_MM = 12.163
+_OS1_DEFAULTS = ("lidar_to_sensor_transform", "lidar_origin_to_beam_origin_mm")
 
 
 @dataclass(frozen=True)
@@ -87,21 +91,25 @@ def metadata_path(capture: str | PathLike[str]) -> Path:
     raise FileReadError(
         capture,
         f"needs its sensor's metadata JSON to decode: put it beside the capture as {beside.name} "
-        "(Ouster: `ouster-cli source SENSOR save NAME.pcap` writes both; a Velodyne capture "
-        "is not read: convert it to PCD with VeloView first)",
+        "(`ouster-cli source SENSOR save NAME.pcap` writes both)",
     )
 
 
-def capture_sensor(capture: str | PathLike[str]) -> OusterSensor:
-    """The sensor of an Ouster capture, from its metadata JSON (metadata_path), and a note of
-    which file that was."""
-    metadata = metadata_path(capture)
-    sensor = read_ouster_metadata(metadata)
-    assumed(
-        f"{Path(capture).name}: decoded with {metadata.name} ({sensor.profile}, "
-        f"{sensor.pixels} x {sensor.width}); frames are in the sensor's own frame"
-    )
-    return sensor
+class OusterCapture:
+    """The frames of an Ouster capture (a .pcap) as scans: its metadata is found and read when
+    it is made (FileReadError naming what is missing or wrong), its packets when iterated."""
+
+    def __init__(self, capture: str | PathLike[str]) -> None:
+        self.path = Path(capture)
+        metadata = metadata_path(self.path)
+        self.sensor = read_ouster_metadata(metadata)
+        assumed(
+            f"{self.path.name}: decoded with {metadata.name} ({self.sensor.profile}, "
+            f"{self.sensor.pixels} x {self.sensor.width}); frames are in the sensor's own frame"
+        )
+
+    def __iter__(self) -> Iterator[Scan]:
+        return ouster_scans(self.path, self.sensor)
 
 
 def read_ouster_metadata(path: str | PathLike[str]) -> OusterSensor:
@@ -115,6 +123,13 @@ def read_ouster_metadata(path: str | PathLike[str]) -> OusterSensor:
     if not isinstance(document, dict):
         raise FileReadError(path, "is not an Ouster metadata object")
     values = _flattened(document)
+    missing = [name for name in _OS1_DEFAULTS if name not in values]
+    if missing:
+        assumed(
+            f"{path.name} has no {' or '.join(missing)} (firmware before 1.13): took Ouster's "
+            "defaults for the OS1 (the LiDAR 36.18 mm above the sensor's base, turned 180 "
+            "degrees; beams 12.163 mm from its axis)"
+        )
 
     def value(name: str, default: Any = None) -> Any:
         if name not in values:
@@ -132,10 +147,13 @@ def read_ouster_metadata(path: str | PathLike[str]) -> OusterSensor:
         altitude = np.radians(np.asarray(value("beam_altitude_angles"), dtype=np.float64))
         azimuth = np.radians(np.asarray(value("beam_azimuth_angles"), dtype=np.float64))
         pixels = int(value("pixels_per_column", len(altitude)))
-        T_sensor_lidar = np.asarray(value("lidar_to_sensor_transform"), dtype=np.float64)
+        T_sensor_lidar = np.asarray(
+            value("lidar_to_sensor_transform", _DEFAULT_LIDAR_TO_SENSOR), dtype=np.float64
+        )
         width = int(value("columns_per_frame", 0) or str(value("lidar_mode")).split("x")[0])
         columns_per_packet = int(value("columns_per_packet", 16))
-        beam_offset = float(value("lidar_origin_to_beam_origin_mm")) / 1000.0
+        beam_offset = float(value("lidar_origin_to_beam_origin_mm", _DEFAULT_BEAM_OFFSET_MM))
+        beam_offset /= 1000.0
         port = int(value("udp_port_lidar", 0) or 0)
     except (TypeError, ValueError) as error:
         message = f"holds a value that is not a number where one is: {error}"
@@ -177,14 +195,14 @@ def _flattened(document: dict[str, Any]) -> dict[str, Any]:
 
 
 def ouster_scans(capture: str | PathLike[str], sensor: OusterSensor) -> Iterator[Scan]:
-    """One scan per frame of an Ouster capture taken by `sensor` (capture_sensor), points and
+    """One scan per frame of an Ouster capture taken by `sensor` (its metadata), points and
     origin in the sensor frame (metres), timed by its first column (seconds, the sensor's
     clock); frames cut by the capture's start or end are kept with the columns they have.
     FileReadError when no packet fits the metadata."""
     capture = Path(capture)
     frame_id, columns = None, []
     found = 0
-    for port, payload in udp_payloads(capture):
+    for _, port, payload in udp_payloads(capture):
         if (sensor.port and port != sensor.port) or len(payload) != sensor.packet_size:
             continue
         packet_frame, packet_columns = _decode(payload, sensor)

@@ -1,7 +1,7 @@
 """UDP payloads from a libpcap capture (`tcpdump -w`, Wireshark's "pcap"): Ethernet (with VLAN
 tags) or Linux cooked frames carrying IPv4, fragmented datagrams put back together.
 
-for port, payload in udp_payloads("drive.pcap"): ...
+for datagram in udp_payloads("drive.pcap"): datagram.time, datagram.port, datagram.payload
 """
 
 from __future__ import annotations
@@ -11,8 +11,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
+from typing import NamedTuple
 
-from ehm.errors import FileReadError
+from ehm.errors import FileReadError, assumed
 
 _MAGIC = {
     b"\xd4\xc3\xb2\xa1": "<",  # microsecond time stamps, little-endian
@@ -20,6 +21,7 @@ _MAGIC = {
     b"\x4d\x3c\xb2\xa1": "<",  # nanosecond time stamps
     b"\xa1\xb2\x3c\x4d": ">",
 }
+_NANOSECONDS = (b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d")
 _PCAPNG = b"\x0a\x0d\x0d\x0a"
 # Link layers: how many bytes precede the EtherType field, and the field's length.
 _LINK_HEADERS = {1: 12, 113: 14}  # Ethernet, Linux cooked capture (SLL)
@@ -28,10 +30,20 @@ _IPV4, _VLAN, _UDP = 0x0800, 0x8100, 17
 _LARGEST_FRAME = 2**18
 
 
-def udp_payloads(path: str | PathLike[str]) -> Iterator[tuple[int, bytes]]:
-    """(destination port, payload) of each UDP datagram in the capture at `path`, in capture
-    order; IPv4 fragments are joined, other traffic is skipped. FileReadError for a file that
-    is not a libpcap capture (pcapng is named, with the command that converts it)."""
+class Datagram(NamedTuple):
+    """A UDP datagram of a capture: when it was captured (seconds, the capturing host's
+    clock), its destination port and its payload."""
+
+    time: float
+    port: int
+    payload: bytes
+
+
+def udp_payloads(path: str | PathLike[str]) -> Iterator[Datagram]:
+    """Each UDP datagram in the capture at `path`, in capture order; IPv4 fragments are
+    joined, other traffic is skipped, a packet cut by the capture's end is noted and left
+    out. FileReadError for a file that is not a libpcap capture (pcapng is named, with the
+    command that converts it)."""
     path = Path(path)
     with path.open("rb") as file:
         header = file.read(24)
@@ -43,21 +55,22 @@ def udp_payloads(path: str | PathLike[str]) -> Iterator[tuple[int, bytes]]:
         if order is None or len(header) < 24:
             raise FileReadError(path, "is not a libpcap capture (no pcap file header)")
         link = struct.unpack(order + "I", header[20:24])[0] & 0xFFFF
+        fraction = 1e-9 if header[:4] in _NANOSECONDS else 1e-6
         if link not in _LINK_HEADERS:
             raise FileReadError(path, f"captures link type {link}; Ethernet (1) is read")
         fragments: dict[tuple[bytes, int], _Fragments] = {}
         while record := file.read(16):
-            if len(record) < 16:
-                raise FileReadError(path, "ends inside a packet record (a cut capture)")
-            size = struct.unpack(order + "I", record[8:12])[0]
+            size = struct.unpack(order + "I", record[8:12])[0] if len(record) == 16 else 0
             if size > _LARGEST_FRAME:
                 raise FileReadError(path, f"holds a packet of {size} bytes: a damaged capture")
             frame = file.read(size)
-            if len(frame) < size:
-                raise FileReadError(path, "ends inside a packet (a cut capture)")
+            if len(record) < 16 or len(frame) < size:
+                assumed(f"{path.name} ends inside a packet (a capture cut short): read up to it")
+                return
             datagram = _ipv4_udp(frame, _LINK_HEADERS[link], fragments)
             if datagram is not None:
-                yield datagram
+                seconds, part = struct.unpack(order + "II", record[:8])
+                yield Datagram(seconds + part * fraction, *datagram)
 
 
 def _ipv4_udp(

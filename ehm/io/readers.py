@@ -26,23 +26,27 @@ from ehm.io.files import COMPRESSED_SUFFIXES, uncompressed_suffix
 from ehm.io.kitti import kitti_files, kitti_frames, read_kitti_scan, sequence_poses
 from ehm.io.las import read_las
 from ehm.io.octomap_graph import read_octomap_graph
-from ehm.io.ouster import OusterSensor, capture_sensor, ouster_scans
+from ehm.io.ouster import OusterCapture, metadata_path
+from ehm.io.pcap import udp_payloads
 from ehm.io.pcd import read_pcd
 from ehm.io.ply import read_ply
 from ehm.io.poses import read_poses
 from ehm.io.redwood import is_redwood, redwood_frames
 from ehm.io.seven_scenes import is_seven_scenes, seven_scenes_frames
 from ehm.io.tum import is_tum, tum_frames
+from ehm.io.velodyne import VELODYNE_PACKET, VelodyneCapture
 from ehm.io.xyz import read_xyz
 
 FORMATS = (
     "xyz", "ply", "pcd", "las", "kitti", "graph", "tum", "7scenes", "redwood", "carmen", "bag",
-    "ouster",
+    "ouster", "velodyne",
 )  # fmt: skip
 # Folders of depth images, each with its camera and poses: the reader of each layout, and
 # what tells a folder of it.
 DEPTH_FORMATS = {"tum": tum_frames, "7scenes": seven_scenes_frames, "redwood": redwood_frames}
 _IS_DEPTH_LAYOUT = {"tum": is_tum, "7scenes": is_seven_scenes, "redwood": is_redwood}
+# LiDAR packet captures (.pcap), one scan per frame, and their readers.
+CAPTURES = {"ouster": OusterCapture, "velodyne": VelodyneCapture}
 # Formats whose files hold each scan's sensor pose: they take neither an origin nor poses.
 POSED_FORMATS = ("graph", "carmen", *DEPTH_FORMATS)
 # A point cloud none of whose points lies within this of where its sensor is taken to stand,
@@ -55,7 +59,7 @@ _DEPTH_LAYOUTS = (
 _EXTENSIONS = {
     ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".ply": "ply", ".pcd": "pcd",
     ".las": "las", ".laz": "las", ".bin": "kitti", ".graph": "graph", ".log": "carmen",
-    ".clf": "carmen", ".bag": "bag", ".pcap": "ouster",
+    ".clf": "carmen", ".bag": "bag",
 }  # fmt: skip
 
 
@@ -79,6 +83,8 @@ def guess_format(path: str | PathLike[str]) -> str:
             f"or depth frames: {_DEPTH_LAYOUTS}",
         )
     suffix = uncompressed_suffix(path)
+    if suffix == ".pcap" and path.suffix.lower() == ".pcap":
+        return _capture_format(path)
     if path.suffix.lower() in COMPRESSED_SUFFIXES and suffix in ("", ".bag"):
         if suffix == ".bag":
             raise FileReadError(path, "a compressed bag is not read; decompress it first")
@@ -89,6 +95,26 @@ def guess_format(path: str | PathLike[str]) -> str:
             path, f"unknown extension {suffix!r}; give a format, one of {', '.join(FORMATS)}"
         )
     return fmt
+
+
+def _capture_format(path: Path) -> str:
+    """The sensor of a .pcap: Velodyne where its first datagrams are Velodyne data packets,
+    else Ouster where its metadata JSON is found (or the file is missing, which ScanFiles
+    names); FileReadError naming both otherwise."""
+    if not path.is_file():
+        return "ouster"
+    if VELODYNE_PACKET in {len(datagram.payload) for datagram in islice(udp_payloads(path), 20)}:
+        return "velodyne"
+    try:
+        metadata_path(path)
+    except FileReadError:
+        raise FileReadError(
+            path,
+            "is a packet capture of neither an Ouster LiDAR, whose metadata JSON would lie "
+            f"beside it ({path.with_suffix('.json').name}), nor a Velodyne (1206-byte data "
+            "packets)",
+        ) from None
+    return "ouster"
 
 
 def read_scans(
@@ -224,8 +250,8 @@ class ScanFiles:
         elif fmt in POSED_FORMATS:
             self._streams = items
             return
-        elif fmt == "ouster":
-            self._streams = [(item, capture_sensor(item)) for item in items]
+        elif fmt in CAPTURES:
+            self._streams = [CAPTURES[fmt](item) for item in items]
             self._T_world_sensors = _capture_poses(self._streams, origin, poses)
             return
         else:
@@ -246,7 +272,7 @@ class ScanFiles:
             return (self._read_file(i) for i in range(len(self._files)))
         if self.format == "bag":
             scans = (scan for bag in self._streams for scan in bag)
-        elif self.format == "ouster":
+        elif self.format in CAPTURES:
             scans = _capture_scans(self._streams, self._T_world_sensors)
         else:
             scans = _posed_scans(self._streams, self.format, self._fov)
@@ -287,11 +313,11 @@ def _posed_scans(items: list[str | PathLike[str]], fmt: str, fov: float | None) 
 
 
 def _capture_poses(
-    captures: list[tuple[str | PathLike[str], OusterSensor]],
+    captures: list[Iterable[Scan]],
     origin: Sequence[float] | None,
     poses: str | PathLike[str] | None,
 ) -> list[np.ndarray] | None:
-    """T_world_sensor of each frame of LiDAR captures (paths and sensors): one per frame
+    """T_world_sensor of each frame of LiDAR captures (CAPTURES): one per frame
     from `poses` (the frames are counted first), or one placing every frame at `origin`;
     None: the sensor's frame."""
     if origin is not None:
@@ -301,20 +327,20 @@ def _capture_poses(
     if poses is None:
         return None
     T_world_sensors = read_poses(poses)
-    frames = sum(1 for capture in captures for _ in ouster_scans(*capture))
+    frames = sum(1 for capture in captures for _ in capture)
     if len(T_world_sensors) != frames:
         raise FileReadError(poses, f"{len(T_world_sensors)} poses for {frames} frames")
     return T_world_sensors
 
 
 def _capture_scans(
-    captures: list[tuple[str | PathLike[str], OusterSensor]],
+    captures: list[Iterable[Scan]],
     T_world_sensors: list[np.ndarray] | None,
 ) -> Iterator[Scan]:
-    """The frames of LiDAR captures (paths and sensors), each placed by its pose (one pose:
+    """The frames of LiDAR captures (CAPTURES), each placed by its pose (one pose:
     all frames; None: left in the sensor's frame, said once a second frame shows the sensor
     may have moved)."""
-    for index, scan in enumerate(scan for capture in captures for scan in ouster_scans(*capture)):
+    for index, scan in enumerate(scan for capture in captures for scan in capture):
         if index == 1 and (T_world_sensors is None or len(T_world_sensors) == 1):
             assumed(
                 "the capture's frames are all mapped from one sensor pose (no poses given): "

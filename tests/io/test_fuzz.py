@@ -3,9 +3,11 @@ files of each format. A reader may read a mutated file or refuse it with an EhmE
 exception, a long run or a large allocation is a failure. Inputs found to fail are kept as
 named cases in test_bad_files.py."""
 
+import importlib.util
 import time
 import tracemalloc
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,6 +67,10 @@ def targets(input_files, tmp_path) -> dict[str, tuple]:
             found["kitti calib"] = (path.parent.parent / "calib.txt", read)
         else:
             found[name] = (path, read)
+    if importlib.util.find_spec("velodyne_decoder") is not None:
+        capture = tmp_path / "hdl32e.pcap"
+        capture.write_bytes((Path(__file__).parent / "data" / "hdl32e.pcap").read_bytes())
+        found["velodyne capture"] = (capture, lambda: read_scans(capture, format="velodyne"))
     hilbert_map = ehm.HilbertMap(batch_rays=0)
     for scan in read_scans(input_files["b.pcd"][0]):
         hilbert_map.integrate_scan(scan)

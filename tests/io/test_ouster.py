@@ -62,13 +62,24 @@ def test_frames_are_scans_timed_by_their_first_column_and_fragments_are_joined(t
         read_scans(capture, poses=poses)
 
 
+def test_a_capture_cut_short_is_read_up_to_the_cut(tmp_path):
+    metadata = ouster_metadata([0.0, 10.0], 16, "RNG19_RFL8_SIG16_NIR16", columns_per_packet=4)
+    capture = write_ouster(tmp_path / "os.pcap", metadata, _ranges(16, 2, 2))
+    capture.write_bytes(capture.read_bytes()[:-100])
+    with pytest.warns(AssumptionWarning, match=r"os\.pcap ends inside a packet"):
+        scans = read_scans(capture)
+    assert [len(scan) for scan in scans] == [31, 23]  # the last packet's 4 columns lost
+
+
 def test_captures_without_their_metadata_or_packets_are_refused(tmp_path):
     assert guess_format("drive.pcap") == "ouster"
     metadata = ouster_metadata([0.0], 8, "RNG19_RFL8_SIG16_NIR16")
     capture = write_ouster(tmp_path / "a.pcap", metadata, _ranges(8, 1))
     (tmp_path / "b.json").write_text("{}")
     capture.with_suffix(".json").rename(tmp_path / "elsewhere.json")
-    with pytest.raises(FileReadError, match=r"needs its sensor's metadata JSON.*a\.json"):
+    with pytest.raises(
+        FileReadError, match=r"neither an Ouster LiDAR, whose metadata JSON .*a\.json"
+    ):
         read_scans(capture)
     metadata["data_format"]["udp_profile_lidar"] = "FUSA_RNG15_RFL8_NIR8_DUAL"
     capture.with_suffix(".json").write_text(json.dumps(metadata))
