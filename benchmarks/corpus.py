@@ -76,6 +76,7 @@ class Recording:
     ranges: tuple[float, float] = (0.0, np.inf)
     floor: float | None = None
     moving: bool = False
+    refusal: str | None = None  # what its refusal names, for a recording ehm must refuse
 
 
 _RUST_LIDAR = "jerry73204/rust-lidar-utils", "8b96a14c735fa30ea9e366a7dd558ba38b045e2e", "MIT"
@@ -127,6 +128,11 @@ CORPUS = [
         (320.0, 390.0),  # from the origin above: the tile's 61 x 61 x 19 m under 2500 m
     ),
     Recording(
+        "las_without_origin", "airborne LAS, no sensor position given",
+        {"4_6_crop.las": "las_georeferenced/4_6_crop.las"}, "4_6_crop.las",
+        refusal="give the sensor's position (--origin X,Y,Z",
+    ),
+    Recording(
         "ouster_os0_128", "Ouster pcap, RNG15 profile",
         {
             "os0.pcap": "ouster_pcap/OS-0-128-U1_v2.3.0_1024x10.pcap",
@@ -143,6 +149,12 @@ CORPUS = [
                                "8cfc1b613cb330d0", _RUST_LIDAR[2]),
         },
         "os1.pcap", ["--resolution", "0.2"], (0.5, 150.0),
+    ),
+    Recording(
+        "ouster_without_metadata", "Ouster pcap without its metadata JSON",
+        {"alone/os1.pcap": Source(*_RUST_LIDAR[:2], "ouster-lidar/test_files/ouster_example.pcap",
+                                  "d0c3507e0d29fe39", _RUST_LIDAR[2])},
+        "alone/os1.pcap", refusal="whose metadata JSON would lie beside it (os1.json)",
     ),
     Recording(
         "velodyne_hdl32e_a", "Velodyne pcap, HDL-32E",
@@ -179,6 +191,7 @@ def fetch(destination: Path, mirrors: Path | None) -> None:
     for recording in CORPUS:
         for name, source in recording.files.items():
             target = destination / name
+            target.parent.mkdir(parents=True, exist_ok=True)
             if isinstance(source, str):
                 shared = data_dir() / source
                 if not shared.exists():
@@ -222,9 +235,14 @@ def check(recording: Recording, corpus: Path, folder: Path) -> dict:
     seconds = time.perf_counter() - start
     notes = [line for line in done.stderr.splitlines() if line.startswith("note:")]
     record = {"name": recording.name, "kind": recording.kind, "seconds": seconds, "notes": notes}
-    if done.returncode != 0:
-        record["refused"] = done.stderr.strip().splitlines()[-1] if done.stderr else "?"
+    if done.returncode != 0 or recording.refusal is not None:
+        record["refused"] = done.stderr.strip().splitlines()[-1] if done.returncode else None
         record["exit"] = done.returncode
+        record["refused_as_expected"] = bool(
+            recording.refusal is not None
+            and done.returncode == 2
+            and recording.refusal in " ".join(done.stderr.split())
+        )
         return record
     hilbert_map = ehm.load(map_path)
     options = _reader_options(recording.options)
@@ -281,7 +299,8 @@ def run(corpus: Path) -> None:
     rows = []
     for r in records:
         if "refused" in r:
-            rows.append([r["name"], r["kind"], f"refused: {r['refused']}", "", "", "", "", ""])
+            outcome = "refused, naming the fix" if r["refused_as_expected"] else "FAILED"
+            rows.append([r["name"], r["kind"], f"{outcome} (exit {r['exit']})", "", "", "", "", ""])
             continue
         floor = ""
         if "floor_ok" in r:
@@ -294,7 +313,7 @@ def run(corpus: Path) -> None:
             f"{r['seconds']:.1f}",
         ])  # fmt: skip
     header = [
-        "recording", "kind", "scans / hits", "raw ranges m", "hits occupied",
+        "recording", "kind", "scans / hits", "raw ranges m, 0.1-99.9 %", "hits occupied",
         "poses not occupied", "floor m (raw fit)", "ehm map s",
     ]  # fmt: skip
     print(markdown_table(header, rows, 2))
