@@ -80,6 +80,24 @@ class Messages:
             ),
         )  # fmt: skip
 
+    def velodyne_scan(self, stamp, frame, packets):
+        """A velodyne_msgs/VelodyneScan of (time in nanoseconds, 1206 bytes) packets."""
+        t = self.types
+        if "velodyne_msgs/msg/VelodyneScan" not in t:
+            packet = "builtin_interfaces/Time stamp\nuint8[1206] data"
+            scan = "std_msgs/Header header\nvelodyne_msgs/VelodynePacket[] packets"
+            self.typestore.register(get_types_from_msg(packet, "velodyne_msgs/msg/VelodynePacket"))
+            self.typestore.register(get_types_from_msg(scan, "velodyne_msgs/msg/VelodyneScan"))
+        time, packet = t["builtin_interfaces/msg/Time"], t["velodyne_msgs/msg/VelodynePacket"]
+        return t["velodyne_msgs/msg/VelodyneScan"](
+            header=self.header(stamp, frame),
+            packets=[
+                packet(stamp=time(sec=ns // SECOND, nanosec=ns % SECOND),
+                       data=np.frombuffer(data, dtype=np.uint8))
+                for ns, data in packets
+            ],
+        )  # fmt: skip
+
     def serialize(self, message):
         if self.ros1:
             return self.typestore.serialize_ros1(message, message.__msgtype__)

@@ -137,7 +137,9 @@ def map_command(
     ] = None,
     topic: Annotated[
         str | None,
-        typer.Option(help="Bags: the PointCloud2 or LaserScan topic (default: the only one)."),
+        typer.Option(
+            help="Bags: the PointCloud2, LaserScan or VelodyneScan topic (default: the only one)."
+        ),
     ] = None,
     frame: Annotated[
         str | None, typer.Option(help="Bags: the fixed frame /tf places the scans in.")

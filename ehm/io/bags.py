@@ -1,9 +1,10 @@
 """ROS 1 bags (.bag) and ROS 2 bag folders (.db3 or .mcap), read with the `rosbags` library,
-no ROS install needed: sensor_msgs/PointCloud2 (3D scans) and sensor_msgs/LaserScan (2D scans,
-in the fixed frame's x-y plane) of one topic, placed in a fixed frame by /tf and /tf_static
-(the transform at each message's stamp, interpolated), by a nav_msgs/Odometry topic (with
-/tf_static from its child frame to the sensor's), or by a poses file (one T_world_sensor per
-message, in order).
+no ROS install needed: sensor_msgs/PointCloud2 (3D scans), sensor_msgs/LaserScan (2D scans,
+in the fixed frame's x-y plane) or velodyne_msgs/VelodyneScan (a rotation's raw packets,
+decoded by velodyne-decoder, ehm.io.velodyne) of one topic, placed in a fixed frame by /tf
+and /tf_static (the transform at each message's stamp, interpolated), by a
+nav_msgs/Odometry topic (with /tf_static from its child frame to the sensor's), or by a
+poses file (one T_world_sensor per message, in order).
 
     bag = BagScans("run.bag", "/velodyne_points", frame="map")
     for scan in bag: ...
@@ -27,9 +28,17 @@ from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError
 from ehm.io.bag_chunks import ChunkReader
 from ehm.io.poses import read_poses
+from ehm.io.velodyne import PacketDecoder
 
 INSTALL_HINT = "ROS bags need the rosbags library: pip install 'ehm[ros]'"
-SCAN_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan")
+VELODYNE_SCAN = "velodyne_msgs/msg/VelodyneScan"
+SCAN_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan", VELODYNE_SCAN)
+# Raw packets of sensors whose packets are not decoded from bags, and what to do instead.
+UNDECODED_PACKETS = {
+    "ouster_sensor_msgs/msg/PacketMsg": "Ouster",
+    "ouster_ros/msg/PacketMsg": "Ouster",
+    "ouster_msgs/msg/PacketMsg": "Ouster",
+}
 ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
 TF_TOPICS = ("/tf", "/tf_static")
 # numpy codes of sensor_msgs/PointField datatypes 1 to 8.
@@ -79,7 +88,8 @@ class BagScans:
         with self._reader() as reader:
             topics = {c.topic: c.msgtype for c in reader.connections}
         self.topic = self._scan_topic(topic, topics)
-        self.dim = 3 if topics[self.topic] == SCAN_TYPES[0] else 2
+        self.dim = 2 if topics[self.topic] == SCAN_TYPES[1] else 3
+        self._packets = PacketDecoder() if topics[self.topic] == VELODYNE_SCAN else None
         self._poses = read_poses(poses) if poses is not None else None
         if self._poses is None:
             if frame is None:
@@ -128,7 +138,9 @@ class BagScans:
             if T_world_sensor is None:
                 return None
         try:
-            if self.dim == 3:
+            if self._packets is not None:
+                points, hits = self._packets.points(message.packets), None
+            elif self.dim == 3:
                 points, hits = point_cloud_points(message), None
             else:
                 points, hits = laser_scan_points(message)
@@ -168,13 +180,22 @@ class BagScans:
     def _scan_topic(self, topic: str | None, topics: dict[str, str]) -> str:
         found = [t for t, kind in topics.items() if kind in SCAN_TYPES]
         listing = ", ".join(f"{t} ({topics[t].rsplit('/', 1)[-1]})" for t in found) or "none"
+        packets = [t for t, kind in topics.items() if kind in UNDECODED_PACKETS]
+        if packets and (topic in packets or (topic is None and not found)):
+            sensor = UNDECODED_PACKETS[topics[topic or packets[0]]]
+            raise InputError(
+                f"{self.path}: {topic or packets[0]} carries raw {sensor} packets, which are "
+                "not decoded from bags: record the driver's point clouds (PointCloud2), or the "
+                "sensor's packets as a pcap with its metadata JSON, which ehm reads"
+            )
         if topic is None:
             if len(found) != 1:
                 raise InputError(f"{self.path}: give the topic of the scans (--topic): {listing}")
             return found[0]
         if topics.get(topic) not in SCAN_TYPES:
             raise InputError(
-                f"{self.path}: {topic!r} is not a PointCloud2 or LaserScan topic: {listing}"
+                f"{self.path}: {topic!r} is not a PointCloud2, LaserScan or VelodyneScan topic: "
+                f"{listing}"
             )
         return topic
 

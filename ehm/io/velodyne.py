@@ -14,7 +14,7 @@ from types import ModuleType
 import numpy as np
 
 from ehm.core.sensor.scan import Scan
-from ehm.errors import FileReadError, assumed
+from ehm.errors import FileReadError, InputError, assumed
 from ehm.io.pcap import udp_payloads
 
 VELODYNE_PACKET = 1206  # bytes of a data packet's UDP payload, every model
@@ -92,3 +92,27 @@ def _scan(stamp, cloud: np.ndarray) -> Scan:
     """The scan of one decoded rotation: (N, 3+) float32 points in the sensor frame, the host's
     time stamp."""
     return Scan(np.asarray(cloud[:, :3], dtype=np.float64), np.zeros(3), time=float(stamp.host))
+
+
+class PacketDecoder:
+    """Decodes the packets a ROS velodyne_msgs/VelodyneScan message bundles (one rotation)
+    into points, the model told from the packets; ImportError naming the extra when
+    velodyne-decoder is missing."""
+
+    def __init__(self) -> None:
+        self._decoder = decoder_module()
+        self._scans = self._decoder.ScanDecoder(self._decoder.Config())
+
+    def points(self, packets) -> np.ndarray:
+        """(N, 3) float64, metres, sensor frame, of `packets` (each with `stamp`, a ROS time
+        of sec and nanosec, and `data`, its 1206 bytes). InputError for packets the decoder
+        cannot read (an HDL-64E's, whose calibration a bag does not carry)."""
+        vector = self._decoder.PacketVector()
+        for packet in packets:
+            stamp = packet.stamp.sec + packet.stamp.nanosec * 1e-9
+            vector.append(self._decoder.VelodynePacket(stamp, bytes(packet.data)))
+        try:
+            _, cloud = self._scans.decode(vector)
+        except (RuntimeError, ValueError) as error:
+            raise InputError(f"velodyne-decoder could not decode its packets: {error}") from None
+        return np.asarray(cloud[:, :3], dtype=np.float64)

@@ -112,7 +112,7 @@ def test_laser_scans_placed_by_odometry_in_ros2_bags(tmp_path, storage):
 def test_bag_mistakes_are_named(lidar_bag, tmp_path):
     with pytest.raises(
         InputError,
-        match=r"'/nothing' is not a PointCloud2 or LaserScan topic: /points \(PointCloud2\)",
+        match=r"'/nothing' is not a PointCloud2, LaserScan or VelodyneScan topic: /points \(Poi",
     ):
         BagScans(lidar_bag, "/nothing", frame="map")
     with pytest.raises(InputError, match="give the fixed frame"):
@@ -203,3 +203,55 @@ def test_a_cloud_whose_layout_does_not_fit_is_named(tmp_path, cloud):
     )
     with pytest.raises(FileReadError, match=r"message 0 on /points: PointCloud2 of 1 x 50 points"):
         list(BagScans(bag, "/points", frame="map"))
+
+
+@pytest.mark.parametrize(
+    ("store", "storage"),
+    [(Stores.ROS1_NOETIC, None), (Stores.ROS2_HUMBLE, StoragePlugin.MCAP)],
+)
+def test_velodyne_packet_bags_decode_as_the_capture_does(tmp_path, store, storage):
+    """A real HDL-32E rotation's packets (tests/io/data/hdl32e.pcap) bundled in one
+    velodyne_msgs/VelodyneScan, the sensor 2 m above the map's origin: the same points as the
+    capture, moved by the transform."""
+    pytest.importorskip("velodyne_decoder")
+    from pathlib import Path
+
+    from ehm.io.pcap import udp_payloads
+
+    capture = Path(__file__).parent / "data" / "hdl32e.pcap"
+    packets = [
+        (int(d.time * SECOND), d.payload) for d in udp_payloads(capture) if len(d.payload) == 1206
+    ]
+    stamp = packets[-1][0]
+    messages = [
+        ("/tf_static", stamp, lambda m: m.transform(stamp, "map", "velodyne", (0, 0, 2))),
+        ("/velodyne_packets", stamp, lambda m: m.velodyne_scan(stamp, "velodyne", packets)),
+    ]
+    bag = write_bag(tmp_path / ("packets.bag" if storage is None else "packets"), store,
+                    messages, storage)  # fmt: skip
+    (scan,) = read_scans(bag, frame="map")
+    with pytest.warns(UserWarning):
+        rotations = read_scans(capture)
+    expected = np.concatenate([r.points_world for r in rotations]) + np.array([0, 0, 2])
+    assert len(scan) == len(expected) == 19_579
+    key = np.lexsort(expected.T)
+    np.testing.assert_allclose(scan.points_world[np.lexsort(scan.points_world.T)],
+                               expected[key], atol=1e-5)  # fmt: skip
+    np.testing.assert_allclose(scan.origin, [0, 0, 2])
+
+
+def test_raw_ouster_packets_in_bags_are_refused_naming_what_to_record(tmp_path):
+    from ros_bags import Messages
+    from rosbags.typesys import get_types_from_msg
+
+    def packet(m: Messages):
+        name = "ouster_sensor_msgs/msg/PacketMsg"
+        if name not in m.types:
+            m.typestore.register(get_types_from_msg("uint8[] buf", name))
+        return m.types[name](buf=np.zeros(16, dtype=np.uint8))
+
+    bag = write_bag(
+        tmp_path / "os.bag", Stores.ROS1_NOETIC, [("/os_node/lidar_packets", 0, packet)]
+    )
+    with pytest.raises(InputError, match=r"lidar_packets carries raw Ouster packets, .* as a pcap"):
+        read_scans(bag, frame="map")
