@@ -56,6 +56,31 @@ class Messages:
             is_dense=True,
         )  # fmt: skip
 
+    def depth_image(self, stamp, frame, depth):
+        """A sensor_msgs/Image of a (H, W) depth array: uint16 as 16UC1, float32 as 32FC1."""
+        depth = np.ascontiguousarray(depth)
+        encoding = "16UC1" if depth.dtype == np.uint16 else "32FC1"
+        return self.types["sensor_msgs/msg/Image"](
+            header=self.header(stamp, frame), height=depth.shape[0], width=depth.shape[1],
+            encoding=encoding, is_bigendian=0, step=depth.shape[1] * depth.itemsize,
+            data=np.frombuffer(depth.astype(depth.dtype.newbyteorder("<")).tobytes(), np.uint8),
+        )  # fmt: skip
+
+    def camera_info(self, stamp, frame, fx, fy, cx, cy, size):
+        """A sensor_msgs/CameraInfo of a pinhole camera of `size` (width, height) pixels."""
+        k = np.array([fx, 0, cx, 0, fy, cy, 0, 0, 1], dtype=float)
+        fields = {"K": k, "R": np.eye(3).ravel(), "P": np.zeros(12), "D": np.zeros(0)}
+        if not self.ros1:
+            fields = {name.lower(): value for name, value in fields.items()}
+        t = self.types
+        roi = t["sensor_msgs/msg/RegionOfInterest"](
+            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+        )
+        return t["sensor_msgs/msg/CameraInfo"](
+            header=self.header(stamp, frame), height=size[1], width=size[0],
+            distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi, **fields,
+        )  # fmt: skip
+
     def laser(self, stamp, frame, ranges):
         return self.types["sensor_msgs/msg/LaserScan"](
             header=self.header(stamp, frame), angle_min=0.0, angle_max=np.pi,

@@ -117,15 +117,15 @@ def map_command(
     intrinsics: Annotated[
         str | None,
         typer.Option(
-            help="Depth frames: the camera 'fx,fy,cx,cy', pixels (default: the layout's own, "
-            "TUM's by the sequence's name)."
+            help="Depth frames and depth images in bags: the camera 'fx,fy,cx,cy', pixels "
+            "(default: the layout's own, TUM's by the sequence's name; a bag's CameraInfo)."
         ),
     ] = None,
     depth_scale: Annotated[
         float | None,
         typer.Option(
-            help="Depth frames: raw depth units a metre, 1000 for millimetres (default: the "
-            "layout's own, TUM 5000)."
+            help="Depth frames and depth images in bags: raw depth units a metre, 1000 for "
+            "millimetres (default: the layout's own, TUM 5000; a bag image's encoding)."
         ),
     ] = None,
     fov: Annotated[
@@ -138,7 +138,8 @@ def map_command(
     topic: Annotated[
         str | None,
         typer.Option(
-            help="Bags: the PointCloud2, LaserScan or VelodyneScan topic (default: the only one)."
+            help="Bags: the PointCloud2, LaserScan, VelodyneScan or depth Image topic (default: "
+            "the only one)."
         ),
     ] = None,
     frame: Annotated[

@@ -16,7 +16,7 @@ they are asked for, so memory holds one at a time.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from os import PathLike
 from pathlib import Path
 
@@ -25,14 +25,19 @@ import numpy as np
 from ehm.core.sensor.frames import FrameTree
 from ehm.core.sensor.geometry import quaternion_to_matrix, transform_points
 from ehm.core.sensor.scan import Scan
-from ehm.errors import FileReadError, InputError
+from ehm.errors import FileReadError, InputError, assumed
 from ehm.io.bag_chunks import ChunkReader
+from ehm.io.depth import DepthCamera
 from ehm.io.poses import read_poses
 from ehm.io.velodyne import PacketDecoder
 
 INSTALL_HINT = "ROS bags need the rosbags library: pip install 'ehm[ros]'"
 VELODYNE_SCAN = "velodyne_msgs/msg/VelodyneScan"
-SCAN_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan", VELODYNE_SCAN)
+IMAGE, CAMERA_INFO = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo"
+SCAN_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan", VELODYNE_SCAN, IMAGE)
+# Depth image encodings, and the raw units a metre each holds (REP 118: 16-bit millimetres,
+# 32-bit float metres).
+DEPTH_ENCODINGS = {"16UC1": ("u2", 1000.0), "mono16": ("u2", 1000.0), "32FC1": ("f4", 1.0)}
 # Raw packets of sensors whose packets are not decoded from bags, and what to do instead.
 UNDECODED_PACKETS = {
     "ouster_sensor_msgs/msg/PacketMsg": "Ouster",
@@ -81,6 +86,8 @@ class BagScans:
         frame: str | None = None,
         odometry: str | None = None,
         poses: str | PathLike[str] | None = None,
+        intrinsics: Sequence[float] | None = None,
+        depth_scale: float | None = None,
     ) -> None:
         self.path = bag_folder(Path(path))
         self.skipped = 0
@@ -90,6 +97,11 @@ class BagScans:
         self.topic = self._scan_topic(topic, topics)
         self.dim = 2 if topics[self.topic] == SCAN_TYPES[1] else 3
         self._packets = PacketDecoder() if topics[self.topic] == VELODYNE_SCAN else None
+        self._camera = None
+        if topics[self.topic] == IMAGE:
+            self._camera = self._depth_camera(topics, intrinsics, depth_scale)
+        elif (intrinsics, depth_scale) != (None, None):
+            raise InputError("intrinsics and depth_scale are for depth images (Image topics)")
         self._poses = read_poses(poses) if poses is not None else None
         if self._poses is None:
             if frame is None:
@@ -140,6 +152,8 @@ class BagScans:
         try:
             if self._packets is not None:
                 points, hits = self._packets.points(message.packets), None
+            elif self._camera is not None:
+                points, hits = self._camera.points(depth_image(message)), None
             elif self.dim == 3:
                 points, hits = point_cloud_points(message), None
             else:
@@ -152,6 +166,56 @@ class BagScans:
             return Scan(world, origin.copy(), time=time)
         except InputError as error:
             raise FileReadError(self.path, f"message {index} on {self.topic}: {error}") from None
+
+    def _depth_camera(
+        self,
+        topics: dict[str, str],
+        intrinsics: Sequence[float] | None,
+        depth_scale: float | None,
+    ) -> DepthCamera:
+        """The camera of the depth image topic: its CameraInfo (the topic's namespace's
+        camera_info, else the bag's only CameraInfo topic) or `intrinsics`; the depth unit of
+        its first image's encoding or `depth_scale`."""
+        with self._reader() as reader:
+            images = [c for c in reader.connections if c.topic == self.topic]
+            first = next(reader.messages(connections=images), None)
+            if first is None:
+                raise FileReadError(self.path, f"{self.topic} holds no image")
+            image = reader.deserialize(first[2], first[0].msgtype)
+            if intrinsics is None:
+                intrinsics = self._camera_info(reader, topics)
+        if image.encoding not in DEPTH_ENCODINGS and depth_scale is None:
+            raise FileReadError(
+                self.path,
+                f"{self.topic} holds {image.encoding!r} images, not depth ("
+                f"{', '.join(DEPTH_ENCODINGS)}); give --depth-scale for another encoding",
+            )
+        if depth_scale is None:
+            depth_scale = DEPTH_ENCODINGS[image.encoding][1]
+            unit = "millimetres" if depth_scale == 1000.0 else "metres"
+            assumed(f"{self.topic}: {image.encoding} depth read as {unit} (REP 118)")
+        # 0 is no reading in either encoding; a float image's NaN the scan drops.
+        return DepthCamera(*intrinsics, depth_scale=depth_scale)
+
+    def _camera_info(self, reader, topics: dict[str, str]) -> tuple[float, ...]:
+        """(fx, fy, cx, cy) of the depth topic's CameraInfo; InputError naming the option when
+        the bag has none for it."""
+        namespace = self.topic.rsplit("/", 1)[0]
+        infos = [t for t, kind in topics.items() if kind == CAMERA_INFO]
+        ours = f"{namespace}/camera_info"
+        topic = ours if ours in infos else (infos[0] if len(infos) == 1 else None)
+        if topic is None:
+            raise InputError(
+                f"{self.path}: no CameraInfo for {self.topic} ({', '.join(infos) or 'none'}): "
+                "give the camera with --intrinsics FX,FY,CX,CY"
+            )
+        connections = [c for c in reader.connections if c.topic == topic]
+        found = next(reader.messages(connections=connections), None)
+        if found is None:
+            raise FileReadError(self.path, f"{topic} holds no CameraInfo")
+        info = reader.deserialize(found[2], found[0].msgtype)
+        k = np.asarray(info.k if hasattr(info, "k") else info.K, dtype=float)  # ROS 2, ROS 1
+        return (k[0], k[4], k[2], k[5])
 
     def _read_frames(self) -> FrameTree:
         """Every /tf and /tf_static transform, and the odometry topic's poses."""
@@ -240,6 +304,21 @@ class _Opened:
 
     def __exit__(self, *exc) -> None:
         self._reader.close()
+
+
+def depth_image(message) -> np.ndarray:
+    """(H, W) raw depth values of a sensor_msgs/Image of a DEPTH_ENCODINGS encoding."""
+    kind, _ = DEPTH_ENCODINGS.get(message.encoding, ("u2", None))
+    dtype = np.dtype(kind).newbyteorder(">" if message.is_bigendian else "<")
+    data = np.asarray(message.data, dtype=np.uint8)
+    if message.step * message.height > len(data) or message.step < message.width * dtype.itemsize:
+        raise InputError(
+            f"Image of {message.height} x {message.width} ({message.step} bytes a row) holds "
+            f"{len(data)} bytes"
+        )
+    rows = data[: message.step * message.height].reshape(message.height, message.step)
+    pixels = rows[:, : message.width * dtype.itemsize].copy().view(dtype)
+    return pixels.astype(np.float64) if kind == "f4" else pixels
 
 
 def point_cloud_points(message) -> np.ndarray:

@@ -208,7 +208,7 @@ class ScanFiles:
         unused = {
             "topic, frame and odometry are for ROS bags": fmt != "bag"
             and (topic, frame, odometry) != (None, None, None),
-            "intrinsics and depth_scale are for depth frames": fmt not in DEPTH_FORMATS
+            "intrinsics and depth_scale are for depth frames": fmt not in (*DEPTH_FORMATS, "bag")
             and (intrinsics, depth_scale) != (None, None),
             "fov is for CARMEN logs": fmt != "carmen" and fov is not None,
         }
@@ -245,7 +245,10 @@ class ScanFiles:
                     _FileScan(f.image, f.T_world_camera, None, f.time, camera) for f in frames
                 ]
         elif fmt == "bag":
-            self._streams = [BagScans(item, topic, frame, odometry, poses) for item in items]
+            self._streams = [
+                BagScans(item, topic, frame, odometry, poses, intrinsics, depth_scale)
+                for item in items
+            ]
             return
         elif fmt in POSED_FORMATS:
             self._streams = items

@@ -110,6 +110,8 @@ def test_laser_scans_placed_by_odometry_in_ros2_bags(tmp_path, storage):
 
 
 def test_bag_mistakes_are_named(lidar_bag, tmp_path):
+    with pytest.raises(InputError, match="intrinsics and depth_scale are for depth images"):
+        read_scans(lidar_bag, frame="map", intrinsics=[1, 1, 0, 0])
     with pytest.raises(
         InputError,
         match=r"'/nothing' is not a PointCloud2, LaserScan or VelodyneScan topic: /points \(Poi",
@@ -255,3 +257,50 @@ def test_raw_ouster_packets_in_bags_are_refused_naming_what_to_record(tmp_path):
     )
     with pytest.raises(InputError, match=r"lidar_packets carries raw Ouster packets, .* as a pcap"):
         read_scans(bag, frame="map")
+
+
+@pytest.mark.parametrize(
+    ("store", "storage", "dtype"),
+    [
+        (Stores.ROS1_NOETIC, None, np.uint16),
+        (Stores.ROS2_HUMBLE, StoragePlugin.SQLITE3, np.uint16),
+        (Stores.ROS2_HUMBLE, StoragePlugin.MCAP, np.float32),
+    ],
+)
+def test_depth_images_in_bags_take_their_camera_info(tmp_path, store, storage, dtype):
+    """A 16UC1 (millimetres) or 32FC1 (metres) depth image of a wall 2 m ahead, its camera
+    from the topic's camera_info, the optical frame placed 1 m above the map's origin."""
+    from ehm.errors import AssumptionWarning
+    from ehm.io.depth import DepthCamera
+
+    depth = np.full((48, 64), 2000, dtype=np.uint16)
+    depth[0, :] = 0  # no reading
+    image = depth if dtype == np.uint16 else (depth / 1000.0).astype(np.float32)
+    messages = [
+        ("/tf_static", 0, lambda m: m.transform(0, "map", "camera_optical", (0, 0, 1))),
+        ("/camera/depth/camera_info", SECOND,
+         lambda m: m.camera_info(SECOND, "camera_optical", 50.0, 50.0, 32.0, 24.0, (64, 48))),
+        ("/camera/depth/image_raw", SECOND,
+         lambda m: m.depth_image(SECOND, "camera_optical", image)),
+    ]  # fmt: skip
+    bag = write_bag(tmp_path / ("d.bag" if storage is None else "d"), store, messages, storage)
+    unit = "millimetres" if dtype == np.uint16 else "metres"
+    with pytest.warns(AssumptionWarning, match=f"image_raw: .* depth read as {unit}"):
+        (scan,) = read_scans(bag, frame="map")
+    expected = DepthCamera(50.0, 50.0, 32.0, 24.0, 1000.0).points(depth) + np.array([0, 0, 1])
+    np.testing.assert_allclose(scan.points_world, expected, atol=1e-6)
+    assert np.allclose(scan.points_world[:, 2], 3.0)  # the wall, 2 m along the optical axis
+
+
+def test_depth_image_bags_without_a_camera_name_the_option(tmp_path):
+    image = np.full((4, 4), 1000, dtype=np.uint16)
+    messages = [
+        ("/tf_static", 0, lambda m: m.transform(0, "map", "cam", (0, 0, 0))),
+        ("/depth", SECOND, lambda m: m.depth_image(SECOND, "cam", image)),
+    ]
+    bag = write_bag(tmp_path / "d.bag", Stores.ROS1_NOETIC, messages)
+    with pytest.raises(InputError, match=r"no CameraInfo for /depth \(none\): give the camera"):
+        read_scans(bag, frame="map")
+    with pytest.warns(UserWarning):
+        (scan,) = read_scans(bag, frame="map", intrinsics=[2, 2, 2, 2])
+    assert len(scan) == 4 and np.allclose(scan.points_world[:, 2], 1.0)
