@@ -686,8 +686,16 @@ class HilbertMap:
         )
         if stop:
             known = partial(self._known, mode=mode)
+            known_runs = self._planner.known_cells(self._local_snapshot)
             return stop_at_unknown(
-                known, origins, directions, distance, max_range, radius / 2.0, radius / 10.0
+                known,
+                origins,
+                directions,
+                distance,
+                max_range,
+                radius / 2.0,
+                radius / 10.0,
+                known_runs,
             )
         return distance
 
@@ -715,10 +723,18 @@ class HilbertMap:
         return self._known(self._local(points), mode)
 
     def _known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """`known` of points in the map's own frame."""
+        """`known` of points in the map's own frame. With 'nearest' features a query sums the
+        nearest clusters only, which may leave out the one whose support holds a point: the
+        cells known all through (ehm.core.queries.known_cells) say so first."""
         points = self._query_points(points)[0]
-        _, sums = self._summed(points, mode, with_variance=True)
-        return sums[:, 1] > 0.0
+        known = np.zeros(len(points), dtype=bool)
+        ask = np.arange(len(points))
+        if self.config.features == "nearest":
+            known = self._planner.known_cells(self._local_snapshot).contains(points)
+            ask = np.flatnonzero(~known)
+        _, sums = self._summed(points[ask], mode, with_variance=True)
+        known[ask] = sums[:, 1] > 0.0
+        return known
 
     def distance(
         self,

@@ -28,6 +28,7 @@ import numpy as np
 from ehm.core.model.kernels import kernel_reach
 from ehm.core.queries.cover import KernelCover
 from ehm.core.queries.distance import DistanceField
+from ehm.core.queries.known_cells import known_cells
 from ehm.core.queries.raycast import CandidateCells, GridLogOdds
 from ehm.core.queries.surfels import NearLogOdds, ReadNear
 from ehm.core.snapshot import MapSnapshot
@@ -42,6 +43,9 @@ FlatBox = tuple[float, ...] | None
 
 # The grid is left out for maps whose grid would take more than this many bytes.
 RAY_GRID_MAX_BYTES = 2**28
+# Side of the cells known all through that rays pass over without a query, in voxels (a
+# cluster radius each): half the cells of the voxels' side cost eight times the work to find.
+KNOWN_CELLS_PER_VOXEL = 2.0
 # The grid reaches this share of the map's extent beyond it on each side (and at least the
 # distance fields' reach), so that a map that grows a little keeps its grid; one that grows
 # more has it made again as it learns.
@@ -73,6 +77,7 @@ class PlannerSupport:
         self._cover: KernelCover | None = None
         self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
+        self._known: CandidateCells | None = None
         # Distance fields by (log-odds level, unknown space is an obstacle, the box it is one
         # in, the box obstacles count in).
         self._fields: dict[tuple[float, bool, FlatBox, FlatBox], DistanceField] = {}
@@ -129,6 +134,18 @@ class PlannerSupport:
                 self._cover, kernels.intercept, threshold
             )
         return self._cells[threshold]
+
+    def known_cells(self, take_snapshot: Callable[[], MapSnapshot]) -> CandidateCells:
+        """The cells of KNOWN_CELLS_PER_VOXEL voxels a side wholly inside some kernel's
+        support (known space all through, ehm.core.queries.known_cells), made on the first
+        call after an update."""
+        if self._known is None:
+            kernels = self._kernels_of(take_snapshot)
+            side = KNOWN_CELLS_PER_VOXEL * self.resolution
+            self._known = known_cells(
+                kernels.means, kernels.transforms, kernels.planar_kernel, side
+            )
+        return self._known
 
     def distances(
         self,
@@ -254,6 +271,7 @@ class PlannerSupport:
         grid's voxels and the cover's cells of clusters that changed are counted again, or
         the grid is made again when the map now reaches beyond it."""
         self._cells = {}
+        self._known = None
         self._grid_tried = False
         old, self._kernels = self._kernels, snapshot
         if snapshot is None:
@@ -304,6 +322,7 @@ class PlannerSupport:
         if self._cover is not None:
             total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
         total += sum(field.nbytes for field in self._fields.values())
+        total += 0 if self._known is None else self._known.keys.nbytes
         return total + sum(cells.keys.nbytes for cells in self._cells.values() if cells is not None)
 
 

@@ -102,17 +102,47 @@ def stop_at_unknown(
     max_range: np.ndarray,
     step: float,
     tolerance: float,
+    known_runs: CandidateCells | None = None,
 ) -> np.ndarray:
     """(n,) `distance` along each ray, or the distance to the ray's first point of unknown
     space (`known`, (m, d) points -> (m,) bool, False) where that is nearer: 0 for a ray that
     starts in it. Only the part of each ray before its `distance` (or its max_range) is
-    marched, `step` apart, the boundary located within `tolerance`."""
+    marched, `step` apart, the boundary located within `tolerance`; runs of `known_runs`
+    (cells known all through, ehm.core.queries.known_cells) are passed over without a query."""
 
     def unknown_sign(points: np.ndarray) -> np.ndarray:
         return np.where(known(points), -1.0, 1.0)
 
     reach = np.where(np.isfinite(distance), distance, max_range)
-    entry = first_crossings(unknown_sign, origins, directions, reach, 0.0, step, tolerance)
+    if known_runs is None:
+        entry = first_crossings(unknown_sign, origins, directions, reach, 0.0, step, tolerance)
+        return np.minimum(distance, entry)
+    entry = np.full(len(origins), np.inf)
+    reached = np.zeros(len(origins))
+    active = np.flatnonzero(reach > 0)
+    while active.size:
+        run_start, run_end = known_runs.next_run(
+            origins[active], directions[active], reached[active], reach[active]
+        )
+        stretch = np.minimum(run_start, reach[active]) - reached[active]
+        marched = stretch > 0
+        rows = active[marched]
+        found = first_crossings(
+            unknown_sign,
+            origins[rows] + directions[rows] * reached[rows, None],
+            directions[rows],
+            stretch[marched],
+            0.0,
+            step,
+            tolerance,
+        )
+        stopped = np.isfinite(found)
+        entry[rows[stopped]] = reached[rows[stopped]] + found[stopped]
+        # On past the run of known cells, for rays that met one and did not stop before it.
+        going = np.isfinite(run_start) & (run_end < reach[active])
+        going[np.flatnonzero(marched)[stopped]] = False
+        reached[active[going]] = run_end[going]
+        active = active[going]
     return np.minimum(distance, entry)
 
 
@@ -371,6 +401,21 @@ class CandidateCells:
             return cls(cover.side, cover.bits, kept, low, high)
         coordinates = unpack_cells(kept, cover.bits, cover.dim)
         return cls(cover.side, cover.bits, kept, coordinates.min(axis=0), coordinates.max(axis=0))
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """(n,) bool: whether each of (n, d) points, metres, lies in one of the cells (False
+        for rows that are not finite)."""
+        with np.errstate(invalid="ignore"):
+            cells = np.floor(points / self.side).astype(np.int64)
+        inside = np.flatnonzero(
+            np.all(np.isfinite(points), axis=1)
+            & np.all((cells >= self.low) & (cells <= self.high), axis=1)
+        )
+        keys = pack_cells(cells[inside], self.bits)
+        at = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
+        found = np.zeros(len(points), dtype=bool)
+        found[inside] = self.keys[at] == keys
+        return found
 
     def next_run(
         self, origins: np.ndarray, directions: np.ndarray, start: np.ndarray, stop: np.ndarray

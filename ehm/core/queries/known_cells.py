@@ -1,0 +1,137 @@
+"""Cells wholly inside some kernel's support: space the map has evidence for all through, where
+a ray that stops at never-seen space needs no query (ehm.core.queries.raycast.stop_at_unknown).
+
+A kernel's support is convex (the ellipsoid |T (x - mu)| < 1, or the planar-surface kernel's
+box max_a |(T (x - mu))_a| < 1, ehm.core.model.kernels), so a cell whose corners all lie in
+it lies in it whole.
+
+    cells = known_cells(means, transforms, planar, side=0.24)  # a CandidateCells
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ehm.core.queries.cover import pack_cells
+from ehm.core.queries.raycast import CandidateCells
+
+
+def known_cells(
+    means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
+) -> CandidateCells:
+    """The cubic cells of `side` metres (cell i spans [i, i + 1) side on each axis) that lie
+    wholly inside the support of one of the kernels: means (M, d) metres, transforms (M, d, d)
+    1/m, planar (M,) bool. Cells farther than the keys reach from the origin are left out
+    (never claimed known)."""
+    dim = means.shape[1]
+    arguments = (
+        np.ascontiguousarray(means, dtype=np.float64),
+        np.ascontiguousarray(transforms, dtype=np.float64),
+        np.ascontiguousarray(planar, dtype=np.bool_),
+        float(side),
+    )
+    counts = _whole_cells(*arguments, np.zeros(1, dtype=np.int64), np.zeros((0, dim), np.int64))
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    cells = np.empty((int(starts[-1]), dim), dtype=np.int64)
+    _whole_cells(*arguments, starts, cells)
+    return _candidate_cells(cells, side, 63 // dim)
+
+
+def _candidate_cells(cells: np.ndarray, side: float, bits: int) -> CandidateCells:
+    """The cells (n, d) int64 as CandidateCells, each once, within the keys' reach."""
+    half = 1 << (bits - 1)
+    cells = cells[np.all((cells > -half) & (cells < half - 1), axis=1)]
+    dim = cells.shape[1]
+    if len(cells) == 0:
+        low, high = np.zeros(dim, np.int64), np.full(dim, -1, np.int64)
+        return CandidateCells(side, bits, np.zeros(0, np.int64), low, high)
+    keys = np.unique(pack_cells(cells, bits))
+    return CandidateCells(side, bits, keys, cells.min(axis=0), cells.max(axis=0))
+
+
+@numba.njit(cache=True, parallel=True)
+def _whole_cells(means, transforms, planar, side, starts, out):  # pragma: no cover - compiled
+    """Per kernel, the cells of its support's bounding box whose corners all lie in the
+    support: counted (a `starts` of one element; returns (M,) counts) or written into `out`
+    from row starts[m] on. A kernel whose support is narrower than a cell's diagonal along
+    some axis of T (1 / a row's norm) holds no cell and is passed over."""
+    m_count, d = means.shape
+    count_only = len(starts) == 1
+    counts = np.zeros(m_count, dtype=np.int64)
+    diagonal = side * np.sqrt(d)
+    for m in numba.prange(m_count):
+        t = transforms[m]
+        narrow = False
+        for a in range(d):
+            norm = 0.0
+            for b in range(d):
+                norm += t[a, b] * t[a, b]
+            narrow = narrow or 1.0 / np.sqrt(norm) < 0.5 * diagonal
+        if narrow:
+            continue
+        inverse = np.linalg.inv(t)
+        low = np.empty(d, dtype=np.int64)
+        span = np.empty(d, dtype=np.int64)
+        for a in range(d):
+            reach = 0.0
+            for b in range(d):
+                reach += abs(inverse[a, b]) if planar[m] else inverse[a, b] * inverse[a, b]
+            reach = reach if planar[m] else np.sqrt(reach)
+            low[a] = np.int64(np.floor((means[m, a] - reach) / side))
+            span[a] = np.int64(np.floor((means[m, a] + reach) / side)) - low[a] + 1
+        # T (corner - mean) of the bounding box's first corner, and its change a cell a step.
+        base = np.empty(d)
+        for a in range(d):
+            base[a] = 0.0
+            for b in range(d):
+                base[a] += t[a, b] * (low[b] * side - means[m, b])
+        total = 1
+        for a in range(d):
+            total *= span[a]
+        u = np.empty(d)
+        cell = np.empty(d, dtype=np.int64)
+        written = 0 if count_only else starts[m]
+        for index in range(total):
+            rest = index
+            for a in range(d):
+                cell[a] = rest % span[a]
+                rest //= span[a]
+            whole = True
+            for c in range(1 << d):  # the cell's corners
+                inside = 0.0
+                for a in range(d):
+                    u[a] = base[a]
+                    for b in range(d):
+                        u[a] += t[a, b] * (cell[b] + ((c >> b) & 1)) * side
+                    inside = max(inside, abs(u[a])) if planar[m] else inside + u[a] * u[a]
+                if inside >= 1.0:
+                    whole = False
+                    break
+            if whole:
+                counts[m] += 1
+                if not count_only:
+                    for a in range(d):
+                        out[written, a] = low[a] + cell[a]
+                    written += 1
+    return counts
+
+
+def known_cells_reference(
+    means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
+) -> CandidateCells:
+    """Plain NumPy twin of `known_cells`."""
+    dim = means.shape[1]
+    found = [np.zeros((0, dim), dtype=np.int64)]
+    corners = np.array(np.meshgrid(*[[0, 1]] * dim, indexing="ij")).reshape(dim, -1).T
+    for mean, t, flat in zip(means, transforms, planar, strict=True):
+        inverse = np.linalg.inv(t)
+        reach = np.abs(inverse).sum(axis=1) if flat else np.linalg.norm(inverse, axis=1)
+        low = np.floor((mean - reach) / side).astype(np.int64)
+        high = np.floor((mean + reach) / side).astype(np.int64)
+        axes = [np.arange(lo, hi + 1) for lo, hi in zip(low, high, strict=True)]
+        cells = np.array(np.meshgrid(*axes, indexing="ij")).reshape(dim, -1).T
+        u = ((cells[:, None, :] + corners[None]) * side - mean) @ t.T
+        inside = np.abs(u).max(axis=2) if flat else (u * u).sum(axis=2)
+        found.append(cells[np.all(inside < 1.0, axis=1)])
+    return _candidate_cells(np.concatenate(found), side, 63 // dim)
