@@ -6,6 +6,7 @@ import struct
 
 import numpy as np
 import pytest
+from depth_folders import redwood_sequence, seven_scenes_frames
 from las_files import write_las
 from ouster_captures import ouster_metadata, write_ouster
 
@@ -63,6 +64,8 @@ def input_files(tmp_path, cloud):
     metadata = ouster_metadata([-10.0, 0.0, 10.0], 16, "RNG19_RFL8_SIG16_NIR16", 8)
     ranges = 1000 + np.arange(2 * 3 * 16).reshape(2, 3, 16)  # two frames, millimetres
     found["os.pcap"] = (write_ouster(tmp_path / "os.pcap", metadata, ranges), {})
+    found["7scenes"] = (seven_scenes_frames(tmp_path / "seq-01", [1500, 3000]), {})
+    found["redwood"] = (redwood_sequence(tmp_path / "redwood"), {})
     return found
 
 

@@ -58,6 +58,12 @@ def targets(input_files, tmp_path) -> dict[str, tuple]:
         if name == "tum":
             found["tum poses"] = (path / "poses.txt", read)
             found["tum depth"] = (path / "depth" / "0.png", read)
+        elif name == "7scenes":
+            found["7scenes pose"] = (path / "frame-000000.pose.txt", read)
+            found["7scenes depth"] = (path / "frame-000001.depth.png", read)
+        elif name == "redwood":
+            found["redwood trajectory"] = (path / "trajectory.log", read)
+            found["redwood camera"] = (path / "camera.json", read)
         elif name == "os.pcap":
             found["ouster capture"] = (path, read)
             found["ouster metadata"] = (path.with_suffix(".json"), read)

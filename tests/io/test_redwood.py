@@ -5,30 +5,15 @@ import json
 
 import numpy as np
 import pytest
+from depth_folders import redwood_sequence
 
 from ehm.errors import AssumptionWarning, FileReadError, InputError
 from ehm.eval.datasets.real import data_dir
 from ehm.io.readers import guess_format, read_scans
 
 
-def _sequence(folder, n=2):
-    from PIL import Image
-
-    (folder / "depth").mkdir(parents=True)
-    log = []
-    for i in range(n):
-        depth = np.zeros((6, 8), dtype=np.uint16)
-        depth[2, 4] = 2000
-        Image.fromarray(depth).save(folder / "depth" / f"{i:05d}.png")
-        log += [f"{i} {i} {i + 1}", f"1 0 0 {i}", "0 1 0 0", "0 0 1 0", "0 0 0 1"]
-    (folder / "trajectory.log").write_text("\n".join(log) + "\n")
-    camera = {"width": 8, "height": 6, "intrinsic_matrix": [2, 0, 0, 0, 2, 0, 0, 1, 1]}
-    (folder / "camera.json").write_text(json.dumps(camera))
-    return folder
-
-
 def test_redwood_frames_are_millimetres_through_the_camera_file(tmp_path):
-    folder = _sequence(tmp_path / "living_room")
+    folder = redwood_sequence(tmp_path / "living_room")
     assert guess_format(folder) == "redwood"
     with pytest.warns(AssumptionWarning, match="read as millimetres, Open3D's convention"):
         first, second = read_scans(folder)
@@ -37,7 +22,7 @@ def test_redwood_frames_are_millimetres_through_the_camera_file(tmp_path):
 
 
 def test_redwood_mistakes_are_named(tmp_path):
-    folder = _sequence(tmp_path / "seq")
+    folder = redwood_sequence(tmp_path / "seq")
     camera = json.loads((folder / "camera.json").read_text())
     (folder / "camera.json").write_text(json.dumps({**camera, "intrinsic_matrix": [0] * 9}))
     with pytest.raises(FileReadError, match=r"camera\.json: not a camera's intrinsic_matrix"):

@@ -2,30 +2,14 @@
 
 import numpy as np
 import pytest
+from depth_folders import seven_scenes_frames
 
 from ehm.errors import AssumptionWarning, FileReadError
 from ehm.io.readers import guess_format, read_scans
 
 
-def _frames(folder, values):
-    """frame-00000i.depth.png reading `values[i]` mm at pixel (u=4, v=2), everything else
-    0 or 65535 (no reading), each frame 1 m further along x."""
-    from PIL import Image
-
-    folder.mkdir(parents=True, exist_ok=True)
-    for i, value in enumerate(values):
-        depth = np.zeros((6, 8), dtype=np.uint16)
-        depth[0, :] = 65535
-        depth[2, 4] = value
-        Image.fromarray(depth).save(folder / f"frame-{i:06d}.depth.png")
-        pose = np.eye(4)
-        pose[0, 3] = i
-        np.savetxt(folder / f"frame-{i:06d}.pose.txt", pose)
-    return folder
-
-
 def test_frames_are_millimetres_through_the_folders_camera(tmp_path):
-    folder = _frames(tmp_path / "data" / "rgbd-frames", [1500, 3000])
+    folder = seven_scenes_frames(tmp_path / "data" / "rgbd-frames", [1500, 3000])
     (tmp_path / "data" / "camera-intrinsics.txt").write_text("2 0 0\n0 2 1\n0 0 1\n")
     assert guess_format(folder) == "7scenes"
     first, second = read_scans(folder)
@@ -36,7 +20,7 @@ def test_frames_are_millimetres_through_the_folders_camera(tmp_path):
 
 
 def test_without_a_camera_file_7_scenes_kinect_is_assumed_and_said(tmp_path):
-    folder = _frames(tmp_path / "seq-01", [2000])
+    folder = seven_scenes_frames(tmp_path / "seq-01", [2000])
     with pytest.warns(AssumptionWarning, match="7-Scenes' Kinect is assumed .*fx 585"):
         (scan,) = read_scans(folder)
     np.testing.assert_allclose(scan.points_world, [[(4 - 320) * 2 / 585, (2 - 240) * 2 / 585, 2.0]])
@@ -45,7 +29,7 @@ def test_without_a_camera_file_7_scenes_kinect_is_assumed_and_said(tmp_path):
 
 
 def test_a_frame_without_its_pose_is_named(tmp_path):
-    folder = _frames(tmp_path / "seq", [2000, 2000])
+    folder = seven_scenes_frames(tmp_path / "seq", [2000, 2000])
     (folder / "frame-000001.pose.txt").unlink()
     with pytest.raises(FileReadError, match=r"frame-000001\.depth\.png: no pose"):
         read_scans(folder, intrinsics=[2, 2, 0, 0])
@@ -55,7 +39,7 @@ def test_a_frame_without_its_pose_is_named(tmp_path):
 
 
 def test_a_camera_file_that_is_no_camera_is_named(tmp_path):
-    folder = _frames(tmp_path / "seq", [2000])
+    folder = seven_scenes_frames(tmp_path / "seq", [2000])
     (folder / "camera-intrinsics.txt").write_text("0 0 320\n0 0 240\n0 0 1\n")
     with pytest.raises(FileReadError, match=r"camera-intrinsics\.txt: camera fx 0\.0"):
         read_scans(folder)
