@@ -14,7 +14,7 @@ changed cover is counted again (OccupancyGrid.update, KernelCover.changed), and 
 field looks again only within its reach of the box of voxels whose log-odds changed. The grid
 reaches somewhat beyond the map, and at least a distance field's reach; a map that grows
 beyond that has it made again as it learns, and a grid too large to keep is tried again at the
-next query after an update. Keeping a distance field costs a search of nearest clusters per
+next query after an update; distances are then read from a grid around the points asked. Keeping a distance field costs a search of nearest clusters per
 surfel an update moves, where the map is large and every scan changes most of it
 (BENCHMARKS.md, "Distances").
 """
@@ -78,6 +78,9 @@ class PlannerSupport:
         self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
         self._known: CandidateCells | None = None
+        # Where the map's grid is too large: a grid around the points last asked their
+        # distance, and its fields, until the map learns.
+        self._near: tuple[OccupancyGrid, dict] | None = None
         # Distance fields by (log-odds level, unknown space is an obstacle, the box it is one
         # in, the box obstacles count in).
         self._fields: dict[tuple[float, bool, FlatBox, FlatBox], DistanceField] = {}
@@ -111,7 +114,7 @@ class PlannerSupport:
             self._fields = {}
             return
         self._log_odds = self._grid_log_odds()
-        self._fields = {key: self._new_field(*key) for key in self._fields}
+        self._fields = {key: self._new_field(self._grid, *key) for key in self._fields}
 
     def _grid_log_odds(self) -> GridLogOdds:
         """The grid's log-odds as rays march them: its scores (not copied) and intercept."""
@@ -163,33 +166,55 @@ class PlannerSupport:
         on the first call for a threshold, rule and boxes. unknown_box, obstacle_box: (2, d)
         metres, or None: with unknown_is_occupied, unknown space is an obstacle only inside
         the first; only obstacles inside the second count (DistanceField).
-        InputError when the map's grid would be too large to keep."""
+        Where the map's grid would be too large to keep (an outdoor map at a fine
+        resolution), the field is made on a grid around the points asked, reaching the field's
+        reach beyond them, and kept for later points within it until the map learns;
+        InputError when that grid too would pass RAY_GRID_MAX_BYTES."""
         self.grid(take_snapshot)
-        if self._grid is None:
-            raise InputError(
-                f"the map is too large for a distance field at {self.resolution:g} m voxels "
-                f"(over {RAY_GRID_MAX_BYTES / 2**20:.0f} MiB); tile it (ehm.tiles.TiledMap)"
-            )
+        grid, fields = self._grid, self._fields
+        if grid is None:
+            grid, fields = self._grid_around(self._kernels_of(take_snapshot), points)
         if not unknown_is_occupied:
             unknown_box = None  # it changes nothing
         key = (threshold, unknown_is_occupied, _flat(unknown_box), _flat(obstacle_box))
-        if key not in self._fields:
-            self._fields[key] = self._new_field(*key)
-        dim = self._grid.dim
-        lifted = points if dim == 3 else np.column_stack([points, np.zeros(len(points))])
-        field = self._fields[key]
-        distance, gradient = field.distances(lifted, self._scores_3d(), with_gradient)
-        return distance, gradient[:, :dim]
+        if key not in fields:
+            fields[key] = self._new_field(grid, *key)
+        lifted = points if grid.dim == 3 else np.column_stack([points, np.zeros(len(points))])
+        distance, gradient = fields[key].distances(lifted, _scores_3d(grid), with_gradient)
+        return distance, gradient[:, : grid.dim]
+
+    def _grid_around(
+        self, snapshot: MapSnapshot, points: np.ndarray
+    ) -> tuple[OccupancyGrid, dict[tuple[float, bool, FlatBox, FlatBox], DistanceField]]:
+        """A grid of the voxels within the distance fields' reach of `points` (and two
+        voxels more), and its fields: the one kept while it holds them, else a new one."""
+        margin = self.reach + 2 * self.resolution
+        box = np.stack([points.min(axis=0) - margin, points.max(axis=0) + margin])
+        kept = self._near
+        if kept is not None and np.all((box >= kept[0].bounds[0]) & (box <= kept[0].bounds[1])):
+            return kept
+        try:
+            grid = OccupancyGrid.of(snapshot, box, self.resolution, RAY_GRID_MAX_BYTES)
+        except InputError:
+            raise InputError(
+                f"the map is too large for one distance field at {self.resolution:g} m voxels, "
+                f"and so are the points asked, {np.ptp(points, axis=0).round(1).tolist()} m "
+                f"across with the fields' reach (over {RAY_GRID_MAX_BYTES / 2**20:.0f} MiB): "
+                "ask them in parts, or tile the map (ehm.tiles.TiledMap)"
+            ) from None
+        self._near = (grid, {})
+        return self._near
 
     def _new_field(
         self,
+        grid: OccupancyGrid,
         threshold: float,
         unknown_is_occupied: bool,
         unknown_box: FlatBox,
         obstacle_box: FlatBox,
     ) -> DistanceField:
-        """A distance field of the grid as it stands."""
-        lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
+        """A distance field of `grid` as it stands."""
+        lattice = Lattice.lift(grid.origin, self.resolution, grid.shape)
         field = DistanceField(
             lattice.origin,
             self.resolution,
@@ -201,41 +226,36 @@ class PlannerSupport:
             _lifted_box(obstacle_box),
         )
         field.update(
-            self._scores_3d(),
-            self._grid.intercept,
+            _scores_3d(grid),
+            grid.intercept,
             self._lifted_log_odds,
-            self._peaks(),
+            self._peaks(grid),
             near=self._lifted_near,
         )
         return field
 
-    def _peaks(self) -> np.ndarray:
-        """(P, 3) float64 metres, world frame (a 2D map's at the height of its lattice): the
-        means of the map's clusters of positive weight, where thin obstacles peak."""
+    def _peaks(self, grid: OccupancyGrid) -> np.ndarray:
+        """(P, 3) float64 metres, world frame (a 2D map's at the height of `grid`'s lattice):
+        the means of the map's clusters of positive weight, where thin obstacles peak."""
         kernels = self._kernels
         means = kernels.means[kernels.weights > 0.0]
         if kernels.dim == 3:
             return means
-        lattice = Lattice.lift(self._grid.origin, self.resolution, self._grid.shape)
+        lattice = Lattice.lift(grid.origin, self.resolution, grid.shape)
         return np.column_stack(
             [means, np.full(len(means), lattice.origin[2] + self.resolution / 2)]
         )
 
     def _lifted_log_odds(self, points: np.ndarray) -> np.ndarray:
         """The map's log-odds at (n, 3) points of the 3D lattice (a 2D map's: their x, y)."""
-        return self._log_odds_at(np.ascontiguousarray(points[:, : self._grid.dim]))
+        return self._log_odds_at(np.ascontiguousarray(points[:, : self._kernels.dim]))
 
     def _lifted_near(self, places: np.ndarray, spread: float) -> ReadNear:
         """The map's NearLogOdds around (m, 3) places of the 3D lattice (a 2D map's: their
         x, y)."""
-        dim = self._grid.dim
+        dim = self._kernels.dim
         read = self._near_log_odds(np.ascontiguousarray(places[:, :dim]), spread)
         return lambda points, rows: read(np.ascontiguousarray(points[:, :dim]), rows)
-
-    def _scores_3d(self) -> np.ndarray:
-        """The grid's scores as a 3D array (a view; a 2D grid is one voxel thick)."""
-        scores = self._grid.scores
-        return scores if scores.ndim == 3 else scores[..., None]
 
     def _changed_voxels(self, old: MapSnapshot | None, snapshot: MapSnapshot) -> np.ndarray | None:
         """(2, 3) int64, the box of the grid's voxels [low, high) whose log-odds the clusters
@@ -272,6 +292,7 @@ class PlannerSupport:
         the grid is made again when the map now reaches beyond it."""
         self._cells = {}
         self._known = None
+        self._near = None
         self._grid_tried = False
         old, self._kernels = self._kernels, snapshot
         if snapshot is None:
@@ -288,10 +309,10 @@ class PlannerSupport:
         changed = self._changed_voxels(old, snapshot)
         self._grid.update(snapshot)
         self._log_odds = self._grid_log_odds()
-        peaks = self._peaks() if self._fields else np.zeros((0, 3))
+        peaks = self._peaks(self._grid) if self._fields else np.zeros((0, 3))
         for field in self._fields.values():
             field.update(
-                self._scores_3d(),
+                _scores_3d(self._grid),
                 self._grid.intercept,
                 self._lifted_log_odds,
                 peaks,
@@ -311,7 +332,8 @@ class PlannerSupport:
     @property
     def nbytes(self) -> int:
         """Bytes kept: the map's kernels they count, the grid's scores (rays march them with
-        the intercept) and fields, the cover and the cells' keys."""
+        the intercept) and fields, the cover and the cells' keys, a grid around asked points
+        and its fields."""
         total = 0
         if self._kernels is not None and self.follows:
             kept = self._kernels
@@ -323,7 +345,15 @@ class PlannerSupport:
             total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
         total += sum(field.nbytes for field in self._fields.values())
         total += 0 if self._known is None else self._known.keys.nbytes
+        if self._near is not None:
+            near_grid, near_fields = self._near
+            total += near_grid.scores.nbytes + sum(f.nbytes for f in near_fields.values())
         return total + sum(cells.keys.nbytes for cells in self._cells.values() if cells is not None)
+
+
+def _scores_3d(grid: OccupancyGrid) -> np.ndarray:
+    """A grid's scores as a 3D array (a view; a 2D grid is one voxel thick)."""
+    return grid.scores if grid.scores.ndim == 3 else grid.scores[..., None]
 
 
 def _kernels(snapshot: MapSnapshot, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

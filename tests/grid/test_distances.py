@@ -226,3 +226,26 @@ def test_distance_rows_and_mistakes():
         hilbert_map.distance(np.zeros((1, 3)))
     with pytest.raises(EmptyMapError):
         ehm.HilbertMap().distance(np.zeros((1, 3)))
+
+
+def test_a_map_too_large_for_one_field_answers_from_a_grid_around_the_points(
+    room_map, monkeypatch, rng
+):
+    """With the map's grid over the cap (as an outdoor sweep at a fine resolution is), the
+    field is made on a grid reaching the fields' reach around the points asked: the distances
+    of the whole map's field, within the field's own error; points spread too far are refused
+    by name."""
+    import ehm.grid.planner_support as planner_support
+
+    points = rng.uniform([-1.0, -1.0, 0.5], [1.0, 1.0, 1.5], (300, 3))
+    whole = room_map.distance(points)
+    fresh = ehm.HilbertMap.from_state(room_map.state())
+    monkeypatch.setattr(planner_support, "RAY_GRID_MAX_BYTES", 4 * 2**20)
+    near = fresh.distance(points)
+    assert fresh._planner._grid is None and fresh._planner._near is not None
+    error = np.abs(near - whole)
+    assert np.median(error) < 0.03 and np.percentile(error, 95) < 0.15
+    np.testing.assert_array_equal(fresh.distance(points[:10]), near[:10])  # the grid kept
+    spread = np.array([[-4.0, -3.0, 0.0], [4.0, 3.0, 3.0]])
+    with pytest.raises(InputError, match=r"and so are the points asked, \[8\.0, 6\.0, 3\.0\] m"):
+        fresh.distance(spread)
