@@ -11,6 +11,9 @@ import numpy as np
 from ehm.errors import FileReadError
 from ehm.io.files import read_archive
 
+# Thickness, metres, of the slabs a distance grid is asked in.
+SLAB_METRES = 8.0
+
 
 @dataclass(frozen=True)
 class DistanceGrid:
@@ -39,15 +42,26 @@ class DistanceGrid:
     ) -> DistanceGrid:
         """The distances `any_map` (a HilbertMap or a TiledMap) tells at the centres of voxels
         of `resolution` metres, `shape` voxels per axis from `origin` ((d,) metres), unknown
-        space an obstacle ("occupied") or free ("free")."""
+        space an obstacle ("occupied") or free ("free"). Asked slab by slab, SLAB_METRES thick
+        along x, so a map too large for one distance field answers each slab from a field
+        around it (HilbertMap.distance)."""
+        dim = len(shape)
+        distance = np.empty(shape)
+        gradient = np.empty((*shape, dim))
         axes = [origin[a] + (np.arange(n) + 0.5) * resolution for a, n in enumerate(shape)]
-        centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(shape))
-        distance, gradient = any_map.distance(centres, level, True, unknown)
+        slab = max(1, int(SLAB_METRES / resolution))
+        for start in range(0, shape[0], slab):
+            part = [axes[0][start : start + slab], *axes[1:]]
+            centres = np.stack(np.meshgrid(*part, indexing="ij"), axis=-1).reshape(-1, dim)
+            found, slope = any_map.distance(centres, level, True, unknown)
+            rows = slice(start, start + len(part[0]))
+            distance[rows] = found.reshape(len(part[0]), *shape[1:])
+            gradient[rows] = slope.reshape(len(part[0]), *shape[1:], dim)
         return cls(
             np.asarray(origin, dtype=np.float64),
             float(resolution),
-            distance.reshape(shape),
-            gradient.reshape(*shape, len(shape)),
+            distance,
+            gradient,
             float(level),
             unknown == "occupied",
         )

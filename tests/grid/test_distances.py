@@ -249,3 +249,14 @@ def test_a_map_too_large_for_one_field_answers_from_a_grid_around_the_points(
     spread = np.array([[-4.0, -3.0, 0.0], [4.0, 3.0, 3.0]])
     with pytest.raises(InputError, match=r"and so are the points asked, \[8\.0, 6\.0, 3\.0\] m"):
         fresh.distance(spread)
+
+
+def test_distance_grids_asked_slab_by_slab_are_the_grid_asked_at_once(room_map, monkeypatch):
+    import ehm.io.distance_file as distance_file
+
+    origin, shape = np.array([-2.0, -1.5, 0.2]), (40, 30, 12)
+    at_once = distance_file.DistanceGrid.at_centres(room_map, origin, 0.1, shape)
+    monkeypatch.setattr(distance_file, "SLAB_METRES", 0.35)  # slabs of 3 voxels, one of 1
+    in_slabs = distance_file.DistanceGrid.at_centres(room_map, origin, 0.1, shape)
+    np.testing.assert_array_equal(in_slabs.distance, at_once.distance)
+    np.testing.assert_array_equal(in_slabs.gradient, at_once.gradient)
