@@ -42,15 +42,16 @@ class MapSnapshot:
         return len(self.means)
 
     def changes_from(
-        self, old: MapSnapshot, with_precision: bool = False
+        self, old: MapSnapshot, with_precision: bool = False, with_weights: bool = True
     ) -> tuple[np.ndarray, np.ndarray]:
         """What changed since `old`, a snapshot of the same map (rows are clusters, kept in
         place; rows past the end were added or merged away): (rows of `old` whose kernel or
         weight changed or is gone, rows of this snapshot whose kernel or weight changed or is
-        new), int64. with_precision: a changed precision counts as a change too."""
+        new), int64. with_precision: a changed precision counts as a change too;
+        with_weights False: only kernels (means, transforms, kind) count."""
         n_both = min(len(old), len(self))
         differs = (
-            (self.weights[:n_both] != old.weights[:n_both])
+            (with_weights & (self.weights[:n_both] != old.weights[:n_both]))
             | np.any(self.means[:n_both] != old.means[:n_both], axis=1)
             | np.any(self.transforms[:n_both] != old.transforms[:n_both], axis=(1, 2))
             | (self.planar_kernel[:n_both] != old.planar_kernel[:n_both])

@@ -29,7 +29,7 @@ import numpy as np
 from ehm.core.model.kernels import kernel_reach
 from ehm.core.queries.cover import KernelCover
 from ehm.core.queries.distance import DistanceField
-from ehm.core.queries.known_cells import known_cells
+from ehm.core.queries.known_cells import KnownCover
 from ehm.core.queries.raycast import CandidateCells, GridLogOdds
 from ehm.core.queries.surfels import NearLogOdds, ReadNear
 from ehm.core.snapshot import MapSnapshot
@@ -79,6 +79,7 @@ class PlannerSupport:
         self._kernels: MapSnapshot | None = None  # the map's, as the grid and cover count them
         self._cells: dict[float, CandidateCells | None] = {}
         self._known: CandidateCells | None = None
+        self._known_cover: KnownCover | None = None
         # Where the map's grid is too large: a grid around the points last asked their
         # distance, and its fields, until the map learns.
         self._near: tuple[OccupancyGrid, dict] | None = None
@@ -141,14 +142,18 @@ class PlannerSupport:
 
     def known_cells(self, take_snapshot: Callable[[], MapSnapshot]) -> CandidateCells:
         """The cells of KNOWN_CELLS_PER_VOXEL voxels a side wholly inside some kernel's
-        support (known space all through, ehm.core.queries.known_cells), made on the first
-        call after an update."""
+        support (known space all through, ehm.core.queries.known_cells), counted on the first
+        call and then followed through updates."""
         if self._known is None:
-            kernels = self._kernels_of(take_snapshot)
-            side = KNOWN_CELLS_PER_VOXEL * self.resolution
-            self._known = known_cells(
-                kernels.means, kernels.transforms, kernels.planar_kernel, side
-            )
+            if self._known_cover is None:
+                kernels = self._kernels_of(take_snapshot)
+                self._known_cover = KnownCover.of_kernels(
+                    kernels.means,
+                    kernels.transforms,
+                    kernels.planar_kernel,
+                    KNOWN_CELLS_PER_VOXEL * self.resolution,
+                )
+            self._known = self._known_cover.cells()
         return self._known
 
     def distances(
@@ -285,7 +290,8 @@ class PlannerSupport:
     @property
     def follows(self) -> bool:
         """A grid or a cover is kept, to follow the map's updates."""
-        return self._grid is not None or self._cover is not None
+        kept = (self._grid, self._cover, self._known_cover)
+        return any(thing is not None for thing in kept)
 
     def update(self, snapshot: MapSnapshot | None) -> None:
         """Follow the map after it learned, to `snapshot` (None when nothing follows): the
@@ -300,6 +306,8 @@ class PlannerSupport:
             return
         if self._cover is not None:
             self._cover = self._cover_update(old, snapshot)
+        if self._known_cover is not None:
+            self._known_cover = self._known_update(old, snapshot)
         if self._grid is None:
             return
         support, kept = support_bounds(snapshot), self._grid.bounds
@@ -330,6 +338,18 @@ class PlannerSupport:
         removed, added = snapshot.changes_from(old)
         return self._cover.changed(_kernels(old, removed), _kernels(snapshot, added))
 
+    def _known_update(self, old: MapSnapshot | None, snapshot: MapSnapshot) -> KnownCover | None:
+        """The known cells followed from `old` to `snapshot`: out with the kernels whose
+        shape or place changed or that are gone, in with the changed and new; None (counted
+        again when needed) after a refit."""
+        if old is None or old.lineage is not snapshot.lineage:
+            return None
+        removed, added = snapshot.changes_from(old, with_weights=False)
+        return self._known_cover.changed(
+            (old.means[removed], old.transforms[removed], old.planar_kernel[removed]),
+            (snapshot.means[added], snapshot.transforms[added], snapshot.planar_kernel[added]),
+        )
+
     @property
     def nbytes(self) -> int:
         """Bytes kept: the map's kernels they count, the grid's scores (rays march them with
@@ -345,7 +365,8 @@ class PlannerSupport:
         if self._cover is not None:
             total += self._cover.keys.nbytes + self._cover.sums.nbytes + self._cover.counts.nbytes
         total += sum(field.nbytes for field in self._fields.values())
-        total += 0 if self._known is None else self._known.keys.nbytes
+        if self._known_cover is not None:
+            total += self._known_cover.keys.nbytes + self._known_cover.counts.nbytes
         if self._near is not None:
             near_grid, near_fields = self._near
             total += near_grid.scores.nbytes + sum(f.nbytes for f in near_fields.values())

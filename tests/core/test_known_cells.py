@@ -45,3 +45,22 @@ def test_every_point_of_a_known_cell_lies_in_a_support_and_most_of_the_space_is_
     keys = set(map(tuple, cells))
     taken = [tuple(c) for c in np.floor(inner / side).astype(np.int64)]
     assert np.mean([c in keys for c in taken]) > 0.95
+
+
+def test_a_cover_follows_kernels_out_and_in_as_one_counted_afresh(rng):
+    from ehm.core.queries.known_cells import KnownCover
+
+    means, transforms, planar = random_kernels(rng, 3, count=30)
+    kernels = (means, transforms, planar)
+    first = tuple(array[:20] for array in kernels)
+    cover = KnownCover.of_kernels(*first, 0.25)
+    moved = (means[:5] + 0.3, transforms[:5], planar[:5])
+    followed = cover.changed(
+        tuple(array[:5] for array in kernels),  # five kernels moved...
+        tuple(np.concatenate([m, a[20:]]) for m, a in zip(moved, kernels, strict=True)),
+    )  # ...and ten new ones
+    now = tuple(np.concatenate([m, a[5:]]) for m, a in zip(moved, kernels, strict=True))
+    afresh = KnownCover.of_kernels(*now, 0.25)
+    np.testing.assert_array_equal(followed.keys, afresh.keys)
+    np.testing.assert_array_equal(followed.counts, afresh.counts)
+    assert np.all(afresh.counts >= 1) and afresh.counts.max() > 1

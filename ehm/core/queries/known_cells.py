@@ -10,11 +10,66 @@ it lies in it whole.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
-from ehm.core.queries.cover import pack_cells
+from ehm.core.queries.cover import pack_cells, unpack_cells
 from ehm.core.queries.raycast import CandidateCells
+
+
+@dataclass(frozen=True)
+class KnownCover:
+    """Cells of side `side` metres, in `dim` dimensions, wholly inside some kernel's support,
+    with how many kernels hold each whole: keys (c,) int64, sorted, packed cell coordinates
+    (63 // dim bits per axis); counts (c,) int64. It follows a map's updates by counting the
+    kernels that changed out and in (`changed`); `cells` is what rays pass over."""
+
+    side: float
+    dim: int
+    keys: np.ndarray
+    counts: np.ndarray
+
+    @classmethod
+    def of_kernels(
+        cls, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
+    ) -> KnownCover:
+        """The cover of kernels: means (M, d) metres, transforms (M, d, d) 1/m, planar (M,)."""
+        empty = np.zeros(0, dtype=np.int64)
+        cover = cls(side, means.shape[1], empty, empty)
+        nothing = (means[:0], transforms[:0], planar[:0])
+        return cover.changed(nothing, (means, transforms, planar))
+
+    def changed(
+        self,
+        removed: tuple[np.ndarray, np.ndarray, np.ndarray],
+        added: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ) -> KnownCover:
+        """The cover without the kernels `removed` and with the kernels `added`, each
+        (means, transforms, planar) (a changed kernel: its old self removed, its new self
+        added)."""
+        bits = 63 // self.dim
+        keys_out = pack_cells(_kept(whole_cells(*removed, self.side), bits), bits)
+        keys_in = pack_cells(_kept(whole_cells(*added, self.side), bits), bits)
+        keys = np.concatenate([self.keys, keys_out, keys_in])
+        counts = np.concatenate([self.counts, -np.ones(len(keys_out), np.int64),
+                                 np.ones(len(keys_in), np.int64)])  # fmt: skip
+        distinct, inverse = np.unique(keys, return_inverse=True)
+        summed = np.bincount(inverse.ravel(), counts, len(distinct)).astype(np.int64)
+        held = summed > 0
+        return KnownCover(self.side, self.dim, distinct[held], summed[held])
+
+    def cells(self) -> CandidateCells:
+        """The cells, as rays walk them (CandidateCells.next_run)."""
+        bits = 63 // self.dim
+        if len(self.keys) == 0:
+            low, high = np.zeros(self.dim, np.int64), np.full(self.dim, -1, np.int64)
+            return CandidateCells(self.side, bits, self.keys, low, high)
+        coordinates = unpack_cells(self.keys, bits, self.dim)
+        return CandidateCells(
+            self.side, bits, self.keys, coordinates.min(axis=0), coordinates.max(axis=0)
+        )
 
 
 def known_cells(
@@ -24,6 +79,14 @@ def known_cells(
     wholly inside the support of one of the kernels: means (M, d) metres, transforms (M, d, d)
     1/m, planar (M,) bool. Cells farther than the keys reach from the origin are left out
     (never claimed known)."""
+    return KnownCover.of_kernels(means, transforms, planar, side).cells()
+
+
+def whole_cells(
+    means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
+) -> np.ndarray:
+    """(n, d) int64: for each kernel in turn, the cells of `side` metres wholly inside its
+    support (a cell in two kernels' supports listed twice)."""
     dim = means.shape[1]
     arguments = (
         np.ascontiguousarray(means, dtype=np.float64),
@@ -35,13 +98,18 @@ def known_cells(
     starts = np.concatenate([[0], np.cumsum(counts)])
     cells = np.empty((int(starts[-1]), dim), dtype=np.int64)
     _whole_cells(*arguments, starts, cells)
-    return _candidate_cells(cells, side, 63 // dim)
+    return cells
+
+
+def _kept(cells: np.ndarray, bits: int) -> np.ndarray:
+    """The cells (n, d) within the keys' reach, `bits` an axis."""
+    half = 1 << (bits - 1)
+    return cells[np.all((cells > -half) & (cells < half - 1), axis=1)]
 
 
 def _candidate_cells(cells: np.ndarray, side: float, bits: int) -> CandidateCells:
     """The cells (n, d) int64 as CandidateCells, each once, within the keys' reach."""
-    half = 1 << (bits - 1)
-    cells = cells[np.all((cells > -half) & (cells < half - 1), axis=1)]
+    cells = _kept(cells, bits)
     dim = cells.shape[1]
     if len(cells) == 0:
         low, high = np.zeros(dim, np.int64), np.full(dim, -1, np.int64)
