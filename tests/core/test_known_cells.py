@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ehm.core.queries.cover import unpack_cells
-from ehm.core.queries.known_cells import known_cells, known_cells_reference
+from ehm.core.queries.known_cells import KnownCover, known_cells_reference
 
 
 def random_kernels(rng, dim, count=40):
@@ -21,7 +21,7 @@ def random_kernels(rng, dim, count=40):
 @pytest.mark.parametrize("dim", [2, 3])
 def test_compiled_cells_agree_with_the_reference(rng, dim):
     means, transforms, planar = random_kernels(rng, dim)
-    found = known_cells(means, transforms, planar, 0.25)
+    found = KnownCover.of_kernels(means, transforms, planar, 0.25).cells()
     expected = known_cells_reference(means, transforms, planar, 0.25)
     assert len(found.keys) > 100
     np.testing.assert_array_equal(found.keys, expected.keys)
@@ -32,7 +32,7 @@ def test_compiled_cells_agree_with_the_reference(rng, dim):
 def test_every_point_of_a_known_cell_lies_in_a_support_and_most_of_the_space_is_covered(rng):
     means, transforms, planar = random_kernels(rng, 3, count=20)
     side = 0.2
-    cells = unpack_cells(known_cells(means, transforms, planar, side).keys, 63 // 3, 3)
+    cells = unpack_cells(KnownCover.of_kernels(means, transforms, planar, side).keys, 21, 3)
     points = (cells[rng.integers(0, len(cells), 20_000)] + rng.random((20_000, 3))) * side
     u = np.einsum("mab,pmb->pma", transforms, points[:, None, :] - means[None])
     inside = np.where(planar, np.abs(u).max(axis=2) < 1.0, (u * u).sum(axis=2) < 1.0)
@@ -48,8 +48,6 @@ def test_every_point_of_a_known_cell_lies_in_a_support_and_most_of_the_space_is_
 
 
 def test_a_cover_follows_kernels_out_and_in_as_one_counted_afresh(rng):
-    from ehm.core.queries.known_cells import KnownCover
-
     means, transforms, planar = random_kernels(rng, 3, count=30)
     kernels = (means, transforms, planar)
     first = tuple(array[:20] for array in kernels)

@@ -5,7 +5,9 @@ A kernel's support is convex (the ellipsoid |T (x - mu)| < 1, or the planar-surf
 box max_a |(T (x - mu))_a| < 1, ehm.core.model.kernels), so a cell whose corners all lie in
 it lies in it whole.
 
-    cells = known_cells(means, transforms, planar, side=0.24)  # a CandidateCells
+    cover = KnownCover.of_kernels(means, transforms, planar, side=0.24)
+    cover.cells()                                   # a CandidateCells rays walk
+    cover = cover.changed(removed, added)           # after an update
 """
 
 from __future__ import annotations
@@ -72,16 +74,6 @@ class KnownCover:
         )
 
 
-def known_cells(
-    means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
-) -> CandidateCells:
-    """The cubic cells of `side` metres (cell i spans [i, i + 1) side on each axis) that lie
-    wholly inside the support of one of the kernels: means (M, d) metres, transforms (M, d, d)
-    1/m, planar (M,) bool. Cells farther than the keys reach from the origin are left out
-    (never claimed known)."""
-    return KnownCover.of_kernels(means, transforms, planar, side).cells()
-
-
 def whole_cells(
     means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
 ) -> np.ndarray:
@@ -105,17 +97,6 @@ def _kept(cells: np.ndarray, bits: int) -> np.ndarray:
     """The cells (n, d) within the keys' reach, `bits` an axis."""
     half = 1 << (bits - 1)
     return cells[np.all((cells > -half) & (cells < half - 1), axis=1)]
-
-
-def _candidate_cells(cells: np.ndarray, side: float, bits: int) -> CandidateCells:
-    """The cells (n, d) int64 as CandidateCells, each once, within the keys' reach."""
-    cells = _kept(cells, bits)
-    dim = cells.shape[1]
-    if len(cells) == 0:
-        low, high = np.zeros(dim, np.int64), np.full(dim, -1, np.int64)
-        return CandidateCells(side, bits, np.zeros(0, np.int64), low, high)
-    keys = np.unique(pack_cells(cells, bits))
-    return CandidateCells(side, bits, keys, cells.min(axis=0), cells.max(axis=0))
 
 
 @numba.njit(cache=True, parallel=True)
@@ -188,7 +169,7 @@ def _whole_cells(means, transforms, planar, side, starts, out):  # pragma: no co
 def known_cells_reference(
     means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
 ) -> CandidateCells:
-    """Plain NumPy twin of `known_cells`."""
+    """Plain NumPy twin of `KnownCover.of_kernels(...).cells()`."""
     dim = means.shape[1]
     found = [np.zeros((0, dim), dtype=np.int64)]
     corners = np.array(np.meshgrid(*[[0, 1]] * dim, indexing="ij")).reshape(dim, -1).T
@@ -202,4 +183,5 @@ def known_cells_reference(
         u = ((cells[:, None, :] + corners[None]) * side - mean) @ t.T
         inside = np.abs(u).max(axis=2) if flat else (u * u).sum(axis=2)
         found.append(cells[np.all(inside < 1.0, axis=1)])
-    return _candidate_cells(np.concatenate(found), side, 63 // dim)
+    keys = np.unique(pack_cells(_kept(np.concatenate(found), 63 // dim), 63 // dim))
+    return KnownCover(side, dim, keys, np.ones(len(keys), dtype=np.int64)).cells()
