@@ -296,6 +296,10 @@ def test_export_writes_each_format(room_map_file, map_file, tmp_path):
         app, ["export", str(room_map_file), "-o", str(tmp_path / "r.bt"), *heights]
     )
     assert result.exit_code == 2 and "heights a .pgm export projects" in result.stderr
+    result = runner.invoke(
+        app, ["export", str(map_file), "-o", str(tmp_path / "flat.pgm"), *heights]
+    )
+    assert result.exit_code == 2 and "this map is 2D" in result.stderr
     result = runner.invoke(app, ["export", str(room_map_file), "-o", str(tmp_path / "r.obj")])
     assert result.exit_code == 2 and "expected a name ending in .ot, .bt, .pgm" in result.stderr
     result = runner.invoke(app, ["export", str(map_file), "-o", str(tmp_path / "plan.pgm")])

@@ -345,6 +345,8 @@ def _export_map_server(
             any_map, heights, bounds[:, :2], resolution, grid_bytes(max_gib)
         )
     else:
+        if heights != (None, None):
+            raise InputError("--z-min and --z-max choose a 3D map's heights; this map is 2D")
         grid = navigation_grid(any_map, bounds, resolution, grid_bytes(max_gib))
     yaml_path = exports.write_map_server(grid, output)
     shares = ", ".join(
