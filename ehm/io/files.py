@@ -148,10 +148,12 @@ def read_archive(path: str | PathLike[str], kind: str, names: set[str]) -> dict[
 
 def write_atomically(path: str | PathLike[str], data: bytes) -> None:
     """Write `data` to `path`: a temporary file in the same folder, synced, then a rename, so
-    what was there survives a crash half-way and readers never see half a file."""
+    what was there survives a crash half-way and readers never see half a file. The file
+    gets the mode a new file gets under the process's umask (mkstemp's own is 0600)."""
     target = Path(path)
     fd, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent or ".")
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as stream:
             stream.write(data)
             stream.flush()
@@ -160,3 +162,10 @@ def write_atomically(path: str | PathLike[str], data: bytes) -> None:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def _umask() -> int:
+    """The process's umask (read by setting it, then setting it back)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

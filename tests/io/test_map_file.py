@@ -115,6 +115,19 @@ def test_save_is_atomic(small_map, tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["m.ehm"]
 
 
+@pytest.mark.parametrize(("umask", "mode"), [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_saved_maps_honour_the_umask(small_map, tmp_path, umask, mode):
+    import os
+    import stat
+
+    old = os.umask(umask)
+    try:
+        small_map.save(tmp_path / "m.ehm")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "m.ehm").stat().st_mode) == mode
+
+
 def test_empty_map_cannot_be_saved(tmp_path):
     with pytest.raises(ehm.EmptyMapError, match="the map is empty: integrate a scan or fit before"):
         ehm.HilbertMap().save(tmp_path / "x.ehm")
