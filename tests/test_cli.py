@@ -110,6 +110,11 @@ def test_bad_inputs_give_clear_errors(map_file, plan_log, tmp_path):
     assert not (tmp_path / "x.ehm").exists()
 
 
+def test_version_is_told_and_stops():
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0 and result.output == f"ehm {ehm.__version__}\n"
+
+
 def test_settings_that_may_be_off_take_none():
     settings = parse_settings(["replay_cap=none", "forget_after=30"])
     assert settings == {"replay_cap": None, "forget_after": 30.0}

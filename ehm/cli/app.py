@@ -66,10 +66,25 @@ console = Console()
 errors = Console(stderr=True, soft_wrap=True)  # one line an error, however long
 
 
+def _show_version(asked: bool) -> None:
+    """Print the version and stop, for --version."""
+    if asked:
+        from ehm import __version__
+
+        typer.echo(f"ehm {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
 def _options(
     debug: Annotated[
         bool, typer.Option("--debug", help="Show the Python traceback of any error.")
+    ] = False,
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_show_version, is_eager=True, help="Show the version and stop."
+        ),
     ] = False,
 ) -> None:
     """Efficient Hilbert Maps: continuous occupancy maps from range scans."""
