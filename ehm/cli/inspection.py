@@ -34,7 +34,7 @@ def view(
     ] = "127.0.0.1",
     resolution: Annotated[float, typer.Option(help="Voxel side of the surface, metres.")] = 0.1,
 ) -> None:
-    """Look at a map in the browser (pip install 'ehm[viewer]'): its surface at an occupancy
+    """Look at a map in the browser (pip install 'ehm\\[viewer]'): its surface at an occupancy
     level coloured by height or uncertainty, a slice of the occupancy, the samples it keeps,
     the sensor path. Ctrl-C stops the server."""
     from ehm.viz.viewer import MapViewer, viser_module

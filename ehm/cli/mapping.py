@@ -179,7 +179,7 @@ def map_command(
         bool,
         typer.Option(
             "--view",
-            help="Show the map growing in the browser (pip install 'ehm[viewer]'), and keep "
+            help="Show the map growing in the browser (pip install 'ehm\\[viewer]'), and keep "
             "showing it after, until Ctrl-C.",
         ),
     ] = False,
@@ -188,7 +188,7 @@ def map_command(
         float | None,
         typer.Option(
             help="Cut the map into tiles this many metres a side, learned in parallel on Dask "
-            "(pip install 'ehm[tiles]'); -o names the map's folder."
+            "(pip install 'ehm\\[tiles]'); -o names the map's folder."
         ),
     ] = None,
     overlap: Annotated[
