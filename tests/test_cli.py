@@ -397,6 +397,29 @@ def test_a_long_range_capture_maps_with_notes_of_its_decoder_and_resolution(tmp_
     assert result.exit_code == 0 and "reaches" not in result.stderr, result.output
 
 
+def test_ctrl_c_stops_after_the_scan_at_hand_and_saves_the_map(plan_log, tmp_path, monkeypatch):
+    import os
+    import signal
+
+    from ehm.io.readers import ScanFiles
+
+    read = ScanFiles.__iter__
+
+    def interrupted_after_two(files):
+        for index, scan in enumerate(read(files)):
+            if index == 2:
+                os.kill(os.getpid(), signal.SIGINT)  # as Ctrl-C does, while scan 2 is read
+            yield scan
+
+    monkeypatch.setattr(ScanFiles, "__iter__", interrupted_after_two)
+    output = tmp_path / "stopped.ehm"
+    result = runner.invoke(app, ["map", str(plan_log), "-o", str(output), "--quiet"])
+    assert result.exit_code == 130, result.output
+    assert "stopped by Ctrl-C after 2 scans; the map of those is saved" in result.stderr
+    assert ehm.load(output).n_scans_ == 2
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_map_takes_every_nth_scan_up_to_a_limit_quietly(plan_log, tmp_path):
     output = tmp_path / "some.ehm"
     args = ["map", str(plan_log), "-o", str(output), "--every", "2", "--limit", "2", "--quiet"]

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import signal
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated
 
@@ -302,8 +304,15 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
         live = LiveView(port=port)
         observers.append(live)
         console.print(f"watch the map grow at {live.url}")
-    run = MappingPipeline(iter(files), hilbert_map, batch, observers).run()
-    hilbert_map.save(output)
+    with FirstInterrupt() as interrupt:
+        scans = interrupt.until_asked(iter(files))
+        run = MappingPipeline(scans, hilbert_map, batch, observers).run()
+        hilbert_map.save(output)
+    if interrupt.asked:
+        errors.print(
+            f"stopped by Ctrl-C after {run.n_scans} scans; the map of those is saved: {output}"
+        )
+        raise typer.Exit(130)
     if hilbert_map.n_clusters == 0:
         errors.print(
             "[yellow]warning:[/yellow] the map has no clusters: no scan gave enough samples "
@@ -320,6 +329,35 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
         )
     if live is not None:
         serve_until_stopped(live.server, f"the map at {live.url}")
+
+
+class FirstInterrupt:
+    """Within it, a first Ctrl-C asks the scans to stop after the one being learned (the map
+    is then saved whole); a second one stops at once, as Ctrl-C does elsewhere."""
+
+    def __init__(self) -> None:
+        self.asked = False
+        self._previous = None
+
+    def __enter__(self) -> FirstInterrupt:
+        self._previous = signal.signal(signal.SIGINT, self._interrupted)
+        return self
+
+    def __exit__(self, *exception) -> None:
+        signal.signal(signal.SIGINT, self._previous)
+
+    def _interrupted(self, signum, frame) -> None:
+        if self.asked:
+            raise KeyboardInterrupt
+        self.asked = True
+        errors.print("stopping after this scan, then saving (Ctrl-C again stops at once)")
+
+    def until_asked(self, scans: Iterator) -> Iterator:
+        """`scans`, until a stop is asked."""
+        for scan in scans:
+            if self.asked:
+                return
+            yield scan
 
 
 # A map whose kernels reach farther than this from every sensor pose, metres, built finer
