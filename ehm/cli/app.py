@@ -69,9 +69,9 @@ errors = Console(stderr=True, soft_wrap=True)  # one line an error, however long
 def _show_version(asked: bool) -> None:
     """Print the version and stop, for --version."""
     if asked:
-        from ehm import __version__
+        from importlib.metadata import version
 
-        typer.echo(f"ehm {__version__}")
+        typer.echo(f"ehm {version('ehm')}")
         raise typer.Exit()
 
 
