@@ -159,10 +159,10 @@ class ScanFiles:
     format: one of FORMATS (None: guessed from the names, guess_format).
     origin: sensor position (3,), metres, world frame, for point clouds (xyz, ply, pcd, las),
         which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
-        For KITTI .bin scans without poses and Ouster captures, where the LiDAR's own frame is
-        placed.
+        For KITTI .bin scans without poses and LiDAR captures (Ouster, Velodyne), where the
+        LiDAR's own frame is placed.
     poses: a poses file. For KITTI .bin scans the sequence's poses (line i places frame i);
-        for Ouster captures one T_world_sensor per frame, over all captures in order;
+        for LiDAR captures one T_world_sensor per frame, over all captures in order;
         for point clouds one T_world_sensor per file, in the order given (KITTI or TUM layout,
         ehm.io.poses), each file's points in its sensor's frame (PCD: the VIEWPOINT's frame).
     calib: KITTI's calib.txt (default: the sequence's), or "identity" for poses that already
