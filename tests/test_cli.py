@@ -38,8 +38,11 @@ def test_map_then_info_and_query(map_file, tmp_path, table_row):
     hilbert_map = ehm.load(map_file)
     info = runner.invoke(app, ["info", str(map_file)])
     assert info.exit_code == 0, info.output
-    assert table_row(info.output, "config.neighbours") == ["6"]
-    assert table_row(info.output, "config.coarse_neighbours") == ["4"]
+    assert table_row(info.output, "config.neighbours") == ["6"]  # set when it was made
+    assert "config.coarse_neighbours" not in info.output  # at its default: --all shows it
+    assert table_row(info.output, "other settings") == ["51 at their defaults for 0.05 m (--all)"]
+    every = runner.invoke(app, ["info", str(map_file), "--all"]).output
+    assert table_row(every, "config.coarse_neighbours") == ["4"]
     assert table_row(info.output, "dimensions") == ["2"]
     assert table_row(info.output, "scans") == ["5"]
     path = hilbert_map.sensor_path
@@ -133,7 +136,7 @@ def test_a_log_with_time_stamps_makes_a_map_that_fades(plan_log, tmp_path):
     assert loaded.config.forget_after == 600.0 and loaded.time_ == 0.0  # the log's stamps
 
 
-def test_map_at_another_resolution_scales_its_settings(plan_log, tmp_path):
+def test_map_at_another_resolution_scales_its_settings(plan_log, tmp_path, table_row):
     log, output = str(plan_log), tmp_path / "coarse.ehm"
     result = runner.invoke(
         app, ["map", log, "-o", str(output), "--resolution", "0.1", "--set", "min_std=0.03"]
@@ -144,6 +147,9 @@ def test_map_at_another_resolution_scales_its_settings(plan_log, tmp_path):
     # The map keeps its resolution, and its outputs default to it.
     info = runner.invoke(app, ["info", str(output)])
     assert "resolution" in info.output and "0.1 m (outputs default to it)" in info.output
+    # Only the setting given differs from the defaults at 0.1 m.
+    assert table_row(info.output, "config.min_std") == ["0.03"]
+    assert "config.cluster_radius" not in info.output
     grid_path = tmp_path / "coarse.npz"
     result = runner.invoke(app, ["grid", str(output), "-o", str(grid_path)])
     assert result.exit_code == 0, result.output

@@ -3,6 +3,7 @@ changed between two maps of one place."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -48,8 +49,14 @@ def view(
 
 
 @app.command()
-def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
-    """What a map file holds."""
+def info(
+    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    all_settings: Annotated[
+        bool, typer.Option("--all", help="Every setting, not only those changed.")
+    ] = False,
+) -> None:
+    """What a map file holds, and the settings it was made with that differ from the
+    defaults at its resolution (--all: every setting)."""
     import numpy as np
 
     hilbert_map = load_map(map_path)
@@ -58,6 +65,7 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
     table.add_column("value")
     if map_path.is_dir():
         _tiled_map_rows(table, hilbert_map)
+        _settings_rows(table, hilbert_map.config, all_settings)
         console.print(table)
         return
     table.add_row("dimensions", str(hilbert_map.dim))
@@ -81,9 +89,34 @@ def info(map_path: Annotated[Path, typer.Argument(help="Map file.")]) -> None:
         table.add_row("cluster extent (m)", f"{low} .. {high}")
     else:
         table.add_row("cluster extent (m)", "none: the map is empty, every point reads 0.5")
-    for name, value in hilbert_map.config.to_dict().items():
-        table.add_row(f"config.{name}", repr(value))
+    _settings_rows(table, hilbert_map.config, all_settings)
     console.print(table)
+
+
+def _settings_rows(table: Table, config, every: bool) -> None:
+    """A row per setting that differs from MapConfig.for_resolution's at the map's resolution
+    (every one when `every`), and a row saying how many are left out."""
+    from ehm.config import MapConfig
+
+    defaults = MapConfig.for_resolution(config.resolution).to_dict()
+    same = 0
+    for name, value in config.to_dict().items():
+        default = defaults.get(name)
+        if not every and _same_setting(value, default):
+            same += 1
+            continue
+        table.add_row(f"config.{name}", repr(value))
+    if same:
+        table.add_row(
+            "other settings", f"{same} at their defaults for {config.resolution:g} m (--all)"
+        )
+
+
+def _same_setting(value, default) -> bool:
+    """Whether a setting's value is its default (floats to a part in 1e9)."""
+    if isinstance(value, float) and isinstance(default, float):
+        return math.isclose(value, default, rel_tol=1e-9)
+    return value == default
 
 
 @app.command()
@@ -171,5 +204,3 @@ def _tiled_map_rows(table: Table, tiled_map) -> None:
         table.add_row("cluster extent (m)", f"{low} .. {high}")
     except EmptyMapError:
         table.add_row("cluster extent (m)", "none: the map is empty, every point reads 0.5")
-    for name, value in tiled_map.config.to_dict().items():
-        table.add_row(f"config.{name}", repr(value))
