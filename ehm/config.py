@@ -452,7 +452,12 @@ class MapConfig:
         known = {f.name for f in dataclasses.fields(self)}
         unknown = sorted(set(overrides) - known)
         if unknown:
-            raise SettingsError(f"unknown MapConfig setting(s): {', '.join(unknown)}")
+            hint = (
+                ": a map's resolution scales its settings, MapConfig.for_resolution(r)"
+                if "resolution" in unknown
+                else ""
+            )
+            raise SettingsError(f"unknown MapConfig setting(s): {', '.join(unknown)}{hint}")
         return dataclasses.replace(self, **overrides)
 
     @staticmethod

@@ -92,17 +92,24 @@ class HilbertMap:
     """Continuous occupancy map learned from range scans (Guizilini & Ramos, IJRR 2018).
 
     config: a MapConfig; keyword overrides replace single settings, for example
-    HilbertMap(cluster_radius=0.2). Learned state ends in an underscore: clusters_ (a
-    ClusterSet), anchors_ (AnchorLayers, empty unless config.anchor_layers > 1), bias_,
-    local_origin_ (the world point, metres, clusters_ and the memory are kept relative to,
-    see local_origin_for; None before the first scan is learned), n_scans_, timings_
-    (seconds per stage of the last update), last_update_ (clusters added and merged by it,
-    its samples and those replayed from the memory) and time_ (seconds, the latest time
-    stamp of the scans learned; None without). Everything the map takes and answers is in
-    world frame, whatever its local origin.
+    HilbertMap(cluster_radius=0.2); resolution=r, in place of a config, starts from
+    MapConfig.for_resolution(r) (HilbertMap(resolution=0.2, max_range=80.0)). Learned state
+    ends in an underscore: clusters_ (a ClusterSet), anchors_ (AnchorLayers, empty unless
+    config.anchor_layers > 1), bias_, local_origin_ (the world point, metres, clusters_ and
+    the memory are kept relative to, see local_origin_for; None before the first scan is
+    learned), n_scans_, timings_ (seconds per stage of the last update), last_update_
+    (clusters added and merged by it, its samples and those replayed from the memory) and
+    time_ (seconds, the latest time stamp of the scans learned; None without). Everything the
+    map takes and answers is in world frame, whatever its local origin.
     """
 
     def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
+        if "resolution" in overrides:
+            if config is not None:
+                raise InputError(
+                    "give a resolution or a config, not both: the config holds its resolution"
+                )
+            config = MapConfig.for_resolution(overrides.pop("resolution"))
         base = config if config is not None else MapConfig()
         self.config = base.replace(**overrides) if overrides else base
         self._reset()

@@ -384,3 +384,12 @@ def test_maps_near_the_world_origin_keep_it():
     np.testing.assert_array_equal(
         local_origin_for(np.array([499_781.6, 4_200_300.0, 2500.0])), [499_712, 4_200_448, 2048]
     )
+
+
+def test_a_map_of_a_resolution_takes_that_resolution_s_settings():
+    at_once = ehm.HilbertMap(resolution=0.2, max_range=80.0).config
+    assert at_once == ehm.MapConfig.for_resolution(0.2, max_range=80.0)
+    with pytest.raises(ehm.InputError, match="give a resolution or a config, not both"):
+        ehm.HilbertMap(ehm.MapConfig(), resolution=0.2)
+    with pytest.raises(ehm.SettingsError, match=r"resolution: .* MapConfig\.for_resolution"):
+        ehm.MapConfig().replace(resolution=0.2)
