@@ -113,6 +113,13 @@ def test_bad_inputs_give_clear_errors(map_file, plan_log, tmp_path):
     assert not (tmp_path / "x.ehm").exists()
 
 
+def test_map_help_names_every_reader():
+    from ehm.io.readers import FORMATS
+
+    result = runner.invoke(app, ["map", "--help"], env={"COLUMNS": "400"})
+    assert " ".join(FORMATS) in " ".join(result.output.split())
+
+
 def test_version_is_told_and_stops():
     result = runner.invoke(app, ["--version"])
     assert result.exit_code == 0 and result.output == f"ehm {ehm.__version__}\n"

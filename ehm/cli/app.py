@@ -92,7 +92,7 @@ def _options(
 
 Resolution = Annotated[
     float | None,
-    typer.Option(help="Voxel side of the grid, metres.  [default: the map's resolution]"),
+    typer.Option(help="Voxel side of the grid, metres.  \\[default: the map's resolution]"),
 ]
 
 

@@ -134,11 +134,11 @@ def diff(
     bounds: Bounds = None,
     occupied: Annotated[
         float | None,
-        typer.Option(help="Occupied at or above this p(occupied) [default: map_server's, 0.65]."),
+        typer.Option(help="Occupied at or above this p(occupied) \\[default: map_server's, 0.65]."),
     ] = None,
     free: Annotated[
         float | None,
-        typer.Option(help="Free at or below this p(occupied) [default: map_server's, 0.196]."),
+        typer.Option(help="Free at or below this p(occupied) \\[default: map_server's, 0.196]."),
     ] = None,
     max_gib: MaxGiB = 1.0,
     force: Force = False,

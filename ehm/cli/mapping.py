@@ -88,12 +88,21 @@ def demo(
 @app.command("map")
 def map_command(
     inputs: Annotated[
-        list[Path], typer.Argument(help="Scan files, a TUM folder, ROS bags (.bag or folders).")
+        list[Path],
+        typer.Argument(
+            help="Scan files, depth folders (TUM, 7-Scenes, Redwood), KITTI sequences, LiDAR "
+            "captures (.pcap), ROS bags (.bag, or ROS 2 bag folders)."
+        ),
     ],
     output: Annotated[Path, typer.Option("--output", "-o", help="Map file to write.")],
     format: Annotated[
         str | None,
-        typer.Option("--format", "-f", help="Reader: xyz ply pcd las kitti graph tum carmen bag."),
+        typer.Option(
+            "--format",
+            "-f",
+            help="Reader (default: by the input's name and content): xyz ply pcd las kitti "
+            "graph tum 7scenes redwood carmen bag ouster velodyne.",
+        ),
     ] = None,
     origin: Annotated[
         str | None,
@@ -134,7 +143,7 @@ def map_command(
         float | None,
         typer.Option(
             help="CARMEN FLASER lines: the laser's field of view, degrees (ROBOTLASER1 lines "
-            "carry theirs).  [default: 180]"
+            "carry theirs).  \\[default: 180]"
         ),
     ] = None,
     topic: Annotated[
@@ -167,7 +176,7 @@ def map_command(
         float | None,
         typer.Option(
             help="Map detail, metres: scales every length setting (MapConfig.for_resolution); "
-            "about 0.2 for long-range outdoor LiDAR.  [default: 0.05]"
+            "about 0.2 for long-range outdoor LiDAR.  \\[default: 0.05]"
         ),
     ] = None,
     setting: Annotated[
