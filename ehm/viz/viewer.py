@@ -34,6 +34,10 @@ PATH_COLOR = (230, 40, 40)
 SAMPLE_COLOR = (40, 40, 40)
 
 
+# Where the viewer first cuts the surface, metres above the sensor's median height.
+CUT_ABOVE_SENSOR = 1.0
+
+
 class MapViewer:
     """Serves `hilbert_map` at http://host:port (see the module). `surface` is the scene node
     of the current surface and `mesh` its trimesh.Trimesh (None where the grid does not cross
@@ -65,14 +69,23 @@ class MapViewer:
         self.coloring = self.server.gui.add_dropdown(
             "colour by", ("height", "uncertainty (std)"), initial_value="height"
         )
-        low, high = self.grid.bounds
+        step = self.grid.resolution
+        low, high = np.floor(self.grid.bounds[0][2] / step), np.ceil(self.grid.bounds[1][2] / step)
+        low, high = float(low * step), float(high * step)
+        sensor = (
+            float(np.median(hilbert_map.sensor_path[:, 2])) if len(hilbert_map.sensor_path) else low
+        )
+
+        def on_step(height: float) -> float:
+            return float(np.clip(np.round(height / step) * step, low, high))
+
         self.slice_height = self.server.gui.add_slider(
-            "slice height (m)", float(low[2]), float(high[2]), self.grid.resolution,
-            float(np.clip(1.0, low[2], high[2])),
-        )  # fmt: skip
+            "slice height (m)", low, high, step, on_step(sensor)
+        )
+        # Cut below the ceiling: a room opens from above, a street keeps its trees' trunks.
         self.cut_above = self.server.gui.add_slider(
-            "cut above (m)", float(low[2]), float(high[2]), self.grid.resolution,
-            float(high[2] if cut_above is None else np.clip(cut_above, low[2], high[2])),
+            "cut above (m)", low, high, step,
+            on_step(sensor + CUT_ABOVE_SENSOR if cut_above is None else cut_above),
         )  # fmt: skip
         self.show_slice = self.server.gui.add_checkbox("show slice", False)
         self.slice_of = self.server.gui.add_dropdown("slice of", SLICES, initial_value=SLICES[0])

@@ -120,3 +120,14 @@ def test_cutting_above_a_height_leaves_out_the_ceiling(room_viewer):
     faces = np.asarray(room_viewer.mesh.faces)
     assert 0 < room_viewer.n_faces < whole
     assert np.all(vertices[faces, 2].min(axis=1) <= 2.0)
+
+
+def test_the_sliders_open_on_round_heights_below_the_ceiling(room_viewer, room_map):
+    step = room_viewer.grid.resolution
+    sensor = float(np.median(room_map.sensor_path[:, 2]))
+    for slider in (room_viewer.slice_height, room_viewer.cut_above):
+        for value in (slider.min, slider.max, slider.value):
+            assert abs(value / step - round(value / step)) < 1e-9
+    assert room_viewer.slice_height.value == pytest.approx(sensor, abs=step / 2)
+    assert room_viewer.cut_above.value == pytest.approx(sensor + 1.0, abs=step / 2)
+    assert room_viewer.cut_above.value < 3.0 < room_viewer.cut_above.max  # under the ceiling
