@@ -85,9 +85,10 @@ def guess_format(path: str | PathLike[str]) -> str:
     suffix = uncompressed_suffix(path)
     if suffix == ".pcap" and path.suffix.lower() == ".pcap":
         return _capture_format(path)
-    if path.suffix.lower() in COMPRESSED_SUFFIXES and suffix in ("", ".bag"):
-        if suffix == ".bag":
-            raise FileReadError(path, "a compressed bag is not read; decompress it first")
+    if path.suffix.lower() in COMPRESSED_SUFFIXES and suffix in ("", ".bag", ".pcap"):
+        if suffix in (".bag", ".pcap"):
+            kind = "bag" if suffix == ".bag" else "packet capture"
+            raise FileReadError(path, f"a compressed {kind} is not read; decompress it first")
         return "xyz"  # a compressed point file named without its own extension
     fmt = _EXTENSIONS.get(suffix)
     if fmt is None:

@@ -14,6 +14,8 @@ def test_format_guess_and_errors(tmp_path):
     assert guess_format("cloud.PCD.GZ") == "pcd"
     with pytest.raises(ValueError, match="a compressed bag is not read; decompress it first"):
         guess_format("old.bag.gz")
+    with pytest.raises(ValueError, match="compressed packet capture is not read; decompress"):
+        guess_format("drive.pcap.gz")
     with pytest.raises(ValueError, match=r"unknown extension '\.abc'"):
         guess_format("a.abc.gz")
     with pytest.raises(ValueError, match=r"unknown extension '\.abc'"):
