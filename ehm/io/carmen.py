@@ -96,7 +96,10 @@ def _robotlaser(words: list[str]):
         raise ValueError(f"{n_remissions} remissions")
     laser = 10 + n + n_remissions
     pose = _pose(words[laser : laser + 3])
-    angles = pose[2] + start + np.arange(n) * step
+    with np.errstate(over="ignore", invalid="ignore"):
+        angles = pose[2] + start + np.arange(n) * step
+    if not np.all(np.isfinite(angles)):
+        raise ValueError(f"start angle {start} and step {step} over {n} readings overflow")
     return ranges, angles, pose, max_range, _number(words, laser + 11)
 
 
@@ -123,7 +126,8 @@ def _scan(
         return None
     x, y, _ = pose
     r, a = ranges[ranged], angles[ranged]
-    points = np.column_stack([x + r * np.cos(a), y + r * np.sin(a)])
+    with np.errstate(over="ignore", invalid="ignore"):  # too far to hold: dropped by Scan
+        points = np.column_stack([x + r * np.cos(a), y + r * np.sin(a)])
     return Scan(points, np.array([x, y]), time=time)
 
 

@@ -40,6 +40,12 @@ def fails(path, message, **options):
         ("bad.log", b"FLASER 3 1 2\n", r"line 1: malformed FLASER line"),
         ("nan.log", b"FLASER 1 1.0 nan 0 0 0 0 0 0 h 0\n", r"line 1: malformed FLASER"),
         ("theta.log", b"FLASER 1 1.0 0 0 inf 0 0 0 0 h 0\n", r"theta .* is not 3 finite"),
+        (
+            "step.clf",
+            b"ROBOTLASER1 0 -1.5 3.1 1e308 81.9 0.01 0 3 2.0 2.0 3.0 0 "
+            b"0 0 0 0 0 0 0 0 0 0 0 5 h 6\n",
+            r"start angle -1\.5 and step 1e\+308 over 3 readings overflow",
+        ),
         ("negative.log", b"FLASER 2 1.0 -2 0 0 0 0 0 0 0 h 0\n", "readings must be numbers >= 0"),
         ("a.ply", b"ply\nformat ascii 1.0\nelement vertex 1\n", "no 'ply' magic or no end_header"),
         (
