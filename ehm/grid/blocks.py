@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ehm.core.queries.cover import covered_cells
 from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, grid_shape, support_half_widths
@@ -100,13 +101,9 @@ def block_layout(
             "coarsen the resolution, shrink the bounds or raise the limit (max_bytes; "
             "--max-gib)"
         )
-    cluster = np.repeat(np.arange(len(counts)), counts)
-    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    offsets = np.empty((len(cluster), dim), dtype=np.int64)
-    for axis in range(dim - 1, -1, -1):  # unravel each pair's place in its cluster's span
-        offsets[:, axis] = within % spans[cluster, axis]
-        within //= spans[cluster, axis]
-    pair_keys = low[cluster] + offsets
+    reaching = np.flatnonzero(np.all(spans > 0, axis=1))  # clusters within the bounds
+    pair_keys, owners = covered_cells(low[reaching], high[reaching])
+    cluster = reaching[owners]  # each block a cluster reaches, and that cluster
     if closed_below:
         steps = np.array(np.meshgrid(*[[0, -1]] * dim, indexing="ij")).reshape(dim, -1).T
         extra = (pair_keys[:, None, :] + steps[None, 1:, :]).reshape(-1, dim)

@@ -46,8 +46,18 @@ class KernelCover:
         """The cover without the kernels `removed` and with the kernels `added`, each
         (means, reach, weights) as of_kernels takes them (a changed kernel: its old self
         removed, its new self added)."""
-        keys_out, weights_out = self._cells_of(*removed)
-        keys_in, weights_in = self._cells_of(*added)
+        return self.with_cells(*self._cells_of(*removed), *self._cells_of(*added))
+
+    def with_cells(
+        self,
+        keys_out: np.ndarray,
+        weights_out: np.ndarray,
+        keys_in: np.ndarray,
+        weights_in: np.ndarray,
+    ) -> KernelCover:
+        """The cover with one kernel less at each cell of `keys_out` ((n,) packed keys, one a
+        kernel and cell) and its weight taken off, and one more at each of `keys_in` with its
+        weight added; cells no kernel covers any more are left out."""
         keys = np.concatenate([keys_out, keys_in])
         weights = np.concatenate([-weights_out, weights_in])
         counts = np.concatenate([np.full(len(keys_out), -1), np.ones(len(keys_in), np.int64)])

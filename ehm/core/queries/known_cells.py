@@ -17,31 +17,39 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ehm.core.queries.cover import pack_cells, unpack_cells
+from ehm.core.queries.cover import KernelCover, pack_cells
 from ehm.core.queries.raycast import CandidateCells
 
 
 @dataclass(frozen=True)
 class KnownCover:
-    """Cells of side `side` metres, in `dim` dimensions, wholly inside some kernel's support,
-    with how many kernels hold each whole: keys (c,) int64, sorted, packed cell coordinates
-    (63 // dim bits per axis); counts (c,) int64. It follows a map's updates by counting the
-    kernels that changed out and in (`changed`); `cells` is what rays pass over."""
+    """Cells wholly inside some kernel's support, with how many kernels hold each whole, kept
+    as a KernelCover whose counts are those kernels (its sums count them too). It follows a
+    map's updates by counting the kernels that changed out and in (`changed`); `cells` is
+    what rays pass over."""
 
-    side: float
-    dim: int
-    keys: np.ndarray
-    counts: np.ndarray
+    cover: KernelCover
 
     @classmethod
     def of_kernels(
         cls, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray, side: float
     ) -> KnownCover:
-        """The cover of kernels: means (M, d) metres, transforms (M, d, d) 1/m, planar (M,)."""
+        """The cover of kernels: means (M, d) metres, transforms (M, d, d) 1/m, planar (M,);
+        cells of `side` metres."""
         empty = np.zeros(0, dtype=np.int64)
-        cover = cls(side, means.shape[1], empty, empty)
+        cover = cls(KernelCover(side, means.shape[1], empty, np.zeros(0), empty))
         nothing = (means[:0], transforms[:0], planar[:0])
         return cover.changed(nothing, (means, transforms, planar))
+
+    @property
+    def keys(self) -> np.ndarray:
+        """(c,) int64, sorted, packed cell coordinates (63 // d bits per axis)."""
+        return self.cover.keys
+
+    @property
+    def counts(self) -> np.ndarray:
+        """(c,) int64, the kernels holding each cell whole."""
+        return self.cover.counts
 
     def changed(
         self,
@@ -51,27 +59,16 @@ class KnownCover:
         """The cover without the kernels `removed` and with the kernels `added`, each
         (means, transforms, planar) (a changed kernel: its old self removed, its new self
         added)."""
-        bits = 63 // self.dim
-        keys_out = pack_cells(_kept(whole_cells(*removed, self.side), bits), bits)
-        keys_in = pack_cells(_kept(whole_cells(*added, self.side), bits), bits)
-        keys = np.concatenate([self.keys, keys_out, keys_in])
-        counts = np.concatenate([self.counts, -np.ones(len(keys_out), np.int64),
-                                 np.ones(len(keys_in), np.int64)])  # fmt: skip
-        distinct, inverse = np.unique(keys, return_inverse=True)
-        summed = np.bincount(inverse.ravel(), counts, len(distinct)).astype(np.int64)
-        held = summed > 0
-        return KnownCover(self.side, self.dim, distinct[held], summed[held])
+        cover = self.cover
+        keys_out = pack_cells(_kept(whole_cells(*removed, cover.side), cover.bits), cover.bits)
+        keys_in = pack_cells(_kept(whole_cells(*added, cover.side), cover.bits), cover.bits)
+        ones = np.ones(len(keys_out)), np.ones(len(keys_in))
+        return KnownCover(cover.with_cells(keys_out, ones[0], keys_in, ones[1]))
 
     def cells(self) -> CandidateCells:
         """The cells, as rays walk them (CandidateCells.next_run)."""
-        bits = 63 // self.dim
-        if len(self.keys) == 0:
-            low, high = np.zeros(self.dim, np.int64), np.full(self.dim, -1, np.int64)
-            return CandidateCells(self.side, bits, self.keys, low, high)
-        coordinates = unpack_cells(self.keys, bits, self.dim)
-        return CandidateCells(
-            self.side, bits, self.keys, coordinates.min(axis=0), coordinates.max(axis=0)
-        )
+        cover = self.cover
+        return CandidateCells.of_keys(cover.keys, cover.side, cover.bits, cover.dim)
 
 
 def whole_cells(
@@ -184,4 +181,4 @@ def known_cells_reference(
         inside = np.abs(u).max(axis=2) if flat else (u * u).sum(axis=2)
         found.append(cells[np.all(inside < 1.0, axis=1)])
     keys = np.unique(pack_cells(_kept(np.concatenate(found), 63 // dim), 63 // dim))
-    return KnownCover(side, dim, keys, np.ones(len(keys), dtype=np.int64)).cells()
+    return CandidateCells.of_keys(keys, side, 63 // dim, dim)

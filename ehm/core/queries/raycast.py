@@ -396,11 +396,16 @@ class CandidateCells:
         if intercept > threshold:
             return None
         kept = cover.keys[intercept + cover.sums > threshold]
-        if len(kept) == 0:
-            low, high = np.zeros(cover.dim, np.int64), np.full(cover.dim, -1, np.int64)
-            return cls(cover.side, cover.bits, kept, low, high)
-        coordinates = unpack_cells(kept, cover.bits, cover.dim)
-        return cls(cover.side, cover.bits, kept, coordinates.min(axis=0), coordinates.max(axis=0))
+        return cls.of_keys(kept, cover.side, cover.bits, cover.dim)
+
+    @classmethod
+    def of_keys(cls, keys: np.ndarray, side: float, bits: int, dim: int) -> CandidateCells:
+        """The cells of sorted packed `keys` ((c,) int64, `bits` an axis) of side `side`."""
+        if len(keys) == 0:
+            low, high = np.zeros(dim, np.int64), np.full(dim, -1, np.int64)
+            return cls(side, bits, keys, low, high)
+        coordinates = unpack_cells(keys, bits, dim)
+        return cls(side, bits, keys, coordinates.min(axis=0), coordinates.max(axis=0))
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """(n,) bool: whether each of (n, d) points, metres, lies in one of the cells (False
