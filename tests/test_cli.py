@@ -120,6 +120,22 @@ def test_map_help_names_every_reader():
     assert " ".join(FORMATS) in " ".join(result.output.split())
 
 
+def test_help_shows_flags_bare_and_summaries_as_flowing_text():
+    wide = {"COLUMNS": "400"}
+    group_help = runner.invoke(app, ["--help"], env=wide).output
+    # One line a command at this width: the docstring's own line breaks are gone.
+    assert (
+        "demo    Simulate the virtual room, map it, score the map against the exact "
+        "occupancy, and write the map" in group_help
+    )
+    for command in ["demo", "map", "query", "grid", "mesh", "render", "export", "view"]:
+        output = runner.invoke(app, [command, "--help"], env=wide).output
+        assert "<bool>" not in output, command
+        assert "{map_path}" not in output and "{inputs}" not in output, command
+    usage = runner.invoke(app, ["query", "--help"], env=wide).output
+    assert "query [OPTIONS] {MAP} {POINTS}" in usage
+
+
 def test_version_is_told_and_stops():
     result = runner.invoke(app, ["--version"])
     assert result.exit_code == 0 and result.output == f"ehm {ehm.__version__}\n"

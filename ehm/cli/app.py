@@ -3,6 +3,7 @@ consoles, option types, and parsing of settings, boxes and lists."""
 
 from __future__ import annotations
 
+import inspect
 import math
 import time
 import warnings
@@ -23,6 +24,15 @@ from ehm.errors import EhmError, InputError
 class _Commands(TyperGroup):
     """The command group: turns ehm's errors into one line on stderr (see the module), and
     what readers assume into `note:` lines, as they come."""
+
+    def get_command(self, ctx: Any, name: str) -> Any:
+        """The command, its docstring's lines joined into paragraphs, which Rich then wraps to
+        the terminal (else each source line breaks the help text)."""
+        command = super().get_command(ctx, name)
+        if command is not None and command.help:
+            paragraphs = inspect.cleandoc(command.help).split("\n\n")
+            command.help = "\n\n".join(" ".join(p.split()) for p in paragraphs)
+        return command
 
     def invoke(self, ctx: Any) -> Any:
         try:

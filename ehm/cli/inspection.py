@@ -28,7 +28,7 @@ from ehm.errors import EmptyMapError, InputError
 
 @app.command()
 def view(
-    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    map_path: Annotated[Path, typer.Argument(metavar="MAP", help="Map file.")],
     port: Annotated[int, typer.Option(help="Port of the web page.")] = 8080,
     host: Annotated[
         str, typer.Option(help="Address to serve on (0.0.0.0: every interface).")
@@ -50,7 +50,7 @@ def view(
 
 @app.command()
 def info(
-    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    map_path: Annotated[Path, typer.Argument(metavar="MAP", help="Map file.")],
     all_settings: Annotated[
         bool, typer.Option("--all", help="Every setting, not only those changed.")
     ] = False,
@@ -121,8 +121,12 @@ def _same_setting(value, default) -> bool:
 
 @app.command()
 def diff(
-    old_path: Annotated[Path, typer.Argument(help="The older map (file or tiled map folder).")],
-    new_path: Annotated[Path, typer.Argument(help="The newer map of the same place.")],
+    old_path: Annotated[
+        Path, typer.Argument(metavar="OLD", help="The older map (file or tiled map folder).")
+    ],
+    new_path: Annotated[
+        Path, typer.Argument(metavar="NEW", help="The newer map of the same place.")
+    ],
     output: Annotated[
         Path, typer.Option("--output", "-o", help="Picture to write (.png), seen from above.")
     ],

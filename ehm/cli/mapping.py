@@ -90,8 +90,9 @@ def map_command(
     inputs: Annotated[
         list[Path],
         typer.Argument(
+            metavar="INPUTS...",
             help="Scan files, depth folders (TUM, 7-Scenes, Redwood), KITTI sequences, LiDAR "
-            "captures (.pcap), ROS bags (.bag, or ROS 2 bag folders)."
+            "captures (.pcap), ROS bags (.bag, or ROS 2 bag folders).",
         ),
     ],
     output: Annotated[Path, typer.Option("--output", "-o", help="Map file to write.")],

@@ -45,9 +45,13 @@ def check_unknown(unknown: str, distance: bool) -> None:
 
 @app.command()
 def query(
-    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    map_path: Annotated[Path, typer.Argument(metavar="MAP", help="Map file.")],
     points: Annotated[
-        Path, typer.Argument(help="Points: .npy (n, d) or comma-separated text, d numbers a line.")
+        Path,
+        typer.Argument(
+            metavar="POINTS",
+            help="Points: .npy (n, d) or comma-separated text, d numbers a line.",
+        ),
     ],
     output: Annotated[
         Path | None, typer.Option("--output", "-o", help="Write .npy or .csv; default stdout.")
@@ -96,7 +100,7 @@ def query(
 
 @app.command()
 def grid(
-    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    map_path: Annotated[Path, typer.Argument(metavar="MAP", help="Map file.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Grid file to write (.npz).")],
     resolution: Resolution = None,
     bounds: Bounds = None,
@@ -120,7 +124,7 @@ def grid(
 
 @app.command()
 def mesh(
-    map_path: Annotated[Path, typer.Argument(help="Map file (3D).")],
+    map_path: Annotated[Path, typer.Argument(metavar="MAP", help="Map file (3D).")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Mesh file to write (.ply).")],
     resolution: Resolution = None,
     bounds: Bounds = None,
@@ -151,7 +155,7 @@ def mesh(
 
 @app.command()
 def render(
-    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    map_path: Annotated[Path, typer.Argument(metavar="MAP", help="Map file.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Picture to write (.png).")],
     resolution: Resolution = None,
     bounds: Bounds = None,
@@ -207,7 +211,7 @@ def render(
 
 @app.command()
 def export(
-    map_path: Annotated[Path, typer.Argument(help="Map file.")],
+    map_path: Annotated[Path, typer.Argument(metavar="MAP", help="Map file.")],
     output: Annotated[
         Path,
         typer.Option(
