@@ -144,7 +144,7 @@ def test_the_library_loads_neither_evaluation_nor_pictures_nor_readers():
     loaded = loaded_after("import ehm; ehm.HilbertMap().integrate; ehm.load")
     assert "ehm.hilbert_map" in loaded
     heavy = ("ehm.eval", "ehm.viz", "ehm.pipeline", "ehm.cli", "ehm.io.readers", "ehm.io.ply")
-    heavy += ("matplotlib", "skimage", "PIL", "typer", "rich", "octomap", "dask", "distributed")
+    heavy += ("matplotlib", "PIL", "typer", "rich", "octomap", "dask", "distributed")
     assert sorted(m for m in loaded if m.startswith(heavy)) == []
 
 

@@ -218,4 +218,12 @@ def test_the_site_builds_strictly(tmp_path):
         env={**os.environ, "NO_MKDOCS_2_WARNING": "1"},
     )
     assert result.returncode == 0, result.stderr
-    assert (tmp_path / "site" / "reference" / "cli" / "index.html").exists()
+    site = tmp_path / "site"
+    assert (site / "reference" / "cli.html").exists()
+    # Opened from disk, a link must name a file: a folder would list its files. (404.html is
+    # a server's page, linked from the site's root.)
+    for page in set(site.rglob("*.html")) - {site / "404.html"}:
+        for target in re.findall(r'href="(?![a-z]+:)([^"#?]+)', page.read_text()):
+            linked = (page.parent / target).resolve()
+            assert linked.is_file(), f"{page.relative_to(site)} links to {target}"
+    assert not list(site.rglob("*.py")), "the build's hooks are not part of the site"
