@@ -76,9 +76,7 @@ def _wound(polygon: list[int], inside: list[bool]) -> list[int]:
     ends = CUBE_EDGES[polygon]
     points = CUBE_CORNERS[ends].mean(axis=1)
     normal = np.cross(points, np.roll(points, -1, axis=0)).sum(axis=0)
-    outward = sum(
-        (CUBE_CORNERS[b] - CUBE_CORNERS[a]) * (1 if inside[a] else -1) for a, b in ends
-    )
+    outward = sum((CUBE_CORNERS[b] - CUBE_CORNERS[a]) * (1 if inside[a] else -1) for a, b in ends)
     return polygon if normal @ outward > 0 else polygon[::-1]
 
 
