@@ -8,6 +8,7 @@ close into polygons, fanned into triangles."""
 from __future__ import annotations
 
 from collections.abc import Iterable
+from functools import cache
 
 import numpy as np
 
@@ -80,9 +81,10 @@ def _wound(polygon: list[int], inside: list[bool]) -> list[int]:
     return polygon if normal @ outward > 0 else polygon[::-1]
 
 
-def _case_table() -> tuple[np.ndarray, np.ndarray]:
+@cache
+def case_table() -> tuple[np.ndarray, np.ndarray]:
     """(256, T, 3) int64 cube edges of each case's triangles, fanned from each polygon, and
-    (256,) int64 how many triangles each case has."""
+    (256,) int64 how many triangles each case has. Built on first use, not at import."""
     triangles = [
         [(p[0], p[i], p[i + 1]) for p in _cube_polygons(case) for i in range(1, len(p) - 1)]
         for case in range(256)
@@ -93,9 +95,6 @@ def _case_table() -> tuple[np.ndarray, np.ndarray]:
         if rows:
             table[case, : len(rows)] = rows
     return table, counts
-
-
-CASE_TRIANGLES, CASE_COUNTS = _case_table()
 
 
 def marching_cubes(
@@ -121,10 +120,11 @@ def marching_cubes(
     # (C, 8) flat voxel indices of the corners of each cube the level crosses.
     corners = _crossed_cubes(inside)[:, None] + CUBE_CORNERS @ strides
     case = (inside.ravel()[corners] << np.arange(8)).sum(axis=1)
-    counts = CASE_COUNTS[case]
+    case_triangles, case_counts = case_table()
+    counts = case_counts[case]
     cube = np.repeat(np.arange(len(case)), counts)
     which = np.arange(len(cube)) - np.repeat(np.cumsum(counts) - counts, counts)
-    edges = CASE_TRIANGLES[case[cube], which]  # (F, 3) cube edges
+    edges = case_triangles[case[cube], which]  # (F, 3) cube edges
     # One vertex per crossed grid edge (its low end and axis), shared by the faces meeting it.
     edge_keys = corners[cube[:, None], CUBE_EDGES[edges, 0]] * 3 + EDGE_AXES[edges]
     crossed = np.zeros(3 * probability.size, dtype=bool)
