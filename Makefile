@@ -8,27 +8,33 @@ BIN := $(VENV)/bin
 # The viewer's tests look at it in a real browser: Debian's headless Chromium.
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
+# The runtime only, for `make demo`; bytecode is written as modules are first imported.
 $(BIN)/ehm: pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --no-compile -e .
 	touch $(BIN)/ehm
+
+# Every extra and the development tools, for `make test`, `make docs`, `make lint`, `make bench`.
+$(VENV)/dev: $(BIN)/ehm
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(VENV)/dev
 
 demo: $(BIN)/ehm
 	$(BIN)/ehm demo
 
-test: $(BIN)/ehm chromium
+test: $(VENV)/dev chromium
 	$(BIN)/python -m pytest -q
 
 chromium:
 	command -v chromium >/dev/null || ($(SUDO) apt-get update -qq && \
 		DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq chromium >/dev/null)
 
-lint: $(BIN)/ehm
+lint: $(VENV)/dev
 	$(BIN)/ruff check ehm tests benchmarks docs
 	$(BIN)/ruff format --check ehm tests benchmarks docs
 
-bench: $(BIN)/ehm
+bench: $(VENV)/dev
 	$(BIN)/python benchmarks/octomap_scan.py
 	$(BIN)/python benchmarks/virtual_room.py
 	$(BIN)/python benchmarks/grids.py
@@ -53,5 +59,5 @@ clean:
 	rm -rf $(VENV) build site *.egg-info
 
 # The documentation site, into site/ (every warning an error).
-docs: $(BIN)/ehm
+docs: $(VENV)/dev
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
