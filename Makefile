@@ -2,6 +2,8 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+# Quiet installs: setuptools warns at every editable install of a package in its own checkout.
+PIP := PYTHONWARNINGS=ignore::UserWarning $(BIN)/python -m pip install --quiet
 
 .PHONY: demo test docs lint bench clean chromium
 
@@ -11,13 +13,13 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # The runtime only, for `make demo`; bytecode is written as modules are first imported.
 $(BIN)/ehm: pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet --no-compile -e .
+	$(PIP) --upgrade pip
+	$(PIP) --no-compile -e .
 	touch $(BIN)/ehm
 
 # Every extra and the development tools, for `make test`, `make docs`, `make lint`, `make bench`.
 $(VENV)/dev: $(BIN)/ehm
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(PIP) -e '.[dev]'
 	touch $(VENV)/dev
 
 demo: $(BIN)/ehm
