@@ -1,4 +1,5 @@
-"""Start-up time: `ehm --help`, `import ehm`, and the first `ehm map` after `pip install`.
+"""Start-up time: `ehm --help`, `import ehm`, the first `ehm map` after `pip install`, and the
+first queries of a new process after `ehm warm`.
 
     python benchmarks/startup.py [--repeats 7] [--no-install]
 
@@ -10,12 +11,19 @@ Then the package is installed (not editable) into a new virtual environment, and
 runs three times on OctoMap's sample scan: cold (nothing compiled yet), then warm. Numba
 reports each compiled kernel it writes to its cache (`NUMBA_DEBUG_CACHE`); a warm run that
 writes none compiled nothing.
+
+In a second new environment, `ehm warm` compiles every kernel; then a new process loads the
+sample scan's map and makes each query's and output's first call, timed (target: at most 1 s
+each), counting the kernels it compiles (target: none). Results in
+benchmarks/results/startup.json.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import platform
 import statistics
 import subprocess
 import sys
@@ -28,6 +36,40 @@ from common import heading
 from ehm.eval.datasets.real import data_dir
 
 PROJECT = Path(__file__).resolve().parents[1]
+RESULTS = Path(__file__).parent / "results" / "startup.json"
+# A new process's first call of each query and output on the sample scan's map: it prints
+# "name seconds" per call.
+FIRST_CALLS = """
+import sys, time
+import numpy as np
+import ehm
+from ehm.grid.blocks import block_mesh
+from ehm.grid.navigation import projected_navigation_grid
+hilbert_map = ehm.HilbertMap.load(sys.argv[1])
+rng = np.random.default_rng(0)
+low, high = hilbert_map.extent()
+points = rng.uniform(low, high, size=(10_000, 3))
+origins = np.repeat(hilbert_map.sensor_path[:1], 1000, axis=0)
+directions = rng.normal(size=(1000, 3))
+directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+calls = {
+    "occupancy": lambda: hilbert_map.occupancy(points),
+    "occupancy with std": lambda: hilbert_map.occupancy(points, return_std=True),
+    "gradient": lambda: hilbert_map.gradient(points[:1000]),
+    "raycast": lambda: hilbert_map.raycast(origins, directions, 10.0),
+    "segment_free": lambda: hilbert_map.segment_free(origins, origins + directions),
+    "distance": lambda: hilbert_map.distance(points[:1000]),
+    "grid": lambda: hilbert_map.grid(np.stack([low, low + 4.0]), 0.1),
+    "mesh (blocks)": lambda: block_mesh(hilbert_map.snapshot(), 0.1, np.stack([low, low + 4.0])),
+    "nav2 projection": lambda: projected_navigation_grid(
+        hilbert_map, (-1.0, 1.0), np.stack([low[:2], low[:2] + 8.0]), 0.1
+    ),
+}
+for name, call in calls.items():
+    start = time.perf_counter()
+    call()
+    print(name, time.perf_counter() - start)
+"""
 COMMANDS = {
     "python -c pass (reference)": [sys.executable, "-c", "pass"],
     "ehm --help": [str(Path(sys.executable).with_name("ehm")), "--help"],
@@ -91,6 +133,42 @@ def print_first_runs() -> None:
             print(f"| {run} | {seconds:.1f} | {compiled} |")
 
 
+def print_first_calls_after_warm() -> dict:
+    scan = data_dir() / "octomap_scan" / "scan.dat.bz2"
+    print(heading("First calls after `ehm warm`", "a new process, OctoMap's sample scan map"))
+    env = {**os.environ, "NUMBA_DEBUG_CACHE": "1"}
+    env.pop("NUMBA_CACHE_DIR", None)
+    with tempfile.TemporaryDirectory() as tmp:
+        ehm_command = fresh_install(Path(tmp) / "venv")
+        start = time.perf_counter()
+        warm = subprocess.run(
+            [str(ehm_command), "warm"], check=True, capture_output=True, text=True, env=env
+        )
+        warm_seconds = time.perf_counter() - start
+        map_path = Path(tmp) / "scan.ehm"
+        subprocess.run([str(ehm_command), "map", str(scan), "-o", str(map_path)], check=True,
+                       capture_output=True, env=env)  # fmt: skip
+        python = ehm_command.with_name("python")
+        run = subprocess.run(
+            [str(python), "-c", FIRST_CALLS, str(map_path)],
+            check=True, capture_output=True, text=True, env=env,
+        )  # fmt: skip
+    first = {
+        line.rsplit(" ", 1)[0]: float(line.rsplit(" ", 1)[1])
+        for line in run.stdout.splitlines()
+        if not line.startswith("[cache]")
+    }
+    compiled = run.stdout.count("[cache] data saved to")
+    print(f"`ehm warm` after install: {warm_seconds:.0f} s, "
+          f"{warm.stdout.count('[cache] data saved to')} kernels compiled\n")  # fmt: skip
+    print("| first call | seconds | target |")
+    print("|---|---:|---|")
+    for name, seconds in first.items():
+        print(f"| {name} | {seconds:.2f} | <= 1 |")
+    print(f"\nkernels compiled by these first calls: {compiled} (target 0)")
+    return {"warm_seconds": warm_seconds, "first_call_seconds": first, "compiled": compiled}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
@@ -99,6 +177,11 @@ def main() -> None:
     print_start_up(args.repeats)
     if not args.no_install:
         print_first_runs()
+        after_warm = print_first_calls_after_warm()
+        RESULTS.parent.mkdir(exist_ok=True)
+        record = {"machine": f"{platform.machine()}, {os.cpu_count()} cores", **after_warm}
+        record["date"] = time.strftime("%Y-%m-%d")
+        RESULTS.write_text(json.dumps(record, indent=1) + "\n")
 
 
 if __name__ == "__main__":

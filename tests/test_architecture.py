@@ -27,6 +27,7 @@ LAYERS = (
     "ehm.maps",
     "ehm.changes",
     "ehm.viz",
+    "ehm.warm",
     "ehm.eval",
     "ehm.cli",
     "ehm",

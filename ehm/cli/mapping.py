@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import signal
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated
@@ -30,15 +29,14 @@ COMPILED_SECONDS = 10.0
 
 
 def _prepare_kernels() -> None:
-    """Compile the map's kernels (the first run after install: about a minute) or load them
-    from Numba's cache (a second or two), on two small scans, saying which, so that the timings
-    shown next are the algorithm's."""
-    from ehm.eval.runner import warm_up
+    """Compile every kernel (the first run after install: a minute or two) or load them from
+    Numba's cache (a few seconds), with the step on a status line, saying which happened."""
+    from ehm.warm import warm_kernels
 
-    start = time.perf_counter()
-    with console.status("preparing the compiled kernels (a minute on the first run after install)"):
-        warm_up("ehm", 3)
-    seconds = time.perf_counter() - start
+    with console.status("preparing the compiled kernels") as status:
+        seconds = warm_kernels(
+            lambda step: status.update(f"preparing the compiled kernels: {step}")
+        )
     if seconds >= COMPILED_SECONDS:
         console.print(
             f"compiled the kernels in {seconds:.0f} s, once: later runs load them from the cache"
@@ -83,6 +81,14 @@ def demo(
     )
     for path in result.written:
         console.print(f"wrote {path}")
+
+
+@app.command()
+def warm() -> None:
+    """Compile every kernel of learning, queries and outputs now, in 2D and 3D (a minute or
+    two, once after install; `ehm demo` does it too), so that no later command or first query
+    waits on compiling."""
+    _prepare_kernels()
 
 
 @app.command("map")
