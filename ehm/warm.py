@@ -17,6 +17,7 @@ from ehm.grid.navigation import navigation_grid, projected_navigation_grid
 from ehm.hilbert_map import HilbertMap
 from ehm.io.distance_file import DistanceGrid
 from ehm.io.lzf import lzf_decompress
+from ehm.pipeline import MappingPipeline
 from ehm.viz.render import Camera, render_mesh
 
 # Rays of each warm-up scan: a batch's worth (MapConfig.batch_rays) in 3D, so the second scan
@@ -108,10 +109,7 @@ def warm_kernels(report: Callable[[str], None] | None = None) -> float:
     say = report or (lambda step: None)
     for dim in (3, 2):
         say(f"learning {dim}D scans")
-        hilbert_map = HilbertMap()
-        for scan in room_scans(dim):  # scan by scan, as `ehm map` learns
-            hilbert_map.integrate_scan(scan)
-        hilbert_map.flush()
+        hilbert_map = MappingPipeline(room_scans(dim), HilbertMap()).run().hilbert_map
         for step, call in _queries(hilbert_map):
             say(f"{step} ({dim}D)")
             call()
