@@ -11,6 +11,7 @@ from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
 from ehm.eval.datasets import floor_plan_2d, virtual_room
 from ehm.eval.datasets.real import DataMissingError
+from ehm.eval.guide_files import write_carmen_log
 
 # The shared data folder beside the project's checkout, wherever pytest runs from.
 os.environ.setdefault("EHM_DATA_DIR", str(Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -29,19 +30,8 @@ def plan():
 @pytest.fixture(scope="session")
 def plan_log(tmp_path_factory, plan):
     """The floor plan's scans as a CARMEN log of 180 beams each, from -90 to +89 degrees."""
-    lines = []
-    for scan in plan.scans:
-        offsets = scan.points_world[scan.hit_mask] - scan.origin
-        ranges = np.linalg.norm(offsets, axis=1)
-        angles = np.arctan2(offsets[:, 1], offsets[:, 0])
-        beams = np.full(180, 81.83)  # no return
-        index = np.round(np.rad2deg(angles) + 90).astype(int)
-        ok = (index >= 0) & (index < 180)
-        beams[index[ok]] = ranges[ok]
-        values = " ".join(f"{r:.4f}" for r in beams)
-        lines.append(f"FLASER 180 {values} {scan.origin[0]} {scan.origin[1]} 0.0 0 0 0 0 h 0")
     log = tmp_path_factory.mktemp("plan_log") / "plan.log"
-    log.write_text("\n".join(lines) + "\n")
+    write_carmen_log(plan.scans, log)
     return log
 
 

@@ -3,8 +3,8 @@
 Each page's ```python blocks run in order in one namespace, and each `$ ehm ...` line of its
 ```console blocks runs as a command (what follows a command up to the next is its expected
 output when it is an `error:` line: the command must fail with exactly that message), in a
-folder of small files of every format the guides use (`workspace`). Blocks marked ```text are
-shown, not run.
+copy of the folder `ehm demo --data` writes, the recordings the guides use (`workspace`).
+Blocks marked ```text are shown, not run.
 """
 
 import importlib
@@ -17,17 +17,10 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from ehm.cli import app
-from ehm.core.sensor.frames import matrix_to_quaternion
-from ehm.eval.datasets.simulated import (
-    lidar_directions,
-    simulate_scan,
-    virtual_room_scene,
-)
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [*sorted((ROOT / "docs").rglob("*.md")), ROOT / "README.md"]
@@ -73,87 +66,12 @@ def test_code_blocks_and_commands_are_found():
 
 
 @pytest.fixture(scope="session")
-def workspace(tmp_path_factory, plan_log):
-    """Small files of the formats the guides read: a CARMEN log (`floor.log`), a ROS 1 bag of
-    three LiDAR sweeps placed by /tf (`room.bag`), TUM depth frames (`tum_fr2/`), and a KITTI
-    sequence (`kitti/sequences/00` with `kitti/poses/00.txt`)."""
-    folder = tmp_path_factory.mktemp("docs")
-    shutil.copy(plan_log, folder / "floor.log")
-    scene, rng = virtual_room_scene(), np.random.default_rng(0)
-    origins = np.array([[-1.0, 0.0, 1.2], [0.0, 0.0, 1.2], [1.0, 0.2, 1.2]])
-    sweeps = [
-        simulate_scan(scene, o, lidar_directions(32, 512, 30.0), 20.0, 0.01, rng) for o in origins
-    ]
-    _write_bag(folder / "room.bag", sweeps)
-    _write_tum(folder / "tum_fr2", scene, origins)
-    _write_kitti(folder / "kitti", sweeps)
+def workspace(tmp_path_factory):
+    """The folder `ehm demo --data` writes, as a user makes it before following a guide."""
+    folder = tmp_path_factory.mktemp("docs") / "ehm_guides"
+    result = CliRunner().invoke(app, ["demo", "--data", str(folder)])
+    assert result.exit_code == 0, result.output
     return folder
-
-
-def _write_bag(path: Path, sweeps) -> None:
-    """Sweeps in the frame `velodyne`, placed in `map` by /tf, one a second."""
-    from ros_bags import SECOND, write_bag
-    from rosbags.typesys import Stores
-
-    messages = [("/tf_static", 0, lambda m: m.transform(0, "base_link", "velodyne", (0, 0, 0)))]
-    for i, sweep in enumerate(sweeps):
-        stamp, origin = (i + 1) * SECOND, tuple(sweep.origin)
-        points = sweep.points_world[sweep.hit_mask] - sweep.origin
-        messages += [
-            ("/tf", stamp, lambda m, s=stamp, o=origin: m.transform(s, "map", "base_link", o)),
-            ("/velodyne_points", stamp, lambda m, s=stamp, p=points: m.cloud(s, "velodyne", p)),
-        ]
-    write_bag(path, Stores.ROS1_NOETIC, messages)
-
-
-def _write_tum(folder: Path, scene, origins) -> None:
-    """640 x 480 depth frames looking along +x (the camera's z), in TUM's layout, through
-    Freiburg 2's intrinsics (the folder's name names them); only the pixels the reader takes
-    (every second row and column) are rendered, the rest read 0, no depth."""
-    from PIL import Image
-
-    from ehm.io.depth import PIXEL_STRIDE
-    from ehm.io.tum import FREIBURG_CAMERAS
-
-    fx, fy, cx, cy = FREIBURG_CAMERAS[2].intrinsics
-    stride = PIXEL_STRIDE
-    (folder / "depth").mkdir(parents=True)
-    v, u = np.mgrid[0:480:stride, 0:640:stride]
-    rays_camera = np.column_stack([(u.ravel() - cx) / fx, (v.ravel() - cy) / fy, np.ones(u.size)])
-    # Camera: x right, y down, z forward -> world: x forward, y left, z up.
-    R_world_camera = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-    directions = rays_camera @ R_world_camera.T
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    w, x, y, z = matrix_to_quaternion(R_world_camera)
-    q = (x, y, z, w)  # TUM's order
-    lines = []
-    for i, origin in enumerate(origins):
-        ranges = scene.raycast(origin, directions)
-        depth = ranges * (directions @ R_world_camera[:, 2])
-        image = np.zeros((480, 640), dtype=np.uint16)
-        image[::stride, ::stride] = np.where(ranges < 8.0, np.round(depth * 5000), 0).reshape(
-            v.shape
-        )
-        Image.fromarray(image).save(folder / "depth" / f"{i}.png")
-        lines.append(f"depth/{i}.png {' '.join(map(str, origin))} {' '.join(map(str, q))}")
-    (folder / "poses.txt").write_text("\n".join(lines) + "\n")
-
-
-def _write_kitti(folder: Path, sweeps) -> None:
-    """The odometry layout, with poses of the Velodyne itself (calib.txt's Tr the identity)."""
-    sequence = folder / "sequences" / "00"
-    (sequence / "velodyne").mkdir(parents=True)
-    (folder / "poses").mkdir()
-    poses = []
-    for i, sweep in enumerate(sweeps):
-        points = sweep.points_world[sweep.hit_mask] - sweep.origin
-        raw = np.column_stack([points, np.ones(len(points))]).astype("<f4")
-        raw.tofile(sequence / "velodyne" / f"{i:06d}.bin")
-        pose = np.hstack([np.eye(3), sweep.origin[:, None]])
-        poses.append(" ".join(f"{x:g}" for x in pose.ravel()))
-    (sequence / "calib.txt").write_text("Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n")
-    (sequence / "times.txt").write_text("".join(f"{0.1 * i:f}\n" for i in range(len(sweeps))))
-    (folder / "poses" / "00.txt").write_text("\n".join(poses) + "\n")
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))

@@ -51,14 +51,26 @@ def demo(
         Path, typer.Option("--out", "-o", help="Folder for the map and pictures.")
     ] = Path("ehm_demo"),
     seed: Annotated[int, typer.Option(help="Seed of the simulation and the map.")] = 0,
+    data: Annotated[
+        Path | None,
+        typer.Option(
+            help="Instead, write the small recordings the guides use into this folder "
+            "(floor.log, room.bag, tum_fr2/, kitti/), and stop.",
+        ),
+    ] = None,
 ) -> None:
     """Simulate the virtual room, map it, score the map against the exact occupancy, and write
     the map, occupancy slices, a mesh (PLY) and a picture of the mesh (over the demo's own
-    files from an earlier run)."""
+    files from an earlier run). With --data, write the guides' recordings instead."""
     from ehm.eval.demo import run_demo
     from ehm.io.outputs import check_output_folder
     from ehm.pipeline import ProgressBar
 
+    if data is not None:
+        from ehm.eval.guide_files import write_guide_files
+
+        write_guide_files(check_output_folder(data), console.print)
+        return
     out = check_output_folder(out)
     _prepare_kernels()
     result = run_demo(out, seed, [ProgressBar(console)])

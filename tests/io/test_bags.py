@@ -11,10 +11,11 @@ from ehm.io.bags import BagScans
 from ehm.io.readers import read_scans
 
 rosbags = pytest.importorskip("rosbags")
-from ros_bags import QUARTER_TURN, SECOND, write_bag  # noqa: E402
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
 from rosbags.rosbag2 import StoragePlugin  # noqa: E402
 from rosbags.typesys import Stores  # noqa: E402
+
+from ehm.eval.ros_bags import QUARTER_TURN, SECOND, write_bag  # noqa: E402
 
 
 def lidar_messages(cloud):
@@ -243,8 +244,9 @@ def test_velodyne_packet_bags_decode_as_the_capture_does(tmp_path, store, storag
 
 
 def test_raw_ouster_packets_in_bags_are_refused_naming_what_to_record(tmp_path):
-    from ros_bags import Messages
     from rosbags.typesys import get_types_from_msg
+
+    from ehm.eval.ros_bags import Messages
 
     def packet(m: Messages):
         name = "ouster_sensor_msgs/msg/PacketMsg"

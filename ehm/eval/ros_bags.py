@@ -1,19 +1,23 @@
-"""ROS bags for tests and the docs' examples: messages of a ROS distribution's types, written
-by the rosbags library's writers."""
+"""ROS bags of a ROS distribution's message types, written by the rosbags library's writers:
+the guides' example bag (ehm.eval.guide_files) and the tests' bags."""
+
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-SECOND = 1_000_000_000
+SECOND = 1_000_000_000  # nanoseconds
 QUARTER_TURN = (0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5))  # x y z w: 90 degrees about z
 
 
 class Messages:
     """Builds messages of one ROS distribution's types."""
 
-    def __init__(self, store):
+    def __init__(self, store: Stores) -> None:
         self.typestore = get_typestore(store)
         if "tf2_msgs/msg/TFMessage" not in self.typestore.types:  # not in ROS 1's store
             definition = "geometry_msgs/TransformStamped[] transforms"
@@ -21,7 +25,7 @@ class Messages:
         self.types = self.typestore.types
         self.ros1 = store == Stores.ROS1_NOETIC
 
-    def header(self, stamp, frame):
+    def header(self, stamp: int, frame: str) -> Any:
         time = self.types["builtin_interfaces/msg/Time"](
             sec=stamp // SECOND, nanosec=stamp % SECOND
         )
@@ -29,7 +33,15 @@ class Messages:
             return self.types["std_msgs/msg/Header"](seq=0, stamp=time, frame_id=frame)
         return self.types["std_msgs/msg/Header"](stamp=time, frame_id=frame)
 
-    def transform(self, stamp, parent, child, xyz, quaternion=(0.0, 0.0, 0.0, 1.0)):
+    def transform(
+        self,
+        stamp: int,
+        parent: str,
+        child: str,
+        xyz: Sequence[float],
+        quaternion: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+    ) -> Any:
+        """A tf2_msgs/TFMessage placing `child` in `parent`: xyz metres, quaternion x y z w."""
         t = self.types
         transform = t["geometry_msgs/msg/Transform"](
             translation=t["geometry_msgs/msg/Vector3"](*xyz),
@@ -40,7 +52,8 @@ class Messages:
         )
         return t["tf2_msgs/msg/TFMessage"](transforms=[stamped])
 
-    def cloud(self, stamp, frame, points):
+    def cloud(self, stamp: int, frame: str, points: np.ndarray) -> Any:
+        """A sensor_msgs/PointCloud2 of (n, 3) points, metres, in `frame`."""
         t = self.types
         fields = [
             t["sensor_msgs/msg/PointField"](name=c, offset=4 * i, datatype=7, count=1)
@@ -56,7 +69,7 @@ class Messages:
             is_dense=True,
         )  # fmt: skip
 
-    def depth_image(self, stamp, frame, depth):
+    def depth_image(self, stamp: int, frame: str, depth: np.ndarray) -> Any:
         """A sensor_msgs/Image of a (H, W) depth array: uint16 as 16UC1, float32 as 32FC1."""
         depth = np.ascontiguousarray(depth)
         encoding = "16UC1" if depth.dtype == np.uint16 else "32FC1"
@@ -66,7 +79,16 @@ class Messages:
             data=np.frombuffer(depth.astype(depth.dtype.newbyteorder("<")).tobytes(), np.uint8),
         )  # fmt: skip
 
-    def camera_info(self, stamp, frame, fx, fy, cx, cy, size):
+    def camera_info(
+        self,
+        stamp: int,
+        frame: str,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        size: tuple[int, int],
+    ) -> Any:
         """A sensor_msgs/CameraInfo of a pinhole camera of `size` (width, height) pixels."""
         k = np.array([fx, 0, cx, 0, fy, cy, 0, 0, 1], dtype=float)
         fields = {"K": k, "R": np.eye(3).ravel(), "P": np.zeros(12), "D": np.zeros(0)}
@@ -81,7 +103,8 @@ class Messages:
             distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi, **fields,
         )  # fmt: skip
 
-    def laser(self, stamp, frame, ranges):
+    def laser(self, stamp: int, frame: str, ranges: Sequence[float]) -> Any:
+        """A sensor_msgs/LaserScan of beams a quarter turn apart from angle 0."""
         return self.types["sensor_msgs/msg/LaserScan"](
             header=self.header(stamp, frame), angle_min=0.0, angle_max=np.pi,
             angle_increment=np.pi / 2, time_increment=0.0, scan_time=0.1, range_min=0.1,
@@ -89,7 +112,15 @@ class Messages:
             intensities=np.zeros(0, dtype=np.float32),
         )  # fmt: skip
 
-    def odometry(self, stamp, parent, child, xyz, quaternion):
+    def odometry(
+        self,
+        stamp: int,
+        parent: str,
+        child: str,
+        xyz: Sequence[float],
+        quaternion: Sequence[float],
+    ) -> Any:
+        """A nav_msgs/Odometry pose of `child` in `parent`, at rest."""
         t = self.types
         pose = t["geometry_msgs/msg/Pose"](
             position=t["geometry_msgs/msg/Point"](*xyz),
@@ -105,7 +136,7 @@ class Messages:
             ),
         )  # fmt: skip
 
-    def velodyne_scan(self, stamp, frame, packets):
+    def velodyne_scan(self, stamp: int, frame: str, packets: list[tuple[int, bytes]]) -> Any:
         """A velodyne_msgs/VelodyneScan of (time in nanoseconds, 1206 bytes) packets."""
         t = self.types
         if "velodyne_msgs/msg/VelodyneScan" not in t:
@@ -123,13 +154,20 @@ class Messages:
             ],
         )  # fmt: skip
 
-    def serialize(self, message):
+    def serialize(self, message: Any) -> bytes:
+        """The message's bytes as the distribution's bags hold them."""
         if self.ros1:
             return self.typestore.serialize_ros1(message, message.__msgtype__)
         return self.typestore.serialize_cdr(message, message.__msgtype__)
 
 
-def write_bag(path, store, messages, storage=None, compression=None):
+def write_bag(
+    path: Path,
+    store: Stores,
+    messages: Iterable[tuple[str, int, Callable[[Messages], Any]]],
+    storage: Any = None,
+    compression: Any = None,
+) -> Path:
     """Write (topic, stamp, message) triples, in order, to a ROS 1 bag (its chunks compressed
     with `compression`, a Writer1.CompressionFormat, or not) or a ROS 2 folder."""
     build = Messages(store)
