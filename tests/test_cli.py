@@ -460,3 +460,15 @@ def test_map_takes_every_nth_scan_up_to_a_limit_quietly(plan_log, tmp_path):
         app, ["map", str(plan_log), "-o", str(tmp_path / "x.ehm"), "--every", "0"]
     )
     assert result.exit_code == 2 and "every must be an integer >= 1, got 0" in result.stderr
+
+
+def test_demo_data_writes_the_guides_recordings_once(tmp_path):
+    folder = tmp_path / "guides"
+    result = runner.invoke(app, ["demo", "--data", str(folder)])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in folder.iterdir()) == ["floor.log", "kitti", "room.bag", "tum_fr2"]
+    assert len((folder / "floor.log").read_text().splitlines()) == 5  # five FLASER scans
+    assert len(list((folder / "kitti" / "sequences" / "00" / "velodyne").iterdir())) == 3
+    again = runner.invoke(app, ["demo", "--data", str(folder)])
+    assert again.exit_code == 2
+    assert "already holds floor.log, tum_fr2, kitti, room.bag: give a new or empty" in again.output
