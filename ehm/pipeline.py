@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from operator import length_hint
 from typing import Protocol
 
 import numpy as np
@@ -98,7 +99,8 @@ class NullObserver:
 class MappingPipeline:
     """Learn `scans` into `hilbert_map` (a new HilbertMap() when None): one integrate per
     scan, in order, or with `batch` all of them in one fit (single-batch mode, Table 5).
-    `observers` see each scan."""
+    `observers` see each scan, and are told `total` scans will come (None: as many as
+    operator.length_hint(scans) tells, if it does)."""
 
     def __init__(
         self,
@@ -106,7 +108,11 @@ class MappingPipeline:
         hilbert_map: HilbertMap | None = None,
         batch: bool = False,
         observers: Sequence[MappingObserver] = (),
+        total: int | None = None,
     ) -> None:
+        if total is None:
+            total = length_hint(scans, -1)
+        self.total = None if total < 0 else total
         self.scans = scans
         self.hilbert_map = hilbert_map if hilbert_map is not None else HilbertMap()
         self.batch = batch
@@ -115,9 +121,8 @@ class MappingPipeline:
     def run(self) -> MappingRun:
         """Map every scan; returns what was done."""
         run = MappingRun(self.hilbert_map)
-        total = len(self.scans) if hasattr(self.scans, "__len__") else None
         for observer in self.observers:
-            observer.started(total)
+            observer.started(self.total)
         try:
             if self.batch:
                 scans = list(self._read(run))
@@ -175,9 +180,16 @@ class MappingPipeline:
 
 
 def rate_progress(console=None):
-    """A Rich Progress whose tasks show a description, a bar, done of total, a `rate` field
-    and the time elapsed (the progress bars of mapping and of tiled builds)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+    """A Rich Progress whose tasks show a description, a bar, done of total, a `rate` field,
+    the time elapsed and, where the total is known, the time left (the progress bars of
+    mapping and of tiled builds)."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     return Progress(
         "[progress.description]{task.description}",
@@ -185,6 +197,8 @@ def rate_progress(console=None):
         MofNCompleteColumn(),
         "{task.fields[rate]}",
         TimeElapsedColumn(),
+        "left",
+        TimeRemainingColumn(),
         console=console,
     )
 

@@ -70,11 +70,12 @@ def test_incremental_run_learns_the_last_waiting_scans(plan):
 
 def test_batch_run_fits_once(plan):
     recorder = Recorder()
-    run = MappingPipeline(iter(plan.scans), batch=True, observers=[recorder]).run()
+    scans = (scan for scan in plan.scans)
+    run = MappingPipeline(scans, batch=True, observers=[recorder]).run()
     expected = ehm.HilbertMap().fit(plan.scans)
     np.testing.assert_array_equal(run.hilbert_map.clusters_.weights, expected.clusters_.weights)
     assert len(run.scan_seconds) == 1
-    # Scans from an iterator: the total is not known in advance.
+    # Scans from a generator: the total is not known in advance.
     n = len(plan.scans)
     assert recorder.events == [
         ("started", None),
@@ -128,3 +129,35 @@ def _rates(text: str) -> tuple[str, str]:
     found = re.findall(r"read ([\d.]+), learn ([\d.]+) scans/s", text)
     assert found, text
     return found[-1]
+
+
+def test_observers_are_told_how_many_scans_files_logs_and_bags_hold(plan, plan_log, tmp_path):
+    from ehm.eval.guide_files import write_room_bag
+    from ehm.io.readers import ScanFiles
+
+    totals = Recorder()
+    MappingPipeline(plan.scans, observers=[totals]).run()
+    MappingPipeline((s for s in plan.scans), observers=[totals]).run()  # cannot tell
+    log = ScanFiles(plan_log, every=2)
+    assert len(list(ScanFiles(plan_log))) == 5
+    MappingPipeline(log, observers=[totals]).run()
+    # The log, read once for its count, gives the same scans as read afresh.
+    fresh = list(ScanFiles(plan_log, every=2))
+    kept = list(log)
+    assert len(kept) == 3 and all(
+        np.array_equal(a.points_world, b.points_world) for a, b in zip(kept, fresh, strict=True)
+    )
+    pytest.importorskip("rosbags")
+    write_room_bag(tmp_path / "room.bag", [plan_scan_3d(i) for i in range(4)])
+    bag = ScanFiles(tmp_path / "room.bag", topic="/velodyne_points", frame="map", limit=3)
+    MappingPipeline(bag, observers=[totals]).run()
+    started = [event[1] for event in totals.events if event[0] == "started"]
+    assert started == [len(plan.scans), None, 3, 3]
+
+
+def plan_scan_3d(i: int) -> ehm.Scan:
+    """A small 3D scan: 200 hits on a sphere of 3 m around (i, 0, 1)."""
+    directions = np.random.default_rng(i).normal(size=(200, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    origin = np.array([float(i), 0.0, 1.0])
+    return ehm.Scan(origin + 3.0 * directions, origin)

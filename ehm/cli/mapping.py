@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import signal
 from collections.abc import Iterator
+from operator import length_hint
 from pathlib import Path
 from typing import Annotated
 
@@ -334,7 +335,10 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
         console.print(f"watch the map grow at {live.url}")
     with FirstInterrupt() as interrupt:
         scans = interrupt.until_asked(iter(files))
-        run = MappingPipeline(scans, hilbert_map, batch, observers).run()
+        total = length_hint(files, -1)  # the wrapper below hides the files' own hint
+        run = MappingPipeline(
+            scans, hilbert_map, batch, observers, None if total < 0 else total
+        ).run()
         hilbert_map.save(output)
     if interrupt.asked:
         errors.print(

@@ -229,6 +229,7 @@ class ScanFiles:
         self._every, self._limit, self._fov = every, limit, fov
         self._files: list[_FileScan] | None = None  # None: files of many scans each
         self._streams: list = []
+        self._logs: list[list[Scan]] = []  # the logs' scans, once __length_hint__ read them
         if fmt == "kitti":
             poses_path = sequence_poses(items, poses)
             if origin is not None and poses_path is not None:
@@ -271,6 +272,26 @@ class ScanFiles:
         scan each), else None."""
         return None if self._files is None else len(self._files)
 
+    def __length_hint__(self) -> int:
+        """How many scans are expected, for progress bars (operator.length_hint): files of
+        one scan each counted, logs read (once: iterating then reuses them), bags' messages on
+        the topic counted (at most: messages without a pose are skipped); NotImplemented for
+        LiDAR captures, whose frames are known only by decoding them."""
+        if self._files is not None:
+            return len(self._files)
+        if self.format == "bag":
+            found = sum(bag.messages for bag in self._streams)
+        elif self.format in POSED_FORMATS:
+            if not self._logs:
+                self._logs = [
+                    list(_posed_scans([item], self.format, self._fov)) for item in self._streams
+                ]
+            found = sum(map(len, self._logs))
+        else:
+            return NotImplemented
+        chosen = -(-found // self._every)
+        return chosen if self._limit is None else min(chosen, self._limit)
+
     def __iter__(self) -> Iterator[Scan]:
         if self._files is not None:
             return (self._read_file(i) for i in range(len(self._files)))
@@ -278,6 +299,8 @@ class ScanFiles:
             scans = (scan for bag in self._streams for scan in bag)
         elif self.format in CAPTURES:
             scans = _capture_scans(self._streams, self._T_world_sensors)
+        elif self._logs:
+            scans = (scan for log in self._logs for scan in log)
         else:
             scans = _posed_scans(self._streams, self.format, self._fov)
         stop = None if self._limit is None else self._limit * self._every
