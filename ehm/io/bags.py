@@ -95,8 +95,12 @@ class BagScans:
         with self._reader() as reader:
             topics = {c.topic: c.msgtype for c in reader.connections}
             self.topic = self._scan_topic(topic, topics)
-            # Scans at most: messages without a pose at their stamp are skipped.
-            self.messages = sum(c.msgcount for c in reader.connections if c.topic == self.topic)
+            # Scans at most (messages without a pose at their stamp are skipped); None where
+            # the bag's index is broken and its connections were read from its chunks.
+            mine = [
+                getattr(c, "msgcount", None) for c in reader.connections if c.topic == self.topic
+            ]
+            self.messages = None if None in mine else sum(mine)
         self.dim = 2 if topics[self.topic] == SCAN_TYPES[1] else 3
         self._packets = PacketDecoder() if topics[self.topic] == VELODYNE_SCAN else None
         self._camera = None

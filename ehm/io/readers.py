@@ -276,11 +276,15 @@ class ScanFiles:
         """How many scans are expected, for progress bars (operator.length_hint): files of
         one scan each counted, logs read (once: iterating then reuses them), bags' messages on
         the topic counted (at most: messages without a pose are skipped); NotImplemented for
-        LiDAR captures, whose frames are known only by decoding them."""
+        LiDAR captures, whose frames are known only by decoding them, and bags whose index is
+        broken."""
         if self._files is not None:
             return len(self._files)
         if self.format == "bag":
-            found = sum(bag.messages for bag in self._streams)
+            counts = [bag.messages for bag in self._streams]
+            if None in counts:
+                return NotImplemented
+            found = sum(counts)
         elif self.format in POSED_FORMATS:
             if not self._logs:
                 self._logs = [
