@@ -13,6 +13,7 @@ whether any are there.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -24,6 +25,8 @@ import numpy as np
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 from ehm.hilbert_map import HilbertMap
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -129,6 +132,7 @@ class MappingPipeline:
                 start = time.perf_counter()
                 self.hilbert_map.fit(scans)
                 self._learned(run, start)
+                log.info("learned %d scans in one batch in %.2f s", len(scans), run.seconds)
             else:
                 in_batch = 0
                 for index, scan in enumerate(self._read(run)):
@@ -136,6 +140,7 @@ class MappingPipeline:
                     self.hilbert_map.integrate_scan(scan)
                     self._learned(run, start)
                     in_batch += 1
+                    self._log_scan(index, scan, run.scan_seconds[-1])
                     for observer in self.observers:
                         observer.scan_learned(index, scan, self.hilbert_map)
                     if self.hilbert_map.n_waiting_scans == 0:  # learned, or an observer asked
@@ -151,6 +156,10 @@ class MappingPipeline:
         finally:
             for observer in self.observers:
                 observer.finished(run)
+        log.info(
+            "mapped %d scans, %d rays in %.1f s: %d clusters, %.2f MB", run.n_scans, run.n_rays,
+            run.seconds, self.hilbert_map.n_clusters, self.hilbert_map.memory_bytes() / 1e6,
+        )  # fmt: skip
         return run
 
     def _read(self, run: MappingRun) -> Iterator[Scan]:
@@ -172,6 +181,18 @@ class MappingPipeline:
                 observer.scan_read(index, scan)
             yield scan
             index += 1
+
+    def _log_scan(self, index: int, scan: Scan, seconds: float) -> None:
+        """Log the scan just integrated, without learning scans that wait for their batch."""
+        if not log.isEnabledFor(logging.INFO):
+            return
+        clusters = self.hilbert_map.clusters_
+        waits = self.hilbert_map.n_waiting_scans
+        log.info(
+            "scan %d: %d rays in %.3f s; %d clusters%s", index, len(scan), seconds,
+            0 if clusters is None else len(clusters), f"; {waits} scans wait for their batch"
+            if waits else "",
+        )  # fmt: skip
 
     def _learned(self, run: MappingRun, start: float) -> None:
         """Record an update that began at perf_counter() `start`."""

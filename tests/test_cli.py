@@ -472,3 +472,28 @@ def test_demo_data_writes_the_guides_recordings_once(tmp_path):
     again = runner.invoke(app, ["demo", "--data", str(folder)])
     assert again.exit_code == 2
     assert "already holds floor.log, tum_fr2, kitti, room.bag: give a new or empty" in again.output
+
+
+def test_the_log_file_holds_each_scan_the_notes_and_errors(tmp_path, plan_log):
+    log = tmp_path / "ehm.log"
+    result = runner.invoke(app, ["--log", str(log), "map", str(plan_log), "-o",
+                                 str(tmp_path / "a.ehm"), "-q"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    failed = runner.invoke(app, ["--log", str(log), "map", str(tmp_path / "none.log"), "-o",
+                                 str(tmp_path / "b.ehm")])  # fmt: skip
+    assert failed.exit_code == 2
+    lines = log.read_text().splitlines()
+    scans = [line for line in lines if " INFO ehm.pipeline: scan " in line]
+    assert len(scans) == 5 and scans[0].split(" INFO ")[1].startswith("ehm.pipeline: scan 0: ")
+    assert any(" INFO ehm.pipeline: mapped 5 scans, " in line for line in lines)
+    missing = f"ERROR ehm.cli: error: {tmp_path / 'none.log'}: no such file or folder"
+    assert lines[-1].endswith(missing)
+    assert "scan 0" not in result.output  # the file only, without -v
+
+
+def test_verbose_logs_each_scan_on_stderr(tmp_path, plan_log):
+    result = runner.invoke(app, ["-v", "map", str(plan_log), "-o", str(tmp_path / "a.ehm"), "-q"])
+    assert result.exit_code == 0
+    assert "scan 4: 180 rays in" in " ".join(result.output.split())
+    unwritable = runner.invoke(app, ["--log", str(tmp_path), "info", str(tmp_path / "a.ehm")])
+    assert unwritable.exit_code == 2 and f"--log {tmp_path}: Is a directory" in unwritable.output

@@ -4,6 +4,7 @@ consoles, option types, and parsing of settings, boxes and lists."""
 from __future__ import annotations
 
 import inspect
+import logging
 import math
 import time
 import warnings
@@ -18,7 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 from typer.core import TyperGroup
 
-from ehm.errors import EhmError, InputError
+from ehm.errors import EhmError, InputError, OutputError
 
 
 class _Commands(TyperGroup):
@@ -45,6 +46,7 @@ class _Commands(TyperGroup):
             if ctx.params.get("debug") or not (isinstance(error, EhmError) or optional):
                 raise
             errors.print(f"[red]error:[/red] {escape(str(error))}")
+            cli_log.error("error: %s", error)
             raise typer.Exit(2) from None
         except Exception as error:
             # Exceptions that carry an exit status are typer's own ways out; a closed pipe
@@ -96,8 +98,49 @@ def _options(
             "--version", callback=_show_version, is_eager=True, help="Show the version and stop."
         ),
     ] = False,
+    verbose: Annotated[
+        bool,
+        typer.Option("--verbose", "-v", help="Log each scan learned and each step, on stderr."),
+    ] = False,
+    log: Annotated[
+        Path | None,
+        typer.Option(
+            help="Append the log (each scan learned, notes, errors), time-stamped, to this file."
+        ),
+    ] = None,
 ) -> None:
     """Efficient Hilbert Maps: continuous occupancy maps from range scans."""
+    configure_logging(verbose, log)
+
+
+# Lines of the log file: when, how grave, which part of ehm, what.
+LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+# What the command line prints itself (notes, errors) goes to the log file only: on stderr it
+# is shown already.
+cli_log = logging.getLogger("ehm.cli")
+
+
+def configure_logging(verbose: bool, log_file: Path | None) -> None:
+    """Route ehm's log (logger 'ehm') to stderr with `verbose`, and to `log_file` (appended)
+    when given; neither: nothing is logged."""
+    logger = logging.getLogger("ehm")
+    for handler in list(logger.handlers):  # one command a process, but tests invoke many
+        logger.removeHandler(handler)
+        handler.close()
+    logger.setLevel(logging.INFO if verbose or log_file else logging.WARNING)
+    if verbose:
+        from rich.logging import RichHandler
+
+        shown = RichHandler(console=errors, show_path=False, log_time_format="%H:%M:%S")
+        shown.addFilter(lambda record: not record.name.startswith(cli_log.name))
+        logger.addHandler(shown)
+    if log_file is not None:
+        try:
+            written = logging.FileHandler(log_file, encoding="utf-8")
+        except OSError as error:
+            raise OutputError(f"--log {log_file}: {error.strerror}") from None
+        written.setFormatter(logging.Formatter(LOG_FORMAT))
+        logger.addHandler(written)
 
 
 Resolution = Annotated[
@@ -263,6 +306,7 @@ def reported_assumptions() -> Iterator[None]:
     def note(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, AssumptionWarning):
             errors.print(f"[yellow]note:[/yellow] {escape(str(message))}")
+            cli_log.warning("note: %s", message)
         else:
             shown(message, category, filename, lineno, file, line)
 

@@ -15,6 +15,7 @@ from rich.table import Table
 from ehm.cli.app import (
     Force,
     app,
+    cli_log,
     console,
     errors,
     load_map,
@@ -341,9 +342,10 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
         ).run()
         hilbert_map.save(output)
     if interrupt.asked:
-        errors.print(
-            f"stopped by Ctrl-C after {run.n_scans} scans; the map of those is saved: {output}"
-        )
+        stopped = f"stopped by Ctrl-C after {run.n_scans} scans; the map of those is saved:"
+        stopped += f" {output}"
+        errors.print(stopped)
+        cli_log.warning(stopped)
         raise typer.Exit(130)
     if hilbert_map.n_clusters == 0:
         errors.print(
