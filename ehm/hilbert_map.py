@@ -89,7 +89,23 @@ RAY_QUERY_CELLS = 2.0
 
 
 class HilbertMap:
-    """Continuous occupancy map learned from range scans (Guizilini & Ramos, IJRR 2018).
+    """Continuous occupancy map learned from range scans (Guizilini & Ramos, IJRR 2018): it
+    answers p(occupied) anywhere, with its uncertainty, and learns scan by scan.
+
+    Example:
+        ```python
+        import numpy as np
+        import ehm
+
+        m = ehm.HilbertMap(resolution=0.1)  # metres; every setting: ehm.MapConfig
+        directions = np.random.default_rng(0).normal(size=(20_000, 3))
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        origin = np.array([0.0, 0.0, 1.0])  # the sensor, metres, world frame
+        m.integrate(origin + 3.0 * directions, origin)  # hits (N, 3) ending rays from origin
+        p = m.occupancy(np.array([[3.0, 0.0, 1.0], [1.0, 0.0, 1.0]]))  # on the sphere, inside
+        distance = m.distance(np.array([[1.0, 0.0, 1.0]]))  # metres to the nearest obstacle
+        m.save("sphere.ehm")  # ehm.load("sphere.ehm") reads it back
+        ```
 
     config: a MapConfig; keyword overrides replace single settings, for example
     HilbertMap(cluster_radius=0.2); resolution=r, in place of a config, starts from
@@ -147,116 +163,6 @@ class HilbertMap:
             self._point_log_odds,
             self._near_log_odds,
         )
-
-    # ------------------------------------------------------------------ state
-    @property
-    def dim(self) -> int | None:
-        if self.clusters_ is not None:
-            return self.clusters_.dim
-        return self._waiting[0].dim if self._waiting else None
-
-    @property
-    def n_waiting_scans(self) -> int:
-        """Scans given but not learned yet: they wait for `config.batch_rays` rays, or for
-        the next query, grid or `flush()`; a save keeps them waiting."""
-        return len(self._waiting)
-
-    @property
-    def sensor_path(self) -> np.ndarray:
-        """(n, d) float64, metres, world frame: the origin of every scan given, in order (for
-        maps loaded from files older than format 11, only the scans given since)."""
-        if not self._origins:
-            return np.zeros((0, self.dim or 3))
-        return np.stack(self._origins)
-
-    @property
-    def bias_(self) -> float:
-        return float(self.bias_state_[0])
-
-    @property
-    def n_clusters(self) -> int:
-        """Clusters of the map, after learning any scans waiting for their batch."""
-        self.flush()
-        return 0 if self.clusters_ is None else len(self.clusters_)
-
-    def __repr__(self) -> str:
-        """The map as it stands, without learning the scans that wait for their batch."""
-        changed = {k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v}
-        parts = [f"dim={self.dim}"]
-        parts.append(f"clusters={0 if self.clusters_ is None else len(self.clusters_)}")
-        parts.append(f"scans={self.n_scans_}")
-        if self._waiting:
-            parts.append(f"waiting={len(self._waiting)}")
-        parts += [f"{k}={v!r}" for k, v in changed.items()]
-        return f"HilbertMap({', '.join(parts)})"
-
-    def clusters(self) -> ClusterView:
-        """A copy of the clusters: centres, covariances, weights, kind ('planar' or
-        'volumetric'), kernel, scale and label, one row per cluster (see ClusterView)."""
-        view = ClusterView.of(self._learned("look at its clusters"))
-        return replace(view, means=self._world(view.means))
-
-    def memory_bytes(self) -> int:
-        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
-        sample memory, anchor layers, the search structure over cluster centres, the sensor
-        path, and while kept, the grid and cells rays march (`raycast`)."""
-        self.flush()
-        clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
-        memory = 0 if self.memory_ is None else self.memory_.nbytes
-        learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
-        search = self._supports if self.config.features == "support" else self._index
-        path = sum(origin.nbytes for origin in self._origins)
-        return learned + search.nbytes + self._planner.nbytes + path
-
-    def state(self) -> MapState:
-        """Everything the map has learned and the scans waiting for their batch, as plain data
-        (shared, not copied). Taking it learns nothing."""
-        dim = self.dim
-        if dim is None:
-            raise EmptyMapError("the map is empty: integrate a scan or fit before you save it")
-        empty = self.clusters_ is None
-        return MapState(
-            self.config,
-            ClusterSet.empty(dim) if empty else self.clusters_,
-            self.anchors_,
-            self.bias_state_,
-            self.n_scans_,
-            self._rng.bit_generator.state,
-            EvidenceMemory.of_config(dim, self.config) if empty else self._memory(),
-            tuple(self._waiting),
-            self.sensor_path,
-            self.time_,
-            self.local_origin_,
-        )
-
-    @classmethod
-    def from_state(cls, state: MapState) -> HilbertMap:
-        """The map whose learned state is `state`: it answers and goes on learning exactly as
-        the map the state was taken from (when the state has its rng_state)."""
-        hilbert_map = cls(state.config)
-        hilbert_map.clusters_ = state.clusters
-        hilbert_map.bias_state_ = np.array(state.bias_state, dtype=np.float64)
-        hilbert_map.n_scans_ = state.n_scans
-        hilbert_map.time_ = state.time
-        hilbert_map.anchors_ = state.anchors
-        hilbert_map.memory_ = state.memory
-        hilbert_map.local_origin_ = state.local_origin
-        if state.rng_state is not None:
-            hilbert_map._rng.bit_generator.state = state.rng_state
-        hilbert_map._relist(None)
-        hilbert_map._waiting = list(state.waiting)
-        if state.sensor_path is not None:
-            hilbert_map._origins = list(state.sensor_path)
-        hilbert_map._waiting_rays = sum(len(scan) for scan in state.waiting)
-        return hilbert_map
-
-    def snapshot(self) -> MapSnapshot:
-        """A read-only copy of the map's kernels and weights, for grids and pictures, in world
-        frame."""
-        local = self._local_snapshot()
-        if self.local_origin_ is None or not self.local_origin_.any():
-            return local
-        return replace(local, means=local.means + self.local_origin_)
 
     def _local_snapshot(self) -> MapSnapshot:
         """The snapshot in the map's own frame (local_origin_ at its origin), as the planner
@@ -996,6 +902,116 @@ class HilbertMap:
     def extent(self) -> np.ndarray:
         """(2, d) metres, world frame: the box holding every kernel's support."""
         return support_bounds(self.snapshot())
+
+    # ------------------------------------------------------------------ state
+    @property
+    def dim(self) -> int | None:
+        if self.clusters_ is not None:
+            return self.clusters_.dim
+        return self._waiting[0].dim if self._waiting else None
+
+    @property
+    def n_waiting_scans(self) -> int:
+        """Scans given but not learned yet: they wait for `config.batch_rays` rays, or for
+        the next query, grid or `flush()`; a save keeps them waiting."""
+        return len(self._waiting)
+
+    @property
+    def sensor_path(self) -> np.ndarray:
+        """(n, d) float64, metres, world frame: the origin of every scan given, in order (for
+        maps loaded from files older than format 11, only the scans given since)."""
+        if not self._origins:
+            return np.zeros((0, self.dim or 3))
+        return np.stack(self._origins)
+
+    @property
+    def bias_(self) -> float:
+        return float(self.bias_state_[0])
+
+    @property
+    def n_clusters(self) -> int:
+        """Clusters of the map, after learning any scans waiting for their batch."""
+        self.flush()
+        return 0 if self.clusters_ is None else len(self.clusters_)
+
+    def __repr__(self) -> str:
+        """The map as it stands, without learning the scans that wait for their batch."""
+        changed = {k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v}
+        parts = [f"dim={self.dim}"]
+        parts.append(f"clusters={0 if self.clusters_ is None else len(self.clusters_)}")
+        parts.append(f"scans={self.n_scans_}")
+        if self._waiting:
+            parts.append(f"waiting={len(self._waiting)}")
+        parts += [f"{k}={v!r}" for k, v in changed.items()]
+        return f"HilbertMap({', '.join(parts)})"
+
+    def clusters(self) -> ClusterView:
+        """A copy of the clusters: centres, covariances, weights, kind ('planar' or
+        'volumetric'), kernel, scale and label, one row per cluster (see ClusterView)."""
+        view = ClusterView.of(self._learned("look at its clusters"))
+        return replace(view, means=self._world(view.means))
+
+    def memory_bytes(self) -> int:
+        """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
+        sample memory, anchor layers, the search structure over cluster centres, the sensor
+        path, and while kept, the grid and cells rays march (`raycast`)."""
+        self.flush()
+        clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
+        memory = 0 if self.memory_ is None else self.memory_.nbytes
+        learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
+        search = self._supports if self.config.features == "support" else self._index
+        path = sum(origin.nbytes for origin in self._origins)
+        return learned + search.nbytes + self._planner.nbytes + path
+
+    def state(self) -> MapState:
+        """Everything the map has learned and the scans waiting for their batch, as plain data
+        (shared, not copied). Taking it learns nothing."""
+        dim = self.dim
+        if dim is None:
+            raise EmptyMapError("the map is empty: integrate a scan or fit before you save it")
+        empty = self.clusters_ is None
+        return MapState(
+            self.config,
+            ClusterSet.empty(dim) if empty else self.clusters_,
+            self.anchors_,
+            self.bias_state_,
+            self.n_scans_,
+            self._rng.bit_generator.state,
+            EvidenceMemory.of_config(dim, self.config) if empty else self._memory(),
+            tuple(self._waiting),
+            self.sensor_path,
+            self.time_,
+            self.local_origin_,
+        )
+
+    @classmethod
+    def from_state(cls, state: MapState) -> HilbertMap:
+        """The map whose learned state is `state`: it answers and goes on learning exactly as
+        the map the state was taken from (when the state has its rng_state)."""
+        hilbert_map = cls(state.config)
+        hilbert_map.clusters_ = state.clusters
+        hilbert_map.bias_state_ = np.array(state.bias_state, dtype=np.float64)
+        hilbert_map.n_scans_ = state.n_scans
+        hilbert_map.time_ = state.time
+        hilbert_map.anchors_ = state.anchors
+        hilbert_map.memory_ = state.memory
+        hilbert_map.local_origin_ = state.local_origin
+        if state.rng_state is not None:
+            hilbert_map._rng.bit_generator.state = state.rng_state
+        hilbert_map._relist(None)
+        hilbert_map._waiting = list(state.waiting)
+        if state.sensor_path is not None:
+            hilbert_map._origins = list(state.sensor_path)
+        hilbert_map._waiting_rays = sum(len(scan) for scan in state.waiting)
+        return hilbert_map
+
+    def snapshot(self) -> MapSnapshot:
+        """A read-only copy of the map's kernels and weights, for grids and pictures, in world
+        frame."""
+        local = self._local_snapshot()
+        if self.local_origin_ is None or not self.local_origin_.any():
+            return local
+        return replace(local, means=local.means + self.local_origin_)
 
 
 # A map whose first scan's sensor stands farther than this from the world origin, metres,

@@ -393,3 +393,19 @@ def test_a_map_of_a_resolution_takes_that_resolution_s_settings():
         ehm.HilbertMap(ehm.MapConfig(), resolution=0.2)
     with pytest.raises(ehm.SettingsError, match=r"resolution: .* MapConfig\.for_resolution"):
         ehm.MapConfig().replace(resolution=0.2)
+
+
+def test_the_class_docstring_example_runs(tmp_path, monkeypatch):
+    import inspect
+    import re
+    import textwrap
+
+    found = re.search(r"```python\n(.*?)```", inspect.getdoc(ehm.HilbertMap), re.DOTALL)
+    code = textwrap.dedent(found.group(1))
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(code, "HilbertMap.__doc__", "exec"), namespace)
+    p, distance = namespace["p"], namespace["distance"]
+    assert p[0] > 0.5 > p[1]  # the sphere's surface occupied, the space inside it free
+    assert 1.5 < distance[0] < 2.1  # 2 m to the sphere, less the occupied band's depth
+    assert ehm.load(tmp_path / "sphere.ehm").n_scans_ == 1
