@@ -16,7 +16,9 @@ import socket
 import time
 from pathlib import Path
 
+import numpy as np
 from common import heading, markdown_table
+from PIL import Image
 
 import ehm
 from ehm.eval.datasets import DataMissingError, load_dataset, virtual_room
@@ -63,11 +65,17 @@ def main() -> None:
     print(f"wrote {picture}")
 
 
-def take_picture(hilbert_map: ehm.HilbertMap, path: Path) -> None:
-    """A screenshot of the map in headless Chromium, 1200 x 800 pixels."""
-    viewer = MapViewer(hilbert_map, resolution=0.1, port=free_port(), cut_above=2.2)
+def take_picture(hilbert_map: ehm.HilbertMap, path: Path, attempts: int = 5) -> None:
+    """A screenshot of the map in headless Chromium, 1200 x 800 pixels, as the viewer opens
+    (cut a metre above the sensor), taken again while the mesh still fades in."""
+    viewer = MapViewer(hilbert_map, resolution=0.1, port=free_port())
     try:
-        browser_screenshot(viewer.url, path)
+        for _ in range(attempts):
+            browser_screenshot(viewer.url, path)
+            image = np.asarray(Image.open(path).convert("RGB")).astype(int)
+            centre = image[300:500, 500:700]
+            if np.mean(centre.max(axis=2) - centre.min(axis=2) > 60) > 0.5:
+                return
     finally:
         viewer.server.stop()
 

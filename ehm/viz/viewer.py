@@ -71,13 +71,14 @@ class MapViewer:
         )
         step = self.grid.resolution
         low, high = np.floor(self.grid.bounds[0][2] / step), np.ceil(self.grid.bounds[1][2] / step)
-        low, high = float(low * step), float(high * step)
+        # Multiples of the step, rounded to micrometres: 12 * 0.1 reads 1.2, not 1.2000000000000002.
+        low, high = round(float(low * step), 6), round(float(high * step), 6)
         sensor = (
             float(np.median(hilbert_map.sensor_path[:, 2])) if len(hilbert_map.sensor_path) else low
         )
 
         def on_step(height: float) -> float:
-            return float(np.clip(np.round(height / step) * step, low, high))
+            return round(float(np.clip(np.round(height / step) * step, low, high)), 6)
 
         self.slice_height = self.server.gui.add_slider(
             "slice height (m)", low, high, step, on_step(sensor)

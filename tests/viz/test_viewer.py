@@ -128,6 +128,7 @@ def test_the_sliders_open_on_round_heights_below_the_ceiling(room_viewer, room_m
     for slider in (room_viewer.slice_height, room_viewer.cut_above):
         for value in (slider.min, slider.max, slider.value):
             assert abs(value / step - round(value / step)) < 1e-9
+            assert value == round(value, 6)  # shown as 1.2, not 1.2000000000000002
     assert room_viewer.slice_height.value == pytest.approx(sensor, abs=step / 2)
     assert room_viewer.cut_above.value == pytest.approx(sensor + 1.0, abs=step / 2)
     assert room_viewer.cut_above.value < 3.0 < room_viewer.cut_above.max  # under the ceiling
