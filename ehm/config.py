@@ -40,6 +40,8 @@ class MapConfig:
 
     Distances are in metres. Defaults suit LiDAR and depth cameras at about 5 cm detail
     (DEFAULT_RESOLUTION); `MapConfig.for_resolution` gives the settings for another detail.
+    The measurements behind the defaults chosen between alternatives are in the docs' page
+    "Why these defaults" (docs/reference/defaults.md).
     """
 
     # Which rays are learned, and the training samples drawn from each
@@ -64,18 +66,12 @@ class MapConfig:
     """Mean distance between free samples along a ray, metres (density of free samples)."""
     free_thinning: int = 1
     """Free samples farther than two free cluster radii from their ray's hit, and along rays
-    without one, lie this many times free_spacing apart, each standing for as many. 2 builds
-    the simulated warehouse 19 % faster, the hillside 33 % and the street 11 % (up to a quarter
-    fewer cells of evidence), and loses thin posts that rays pass far from their hits: on the
-    street, 0.75 of the points inside posts read occupied against 0.80 (BENCHMARKS.md)."""
+    without one, lie this many times free_spacing apart, each standing for as many. 1: more
+    builds outdoor scenes faster but loses thin posts that rays pass far from their hits."""
     surface_pooling: int = 1
     """The samples behind and in front of hits are gathered in cells this many times as wide
-    as the hits' own (ehm.core.observations.evidence; a quarter of a cluster radius). Where
-    hits crowd, as a depth camera's do, 2 gathers a frame into about half as many samples
-    and learns a TUM frame a quarter faster; where they lie apart it gains nothing (OctoMap's
-    sample scan learns 6-18 % slower). Surfaces grow a little thicker: near-surface precision
-    up to 0.015 lower (the virtual room, the warehouse, the dense rooms; six seeds), held-out
-    F1 within 0.002 on every data set (BENCHMARKS.md)."""
+    as the hits' own (ehm.core.observations.evidence; a quarter of a cluster radius). 1: 2
+    learns crowded hits (a depth camera's) faster, at the cost of slightly thicker surfaces."""
     surface_margin: float = 0.05
     """Margin in front of each hit, metres: free samples along the ray stop this far before
     it, and one free sample is drawn from a quarter of it to `front_reach` times it in front
@@ -83,21 +79,13 @@ class MapConfig:
     front_reach: float = 1.0
     """How far in front of its hit a hit's free sample may lie, in surface margins: uniform up
     to one margin with 1, denser near the hit beyond (ehm.core.observations.samples.
-    front_depth). 2 takes away the tail of the map's occupied level 5-10 cm in front of
-    surfaces faced head-on: with front_stretch, near-surface precision 0.545 against 0.540 on
-    the simulated warehouse and 0.600 against 0.606 on the virtual room, held-out F1 0.992
-    against 0.988 there; up to 6 % more cells of evidence; thin posts seen from afar fade
-    (BENCHMARKS.md)."""
+    front_depth). 1: farther thins surfaces faced head-on, but thin posts seen from afar fade."""
     front_stretch: bool = True
     """Where a batch's hits around a hit lie on a plane, the hit's free sample lies as far off
     the plane as it would on a ray along the plane's normal: 1 / cos of the ray's angle to the
     normal as far along the ray (the cosine floored at 0.3;
-    ehm.core.observations.samples.front_stretches). Ground and walls seen at grazing angles
-    then read thinner: near-surface precision 0.417 against 0.404 on the simulated hillside,
-    0.540 against 0.505 on the warehouse, 0.416 against 0.376 on the outdoor scans, held-out F1
-    within 0.003 of False's on every data set. Posts a quarter of a voxel thick fade a little:
-    on the street at 0.2 m, 0.75 of the points inside posts read occupied against 0.78 (ten
-    seeds; BENCHMARKS.md)."""
+    ehm.core.observations.samples.front_stretches). On: ground and walls seen at grazing
+    angles read thinner, where rays otherwise leave them thick."""
     occupied_depth: float = 0.15
     """One occupied sample is drawn up to this far behind each hit, metres: surfaces are taken
     to be solid this deep."""
@@ -107,9 +95,9 @@ class MapConfig:
     (one gathering of evidence, one clustering, one SGD run). A query, a grid or `flush()`
     learns the scans still waiting first, so every answer sees every scan given. Small scans
     (a 2D laser's few hundred rays) then share the fixed cost of an update and form their
-    clusters together: the Intel lab's 180-ray scans map 6x faster and score held-out F1
-    0.943 against 0.910 one by one (one batch of all: 0.952). Scans of a LiDAR or a depth
-    camera hold more rays and are learned as they come. 0 learns every scan as it comes."""
+    clusters together, faster and more accurately than one by one; scans of a LiDAR or a
+    depth camera hold more rays and are learned as they come. 0 learns every scan as it
+    comes."""
 
     # Quick-means (Alg. 1).
     cluster_radius: float = 0.12
@@ -134,21 +122,14 @@ class MapConfig:
     point queries differ from grids (Sec. 3.5), which sum every kernel. 'support': every
     kernel that is not zero there, found in a spatial hash of the kernels' supports that is
     updated in time proportional to what changed (ehm.core.search.supports), so training, point
-    queries and grids share one model, and point queries take 0.12-0.86x OctoMap's getLabels
-    time (0.38-1.89x with 'nearest'). Not the default yet: an integrate costs 1.26-1.45x the
-    default's (a TUM frame's sample takes 18.4 kernels, not 5.4, and SGD pays per kernel).
-    With learning_rate 0.6 its held-out F1 over three seeds is the default's or higher on
-    every data set (at most 0.001 lower on TUM at 40 %, 0.010-0.019 higher on the warehouse,
-    the hillside and the sample scan), with thin structures found more often; at 0.3 it loses
-    up to 0.013 on the PCL room (BENCHMARKS.md)."""
+    queries and grids share one model and point queries are faster; 'nearest' stays the
+    default while its integrate costs less."""
     length_scale: float = 3.0
     """Kernel support in standard deviations of the cluster (r = 1 at this many sigmas), for
     the kernels of free clusters."""
     occupied_length_scale: float = 3.5
     """The same for the kernels of occupied clusters. Wider than free ones, they reach the hits
-    that range noise puts in front of a surface, and move the map's 0.5 level about a quarter
-    of a resolution further out in front of it: held-out F1 higher on every data set, and
-    near-surface precision lower (BENCHMARKS.md)."""
+    that range noise puts in front of a surface."""
     min_std: float = 0.02
     """Floor on each cluster's standard deviation along any axis, metres."""
     neighbours: int = 8
@@ -156,9 +137,8 @@ class MapConfig:
     features 'nearest'."""
     coarse_neighbours: int = 4
     """Coarse free-space clusters that enter each point's feature vector as well. Coarse
-    kernels overlap more than fine ones (about 7 reach a point of open space in the virtual
-    room): with 4, point queries differ from the grid's sum over every kernel (Sec. 3.5) by
-    0.008 on average there; 8 brings that to 0.003 but makes queries 30 % slower."""
+    kernels overlap more than fine ones: more of them bring point queries closer to the
+    grid's sum over every kernel (Sec. 3.5), at a query's cost."""
 
     # Kernel selection (Sec. 3.2).
     planar_ratio: float = 0.1
@@ -167,13 +147,11 @@ class MapConfig:
     planar_kernel: bool = False
     """Planar clusters use the planar-surface kernel (Eq. 13, 1 within two standard deviations
     along each eigen-axis); the others, and all when False, the localized length-scale one.
-    Off: it wins held-out F1 but puts the occupied boundary about 6 cm in front of walls
-    (near-surface accuracy on the virtual room 0.748 against 0.887)."""
+    Off: it puts the occupied boundary centimetres in front of walls."""
     merge_coplanar: bool = False
     """Orientation clustering (Eq. 14-15): after each update, planar clusters it touched merge
     with planar neighbours of the same scale and label whose normals and positions agree,
-    until no more merge. Off: 30-45 % fewer clusters, but 0.025-0.054 less accuracy near
-    surfaces on the synthetic scenes and 0.12 less held-out F1 on TUM."""
+    until no more merge. Off: fewer clusters, but less accuracy near surfaces."""
     coplanar_angle: float = 10.0
     """Largest angle between the normals of clusters that merge as co-planar, degrees."""
     coplanar_distance: float = 2.0
@@ -182,14 +160,14 @@ class MapConfig:
     # Neighbour search (Sec. 3.1, 3.4), with features 'nearest'.
     anisotropic_search: bool = False
     """Rank the clusters of a point by the radius their kernel gives it, |T_m (x - mu_m)|,
-    rather than by the Euclidean distance between the point and their centres. Off: queries
-    1.4-2.1x slower for about 0.01 less held-out F1."""
+    rather than by the Euclidean distance between the point and their centres. Off: slower
+    queries, no more accurate."""
     anisotropic_candidates: int = 3
     """Anisotropic search re-ranks this many times k nearest centres."""
     anchor_layers: int = 1
     """Layers of the cluster hierarchy (Fig. 6): 1 searches the clusters directly (kd-trees);
     each further layer groups the one below into anchors, searched top-down. 1: the same
-    neighbours, but top-down searches were 5-13x slower than scipy's kd-tree."""
+    neighbours, found faster by the kd-tree."""
     anchor_radius_factor: float = 4.0
     """Inner quick-means radius of the first anchor layer, as a multiple of the clusters'
     radius (`cluster_radius` or `free_cluster_radius`); each further layer multiplies it
@@ -202,12 +180,11 @@ class MapConfig:
     merge_threshold: float = 1.0
     """Anisotropic distance (Eq. 14) below which a new cluster merges into the map's."""
     update_rule: UpdateRule = "sgd"
-    """How each scan's samples update the weights: 'sgd', AdaGrad stochastic gradient descent on the
-    regularised loss (Alg. 2); 'posterior', a Gaussian posterior per weight updated with the
-    previous one as prior (ehm.core.weights.posterior). 'sgd' by default: on TUM (80 % of the rays,
-    seed 0, no sample memory) 'posterior' scores held-out F1 0.858 scan by scan and 0.922 in one
-    batch, against 0.904 and 0.977; with balance_classes 0.897 and 0.971, and more sweeps score
-    lower. Replayed samples would count twice in a posterior that already holds them."""
+    """How each scan's samples update the weights: 'sgd', AdaGrad stochastic gradient descent on
+    the regularised loss (Alg. 2); 'posterior', a Gaussian posterior per weight updated with the
+    previous one as prior (ehm.core.weights.posterior). 'sgd': more accurate scan by scan and
+    in one batch, and replayed samples would count twice in a posterior that already holds
+    them."""
     learning_rate: float = 0.3
     """AdaGrad step size of the stochastic gradient steps ('sgd')."""
     l2: float = 1e-3
@@ -230,19 +207,14 @@ class MapConfig:
     drawn in proportion to their weight, each standing for its own weight in expectation
     (ehm.core.observations.memory.threshold_draw; None: all of them). The replay's weight is
     bounded by replay_ratio, the number of entries it comes from is not: on a drive that
-    passes its places again they grow with every pass (3.8 times a batch's new samples on the
-    warehouse's second lap), and so does the time per scan. The benchmarks' data sets replay
-    at most 1.9 times their batches but the Intel lab's last, small batch (BENCHMARKS.md)."""
+    passes its places again they would grow with every pass, and so would the time per scan."""
     pass_retraction: float = 0.5
     """Share of the occupied evidence in a memory cell that each ray passing through it takes
     back, once rays of two batches have passed it with no new hit near it between
     (ehm.core.observations.passes): a thing that moved away is forgotten within a few scans,
     and the occupied clusters that stood on that evidence forget it in the same measure
-    (ehm.core.weights.forgetting). On a changing room, a cart that left reads occupied on 5 %
-    of its surface three scans after rays began to pass through it (OctoMap: 69 %); held-out
-    F1 of static data sets stays within 0.003 of keeping all evidence, and an update takes
-    50-95 ms more on a street sweep or a TUM frame (BENCHMARKS.md). 0 keeps all evidence: the
-    map never forgets, and learns static scenes faster."""
+    (ehm.core.weights.forgetting). 0 keeps all evidence: the map never forgets, and learns
+    static scenes faster."""
     forget_after: float | None = None
     """Seconds a place may go unseen before what the map learned there starts to fade back to
     unknown (0.5, with the prior's std): from then on its weights, and the past evidence kept
@@ -430,8 +402,7 @@ class MapConfig:
         that voxel size: every length setting (LENGTH_SETTINGS: sample spacing and depths,
         cluster radii, the kernels' smallest spread, query cells) scaled by resolution /
         DEFAULT_RESOLUTION, then `overrides`. Long-range outdoor LiDAR, whose hits lie tens of
-        centimetres apart, wants about 0.2: on the simulated street, held-out F1 0.98 against
-        0.87 at the defaults (BENCHMARKS.md)."""
+        centimetres apart, wants about 0.2."""
         if not isinstance(resolution, int | float) or not 0.0 < resolution < float("inf"):
             raise SettingsError(
                 f"map resolution must be a positive number of metres, got {resolution!r}"
