@@ -25,7 +25,8 @@ $(VENV)/dev: $(BIN)/ehm
 demo: $(BIN)/ehm
 	$(BIN)/ehm demo
 
-test: $(VENV)/dev chromium
+# The linter first: a change that breaks the house's style fails as a failing test does.
+test: lint chromium
 	$(BIN)/python -m pytest -q
 
 chromium:

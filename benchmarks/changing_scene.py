@@ -1,6 +1,6 @@
 """A changing scene: EHM and OctoMap scan by scan on the same scans of a room where a cart
 leaves, a crate arrives and a person walks across (ehm.eval.datasets.changing), measured in
-0.05 m voxels after every scan (ehm.eval.changes).
+0.05 m voxels after every scan (ehm.eval.change_scores).
 
     python benchmarks/changing_scene.py [--seeds 0,1,2] [--set front_reach=2 ...]
 
@@ -32,7 +32,7 @@ from common import (
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
-from ehm.eval.changes import ChangeProbe
+from ehm.eval.change_scores import ChangeProbe
 from ehm.eval.datasets.changing import changing_room
 from ehm.eval.runner import warm_up
 

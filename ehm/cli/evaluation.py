@@ -70,7 +70,7 @@ def eval_command(
     from ehm.eval.datasets import DATASETS
     from ehm.eval.report import summary_table
     from ehm.eval.runner import evaluate_scans, plan_evaluation, summarise
-    from ehm.io.outputs import check_output, check_output_folder
+    from ehm.io.output_paths import check_output, check_output_folder
 
     if json_path is not None:
         check_output(json_path, force=force, suffix=".json")

@@ -152,7 +152,7 @@ def diff(
     import numpy as np
 
     from ehm.changes import diff as map_diff
-    from ehm.io.outputs import check_output
+    from ehm.io.output_paths import check_output
     from ehm.viz.pictures import changes_picture
 
     check_output(output, [old_path, new_path], force, suffix=".png")

@@ -65,7 +65,7 @@ def demo(
     the map, occupancy slices, a mesh (PLY) and a picture of the mesh (over the demo's own
     files from an earlier run). With --data, write the guides' recordings instead."""
     from ehm.eval.demo import run_demo
-    from ehm.io.outputs import check_output_folder
+    from ehm.io.output_paths import check_output_folder
     from ehm.pipeline import ProgressBar
 
     if data is not None:
@@ -286,7 +286,7 @@ def map_command(
 
 def _map_to_update(output: Path, given: list[Path], tiled: bool, batch: bool):
     """`ehm map --update`: the map at `output`, once it is known that it can take scans."""
-    from ehm.io.outputs import check_output
+    from ehm.io.output_paths import check_output
 
     if not output.exists():
         raise InputError(f"--update: {output} does not exist; leave out --update to make it")
@@ -307,7 +307,7 @@ def _new_map(
 ):
     """A new map of `config` to write at `output`: a TiledMap of `tiles` metres a side
     learning `overlap` past their borders, or with tiles None a HilbertMap."""
-    from ehm.io.outputs import check_output, check_output_map_directory
+    from ehm.io.output_paths import check_output, check_output_map_directory
 
     if tiles is not None:
         from ehm.tiles.tiled_map import TiledMap

@@ -75,7 +75,7 @@ def query(
     --distance its distance to obstacles)."""
     import numpy as np
 
-    from ehm.io.outputs import check_output
+    from ehm.io.output_paths import check_output
     from ehm.io.points import read_points
 
     if mode not in (None, "batch", "exact"):
@@ -113,7 +113,7 @@ def grid(
     """Occupancy grid of a map (incremental grid reconstruction), saved as .npz with arrays
     probability, scores, origin, resolution and intercept (and with --std, std)."""
     from ehm.io.grid_file import save_grid
-    from ehm.io.outputs import check_output
+    from ehm.io.output_paths import check_output
 
     check_output(output, [map_path], force, suffix=".npz")
     hilbert_map = load_map(map_path)
@@ -133,7 +133,7 @@ def mesh(
     force: Force = False,
 ) -> None:
     """Surface mesh of a 3D map by marching cubes, as binary PLY coloured by height."""
-    from ehm.io.outputs import check_output
+    from ehm.io.output_paths import check_output
     from ehm.io.ply import write_ply_mesh
     from ehm.viz.colors import vertex_colors
 
@@ -179,7 +179,7 @@ def render(
     force: Force = False,
 ) -> None:
     """Picture of a map, off-screen: its mesh coloured by height (3D) or its grid (2D)."""
-    from ehm.io.outputs import check_output
+    from ehm.io.output_paths import check_output
     from ehm.viz.pictures import grid_picture, mesh_picture, occupancy_slices
     from ehm.viz.render import Camera
 
@@ -263,7 +263,7 @@ def export(
 
     from ehm.grid.bounds import aligned_bounds
     from ehm.io import exports
-    from ehm.io.outputs import check_output
+    from ehm.io.output_paths import check_output
 
     suffixes = (*exports.OCTOMAP_SUFFIXES, ".pgm", ".ply", ".pcd", ".npz")
     if output.suffix.lower() not in suffixes:

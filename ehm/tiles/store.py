@@ -23,7 +23,7 @@ import numpy as np
 from ehm.core.model.kernels import kernel_reach
 from ehm.errors import FileReadError, OutputError
 from ehm.io.files import read_text, write_atomically
-from ehm.io.outputs import check_output_map_directory
+from ehm.io.output_paths import check_output_map_directory
 
 if TYPE_CHECKING:
     from ehm.hilbert_map import HilbertMap
@@ -174,7 +174,7 @@ class TileStore:
 
     def prepare(self) -> None:
         """Make the directory and its tiles folder where a tiled map may be written (see
-        ehm.io.outputs.check_output_map_directory: not a file, nor a folder of other files);
+        ehm.io.output_paths.check_output_map_directory: not a file, nor a folder of other files);
         OutputError otherwise and where making it fails."""
         check_output_map_directory(self.directory, force=True)
         try:

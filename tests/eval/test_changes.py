@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ehm import HilbertMap, MapConfig, Scan
-from ehm.eval.changes import (
+from ehm.eval.change_scores import (
     ChangeProbe,
     contains,
     hit_voxels,

@@ -85,11 +85,3 @@ def packed_cell_keys(
     for axis in range(points.shape[1]):
         keys = (keys << bits) | (cells[:, axis].astype(np.int64) + int(half))
     return (keys << kind_bits) | kind.astype(np.int64)
-
-
-def rank_in_runs(sorted_values: np.ndarray) -> np.ndarray:
-    """(n,) int64 position of each element within its run of equal values."""
-    n = len(sorted_values)
-    starts = np.flatnonzero(np.r_[True, sorted_values[1:] != sorted_values[:-1]])
-    lengths = np.diff(np.r_[starts, n])
-    return np.arange(n) - np.repeat(starts, lengths)
