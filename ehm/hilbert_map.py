@@ -31,14 +31,13 @@ from ehm.core.model.features import (
     SparseFeatures,
     decision_values,
     group_by_cell,
-    group_neighbours,
     training_features,
 )
-from ehm.core.model.logistic import sigmoid
 from ehm.core.observations.evidence import gather_evidence
 from ehm.core.observations.memory import EvidenceMemory, Visit
 from ehm.core.observations.passes import PASS_REACH_CELLS, hit_again, occupied_passes
 from ehm.core.observations.samples import ScanRays, TrainingSamples, scan_rays
+from ehm.core.primitives.logistic import sigmoid
 from ehm.core.queries.gradient import logit_gradients
 from ehm.core.queries.raycast import (
     checked_rays,
@@ -219,7 +218,10 @@ class HilbertMap:
                 points, clusters.means, clusters.transforms, clusters.planar_kernel
             )
         groups = groups if groups is not None else PointGroups.singletons(points)
-        return training_features(points, groups, self._index, clusters, cfg)
+        neighbours = self._index.group_neighbours(
+            points, groups, cfg.neighbours, cfg.coarse_neighbours
+        )
+        return training_features(points, groups, neighbours, clusters)
 
     def _query_intercept(self) -> float:
         """The log-odds every query adds: the bias when config.query_intercept, else 0."""
@@ -764,8 +766,8 @@ class HilbertMap:
             )
             return found.indptr, found.rows
         groups = self._query_groups(query, mode)
-        neighbours = group_neighbours(
-            self._index, query, groups, self.config.neighbours, self.config.coarse_neighbours
+        neighbours = self._index.group_neighbours(
+            query, groups, self.config.neighbours, self.config.coarse_neighbours
         )[groups.group_of_point]
         kept = neighbours >= 0
         indptr = np.zeros(len(query) + 1, dtype=np.int64)
@@ -812,8 +814,8 @@ class HilbertMap:
             found, variance_sums = self._supports.decision_values(query, *kernels, *learned)
         else:
             groups = self._query_groups(query, mode, cell)
-            neighbours = group_neighbours(
-                self._index, query, groups, self.config.neighbours, self.config.coarse_neighbours
+            neighbours = self._index.group_neighbours(
+                query, groups, self.config.neighbours, self.config.coarse_neighbours
             )
             found, variance_sums = decision_values(
                 query, groups.group_of_point, neighbours, *kernels, *learned

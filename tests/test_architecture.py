@@ -86,6 +86,41 @@ def test_imports_only_go_down_the_layers():
     assert upward == []
 
 
+# ehm.core's layers, from the bottom up: a module of one may import its own layer and those
+# below it (the modules at core's top level, snapshot, state and timing, sit above them all).
+CORE_LAYERS = (
+    ("primitives",),
+    ("sensor",),
+    ("model",),
+    ("search",),
+    ("observations",),
+    ("clustering", "weights"),
+    ("queries",),
+)
+
+
+def core_layer(name: str) -> int | None:
+    """The index in CORE_LAYERS of an ehm.core module's subpackage; None outside them."""
+    parts = name.split(".")
+    if parts[:2] != ["ehm", "core"] or len(parts) < 4:
+        return None
+    return next(i for i, names in enumerate(CORE_LAYERS) if parts[2] in names)
+
+
+def test_the_core_subpackages_import_only_down_their_layers():
+    upward = [
+        f"{name} imports {target}"
+        for name, imports in GRAPH.items()
+        for target in imports
+        if core_layer(name) is not None
+        and core_layer(target) is not None
+        and core_layer(target) > core_layer(name)
+    ]
+    assert upward == []
+    subpackages = {p.name for p in (PACKAGE / "core").iterdir() if (p / "__init__.py").exists()}
+    assert subpackages == {name for names in CORE_LAYERS for name in names}
+
+
 def test_there_are_no_import_cycles():
     state: dict[str, str] = {}
 
@@ -179,3 +214,13 @@ def test_only_the_pipeline_loops_over_scans():
 def test_only_the_command_line_imports_the_viewer():
     importers = sorted(name for name, imports in GRAPH.items() if "ehm.viz.viewer" in imports)
     assert importers == ["ehm.cli.inspection", "ehm.cli.mapping"]
+
+
+def test_the_core_tests_mirror_the_core_modules():
+    tests = Path(__file__).parent / "core"
+    unmatched = [
+        str(test.relative_to(tests))
+        for test in tests.rglob("test_*.py")
+        if not (PACKAGE / "core" / test.parent.relative_to(tests) / f"{test.stem[5:]}.py").exists()
+    ]
+    assert unmatched == []

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.core.sensor.frames import matrix_to_quaternion
 from ehm.core.sensor.scan import Scan
 from ehm.eval.datasets import floor_plan_2d
 from ehm.eval.datasets.simulated import lidar_directions, simulate_scan, virtual_room_scene
+from ehm.io.frames import matrix_to_quaternion
 
 # Where the three LiDAR sweeps are taken, metres, world frame (1.2 m above the floor).
 SWEEP_ORIGINS = np.array([[-1.0, 0.0, 1.2], [0.0, 0.0, 1.2], [1.0, 0.2, 1.2]])

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ehm.core.model.logistic import sigmoid
+from ehm.core.primitives.logistic import sigmoid
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.weights.uncertainty import logit_variance, occupancy_std
 from ehm.errors import InputError

@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ehm.core.sensor.frames import FrameTree
 from ehm.core.sensor.geometry import quaternion_to_matrix, transform_points
 from ehm.core.sensor.scan import Scan
 from ehm.errors import FileReadError, InputError, assumed
 from ehm.io.bag_chunks import ChunkReader
 from ehm.io.depth import DepthCamera
+from ehm.io.frames import FrameTree
 from ehm.io.poses import read_poses
 from ehm.io.velodyne import PacketDecoder
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.model.logistic import sigmoid
+from ehm.core.primitives.logistic import sigmoid
 from ehm.core.queries.raycast import (
     checked_rays,
     first_crossings,

@@ -5,9 +5,9 @@ import struct
 import numpy as np
 import pytest
 
-from ehm.core.sensor.frames import FrameTree, interpolate_pose
 from ehm.errors import FileReadError, InputError
 from ehm.io.bags import BagScans
+from ehm.io.frames import FrameTree, interpolate_pose
 from ehm.io.readers import read_scans
 
 rosbags = pytest.importorskip("rosbags")

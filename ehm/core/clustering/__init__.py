@@ -1,3 +1,3 @@
-"""How samples become clusters: quick-means, Alg. 1 (quickmeans), the clustering step of
-Alg. 2 (grouping), new clusters joining the map's (merging) and orientation clustering,
+"""How samples become the map's clusters: the clustering step of Alg. 2 (grouping; quick-means
+itself is a primitive), new clusters joining the map's (merging) and orientation clustering,
 Eq. 14-15 (coplanar)."""

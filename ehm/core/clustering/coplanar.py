@@ -19,7 +19,7 @@ from ehm.config import MapConfig
 from ehm.core.clustering.merging import anisotropic_distances, merge_pooled
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.kernels import cluster_normals, covariance_square_roots
-from ehm.core.search.hashing import sorted_distinct
+from ehm.core.primitives.hashing import sorted_distinct
 
 # Nearest planar centres of the same kind each cluster considers as partners.
 CANDIDATES = 8

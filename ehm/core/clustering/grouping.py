@@ -10,9 +10,9 @@ import numba
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.clustering.quickmeans import QuickMeansResult, kmeans_refine, quick_means_in_order
 from ehm.core.model.features import PointGroups
 from ehm.core.observations.samples import TrainingSamples
+from ehm.core.primitives.quickmeans import QuickMeansResult, kmeans_refine, quick_means_in_order
 
 
 @dataclass(frozen=True)

@@ -12,10 +12,10 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.clustering.grouping import NewClusters
 from ehm.core.model.clusters import ClusterSet
-from ehm.core.model.eigen import symmetric_eigen
 from ehm.core.model.features import SparseFeatures
 from ehm.core.model.kernels import Eigen, covariance_square_roots, transform_square_roots
-from ehm.core.search.hashing import sorted_distinct
+from ehm.core.primitives.eigen import symmetric_eigen
+from ehm.core.primitives.hashing import sorted_distinct
 from ehm.core.search.index import ClusterIndex
 
 

@@ -7,13 +7,13 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.model.eigen import symmetric_eigen
 from ehm.core.model.kernels import (
     Eigen,
     kernel_reach,
     kernel_transforms,
     planar_clusters,
 )
+from ehm.core.primitives.eigen import symmetric_eigen
 
 # The arrays of a ClusterSet kept in 32 bits, computed in 64: the clusters' shapes, statistics
 # and optimiser state (a cluster keeps 128 bytes in 3D, not 212). Means, weights and time

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.kernels import (
     OUTSIDE,
@@ -23,9 +22,8 @@ from ehm.core.model.kernels import (
     projected_radii,
     sparse_kernel_reference,
 )
-from ehm.core.search.cells import cell_keys
-from ehm.core.search.hashing import first_come_ranks
-from ehm.core.search.index import ClusterIndex
+from ehm.core.primitives.cells import cell_keys
+from ehm.core.primitives.hashing import first_come_ranks
 
 
 @dataclass(frozen=True)
@@ -89,15 +87,6 @@ def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
     sizes = np.bincount(group_of_point)
     sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)
     return PointGroups(group_of_point, sums / sizes[:, None])
-
-
-def group_neighbours(
-    index: ClusterIndex, points: np.ndarray, groups: PointGroups, k_fine: int, k_coarse: int
-) -> np.ndarray:
-    """(G, k_fine + k_coarse) int64: for each group of `points` (n, d), metres, the nearest
-    fine and nearest coarse clusters of its centre whose kernels can reach any of its points;
-    -1 where there are fewer (see ClusterIndex.nearest)."""
-    return index.nearest(groups.centres, k_fine, k_coarse, groups.spread(points))
 
 
 @dataclass(frozen=True)
@@ -166,17 +155,11 @@ def _compress_codes(clusters, codes, indptr):  # pragma: no cover - compiled
 
 
 def training_features(
-    points: np.ndarray,
-    groups: PointGroups,
-    index: ClusterIndex,
-    clusters: ClusterSet,
-    config: MapConfig,
+    points: np.ndarray, groups: PointGroups, neighbours: np.ndarray, clusters: ClusterSet
 ) -> SparseFeatures:
-    """Features of training points (n, d), metres (Alg. 2 lines 22-25): one neighbour search
-    per group, `neighbours` fine and `coarse_neighbours` coarse clusters."""
-    neighbours = group_neighbours(
-        index, points, groups, config.neighbours, config.coarse_neighbours
-    )
+    """Features of training points (n, d), metres (Alg. 2 lines 22-25), each over the
+    clusters its group's neighbour search found: neighbours (G, k) int64 rows, -1 for none
+    (ehm.core.search.index.ClusterIndex.group_neighbours)."""
     # Each point's clusters written beside its codes: compressing them then reads both in
     # order, not the neighbours of each point's group again: after the neighbour searches, 71 ms
     # to 58 on the sample scan, 36 to 30 on a TUM frame (BENCHMARKS.md); in 32 bits, half the

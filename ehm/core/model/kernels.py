@@ -20,7 +20,7 @@ import math
 import numba
 import numpy as np
 
-from ehm.core.model.eigen import symmetric_eigen
+from ehm.core.primitives.eigen import symmetric_eigen
 
 TWO_PI = 2.0 * np.pi
 # Standard deviations the planar-surface kernel spans on each side of its mean (Eq. 13).
@@ -143,7 +143,7 @@ def cluster_kernel_reference(projected: np.ndarray, planar: np.ndarray) -> np.nd
 
 Eigen = tuple[np.ndarray, np.ndarray]
 """An eigen decomposition of (M, d, d) covariances: eigenvalues (M, d) ascending and
-eigenvectors (M, d, d) as columns (ehm.core.model.eigen.symmetric_eigen)."""
+eigenvectors (M, d, d) as columns (ehm.core.primitives.eigen.symmetric_eigen)."""
 
 
 def floored_eigen(

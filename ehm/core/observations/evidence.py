@@ -8,7 +8,7 @@ gave 1.1 million). Here they are not kept: each is added where it falls to the s
 cell and kind (weight, sum and scatter of positions), in a compiled pass over the rays (two,
 each over half of a large batch's rays, on two threads, their cells then joined), and a batch
 leaves one weighted sample per cell and kind, at the mean of the samples that fell there, with
-their scatter about it. Clustering pools the statistics exactly (ehm.core.clustering.quickmeans),
+their scatter about it. Clustering pools the statistics exactly (ehm.core.primitives.quickmeans),
 and the loss of a cell's samples is, to first order in the cell's size, the loss of its mean
 weighted by their number.
 
@@ -44,8 +44,8 @@ from ehm.core.observations.samples import (
     ray_randoms,
     samples_of_rays,
 )
-from ehm.core.search.cells import packed_cell_keys
-from ehm.core.search.hashing import EMPTY_KEY, hash_bits, hash_slot, table_size
+from ehm.core.primitives.cells import packed_cell_keys
+from ehm.core.primitives.hashing import EMPTY_KEY, hash_bits, hash_slot, table_size
 from ehm.core.sensor.boxes import points_in_box
 from ehm.errors import InputError
 
@@ -93,10 +93,10 @@ def statistics_width(dim: int) -> int:
 
 @dataclass
 class _CellTable:
-    """Cells met so far: an open-addressing table of keys (ehm.core.search.hashing) pointing into
-    rows filled in the order cells are met. Per row: key (c,) int64, which holds the cell's
-    corner and kind (cell_corners); stats (c, statistics_width(d)): the weight, the sum of the
-    samples' offsets from the corner and the upper triangle of their scatter about it,
+    """Cells met so far: an open-addressing table of keys (ehm.core.primitives.hashing)
+    pointing into rows filled in the order cells are met. Per row: key (c,) int64, which holds
+    the cell's corner and kind (cell_corners); stats (c, statistics_width(d)): the weight, the
+    sum of the samples' offsets from the corner and the upper triangle of their scatter about it,
     row-major (one cache line or two per sample added)."""
 
     dim: int

@@ -53,7 +53,7 @@ from ehm.core.observations.memory_keys import (
     reached_regions,
 )
 from ehm.core.observations.samples import TrainingSamples
-from ehm.core.search.hashing import row_of, row_table, sorted_distinct
+from ehm.core.primitives.hashing import row_of, row_table, sorted_distinct
 
 # Steps of an entry's place along each side of its cell.
 OFFSET_STEPS = 255
@@ -449,7 +449,7 @@ class EvidenceMemory:
         return np.cumsum(self.region_sizes, dtype=np.int64) - self.region_sizes
 
     def region_table(self) -> tuple[np.ndarray, np.ndarray]:
-        """The table (ehm.core.search.hashing.row_table) that finds each region's row from its
+        """The table (ehm.core.primitives.hashing.row_table) that finds each region's row from its
         key shifted right by REGION_BITS; made once for the regions as they stand, for a
         batch's visit and its passes alike."""
         if self._table_of is not self.regions:

@@ -17,7 +17,7 @@ mean one does (`hit_again`), within the lateral shift a small error in the senso
 orientation gives at its range (REGISTRATION_SLACK): a surface seen from a pose a degree off
 stands beside where it stood, and the rays past its edge go through its old place.
 Each ray walks the regions it crosses (a 3D DDA on the grid of regions,
-ehm.core.search.grid_walk), tests each in a bitmap of the regions that hold occupied entries,
+ehm.core.primitives.grid_walk), tests each in a bitmap of the regions that hold occupied entries,
 and looks up only those in the table of the memory's regions.
 """
 
@@ -30,14 +30,14 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ehm.core.model.eigen import eigen_in_place
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
 from ehm.core.observations.memory_keys import SUB_BITS, region_bits
 from ehm.core.observations.planes import LINEAR_SPREAD, group_spreads, plane_normals
 from ehm.core.observations.samples import ScanRays
-from ehm.core.search.grid_walk import walk_setup, walk_step
-from ehm.core.search.hashing import row_of
+from ehm.core.primitives.eigen import eigen_in_place
+from ehm.core.primitives.grid_walk import walk_setup, walk_step
+from ehm.core.primitives.hashing import row_of
 from ehm.core.search.index import PARALLEL_SEARCH_POINTS
 
 # How close a ray must come to an entry's mean to pass it, in fine evidence cells (3 cm at 5 cm

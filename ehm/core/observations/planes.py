@@ -11,9 +11,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ehm.core.model.eigen import eigen_in_place
-from ehm.core.search.cells import packed_cell_keys
-from ehm.core.search.hashing import EMPTY_KEY, hash_slot, table_size
+from ehm.core.primitives.cells import packed_cell_keys
+from ehm.core.primitives.eigen import eigen_in_place
+from ehm.core.primitives.hashing import EMPTY_KEY, hash_slot, table_size
 
 # The batch's hits in a cell lie on a plane when there are at least PLANE_HITS of them and their
 # least spread is at most HIT_PLANAR_SPREAD of the next (and not on a line).
@@ -49,7 +49,7 @@ def cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.nda
 @numba.njit(cache=True, parallel=True)
 def _cell_planes_kernel(points, keys, min_hits, planar, linear):  # pragma: no cover - compiled
     """cell_planes of points (n, d) in the cells of keys (n,) int64 >= 0: each cell's points
-    found through a table of its key (ehm.core.search.hashing), their offsets from the cell's
+    found through a table of its key (ehm.core.primitives.hashing), their offsets from the cell's
     first point summed with their outer products in one pass; where a cell holds at least
     `min_hits`, the eigen decomposition of its scatter gives its unit normal where the least
     spread is at most `planar` of the next, and it lies on a line where the middle spread is

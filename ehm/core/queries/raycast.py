@@ -24,8 +24,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ehm.core.primitives.grid_walk import walk_setup, walk_step
 from ehm.core.queries.cover import KernelCover, pack_cells, unpack_cells
-from ehm.core.search.grid_walk import walk_setup, walk_step
 from ehm.errors import InputError
 
 # Points of every running ray evaluated in one call of the log-odds.

@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ehm.core.clustering.quickmeans import quick_means
+from ehm.core.primitives.quickmeans import quick_means
 
 
 @dataclass

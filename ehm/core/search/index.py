@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree
 
 from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
+from ehm.core.model.features import PointGroups
 from ehm.core.model.kernels import projected_radii
 from ehm.core.search.anchors import AnchorLayers, AnchorTree
 from ehm.core.search.centre_counts import CentreCounts
@@ -266,6 +267,14 @@ class ClusterIndex:
         kk = min(k, candidates.shape[1])
         found[:, :kk] = candidates[:, :kk]
         found[:, kk:] = -1
+
+    def group_neighbours(
+        self, points: np.ndarray, groups: PointGroups, k_fine: int, k_coarse: int
+    ) -> np.ndarray:
+        """(G, k_fine + k_coarse) int64: for each group of `points` (n, d), metres, the nearest
+        fine and nearest coarse clusters of its centre whose kernels can reach any of its
+        points; -1 where there are fewer (see nearest)."""
+        return self.nearest(groups.centres, k_fine, k_coarse, groups.spread(points))
 
     def nearest(
         self, points: np.ndarray, k_fine: int, k_coarse: int, spread: float = np.inf

@@ -41,7 +41,7 @@ from ehm.core.model.kernels import (
     kernels_of_codes_serial,
     projected_radii,
 )
-from ehm.core.search.hashing import EMPTY_KEY, group_rows, hash_slot, sorted_distinct
+from ehm.core.primitives.hashing import EMPTY_KEY, group_rows, hash_slot, sorted_distinct
 from ehm.errors import InputError
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,

@@ -1,2 +1,2 @@
-"""Range scans as they come in: scans (scan), coordinate frames over time (frames), rigid
-transforms (geometry) and rays clipped to boxes (boxes)."""
+"""Range scans as they come in: scans (scan), rigid transforms (geometry) and rays clipped to
+boxes (boxes)."""

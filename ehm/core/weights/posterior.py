@@ -21,7 +21,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.features import SparseFeatures
-from ehm.core.model.logistic import sigmoid, sigmoid_scalar
+from ehm.core.primitives.logistic import sigmoid, sigmoid_scalar
 
 # Largest change of one weight in one coordinate step, log-odds.
 MAX_STEP = 4.0

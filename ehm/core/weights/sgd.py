@@ -29,7 +29,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.features import SparseFeatures
-from ehm.core.model.logistic import sigmoid, sigmoid_scalar
+from ehm.core.primitives.logistic import sigmoid, sigmoid_scalar
 
 EPSILON = 1e-8
 # The most one sample's step moves a weight, log-odds. Beside the sensor of OctoMap's sample

@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from ehm.core.model.features import SparseFeatures
-from ehm.core.model.logistic import sigmoid, sigmoid_scalar
+from ehm.core.primitives.logistic import sigmoid, sigmoid_scalar
 
 # Gauss-Hermite nodes and weights for E[f(z)], z ~ N(mean, variance): exact for polynomials
 # of degree up to 127; the standard deviation of the sigmoid comes within 4e-5 of the exact one

@@ -21,8 +21,8 @@ import numpy as np
 
 from ehm.config import MapConfig
 from ehm.core.model.kernels import sparse_kernel_reference
-from ehm.core.model.logistic import sigmoid
 from ehm.core.observations.samples import samples_of_scans
+from ehm.core.primitives.logistic import sigmoid
 from ehm.core.sensor.scan import Scan
 from ehm.core.weights.sgd import EPSILON
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.model.logistic import sigmoid, sigmoid_scalar
+from ehm.core.primitives.logistic import sigmoid, sigmoid_scalar
 
 
 def test_sigmoid_values_and_symmetry():

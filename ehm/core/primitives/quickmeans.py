@@ -18,8 +18,8 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ehm.core.search.cells import cell_keys
-from ehm.core.search.hashing import group_by_key
+from ehm.core.primitives.cells import cell_keys
+from ehm.core.primitives.hashing import group_by_key
 
 
 @dataclass(frozen=True)

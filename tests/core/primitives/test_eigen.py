@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.model.eigen import symmetric_eigen
+from ehm.core.primitives.eigen import symmetric_eigen
 
 
 def _covariances(rng, n, dim):

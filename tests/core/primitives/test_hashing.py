@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ehm.core.search.hashing import (
+from ehm.core.primitives.hashing import (
     first_come_ranks,
     group_by_key,
     group_rows,

@@ -13,7 +13,6 @@ from ehm.core.model.features import (
     decision_values_reference,
     features_of_codes_reference,
     group_by_cell,
-    group_neighbours,
     kernel_values,
     kernel_values_reference,
     training_features,
@@ -135,9 +134,8 @@ def test_training_features_are_the_kernels_of_each_groups_neighbours(room_map, r
     index = ClusterIndex.of(clusters)
     points = rng.uniform([-4, -3, 0], [4, 3, 3], (3000, 3))
     groups = group_by_cell(points, 0.3)
-    config = MapConfig(neighbours=5, coarse_neighbours=2)
-    features = training_features(points, groups, index, clusters, config)
-    neighbours = group_neighbours(index, points, groups, 5, 2)
+    neighbours = index.group_neighbours(points, groups, 5, 2)
+    features = training_features(points, groups, neighbours, clusters)
     assert neighbours.shape == (len(groups.centres), 7)
     # Each group's clusters: the nearest fine, then the nearest coarse ones of its centre, no
     # farther than a kernel reaches plus how far the group's points spread.

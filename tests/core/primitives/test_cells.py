@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.search.cells import cell_keys
+from ehm.core.primitives.cells import cell_keys
 
 
 def test_points_in_one_cell_share_a_key_and_keys_differ_between_cells(rng):

@@ -7,7 +7,7 @@ from ehm.config import MapConfig
 from ehm.core.observations import evidence
 from ehm.core.observations.evidence import evidence_reference, gather_evidence
 from ehm.core.observations.samples import ray_randoms, samples_of_rays, scan_rays
-from ehm.core.search.cells import packed_cell_keys
+from ehm.core.primitives.cells import packed_cell_keys
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 

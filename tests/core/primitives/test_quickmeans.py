@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ehm.core.clustering.quickmeans import kmeans_refine, quick_means, quick_means_reference
+from ehm.core.primitives.quickmeans import kmeans_refine, quick_means, quick_means_reference
 
 
 def _cloud(rng, n=3000, dim=3):

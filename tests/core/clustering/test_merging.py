@@ -15,8 +15,8 @@ from ehm.core.clustering.merging import (
     merge_pooled,
 )
 from ehm.core.model.clusters import ClusterSet
-from ehm.core.model.eigen import symmetric_eigen
 from ehm.core.model.kernels import covariance_square_roots
+from ehm.core.primitives.eigen import symmetric_eigen
 from ehm.core.search.index import ClusterIndex
 from ehm.core.search.supports import SupportHash
 
