@@ -8,9 +8,13 @@ Each is imported on first use, so `import ehm` and the command line's help are i
 and the evaluation is never loaded by a program that does not ask for it.
 """
 
+import logging
 import os
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
+
+# ehm logs each scan learned on logger "ehm" (INFO); an application chooses where it goes.
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 # Numba's parallel loops run on GNU OpenMP, whose threads spin after each loop, waiting for
 # the next, for 300,000 turns unless told otherwise. Learning runs many short loops with Python

@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 import ehm
 from ehm.cli import app
 from ehm.cli.app import parse_settings
+from ehm.config import MapConfig
 from ehm.errors import InputError
 from ehm.eval.runner import RECORD_KEYS
 from ehm.io.distance_file import load_distance_grid
@@ -38,11 +39,11 @@ def test_map_then_info_and_query(map_file, tmp_path, table_row):
     hilbert_map = ehm.load(map_file)
     info = runner.invoke(app, ["info", str(map_file)])
     assert info.exit_code == 0, info.output
-    assert table_row(info.output, "config.neighbours") == ["6"]  # set when it was made
-    assert "config.coarse_neighbours" not in info.output  # at its default: --all shows it
+    assert table_row(info.output, "kernels.neighbours") == ["6"]  # set when it was made
+    assert "kernels.coarse_neighbours" not in info.output  # at its default: --all shows it
     assert table_row(info.output, "other settings") == ["51 at their defaults for 0.05 m (--all)"]
     every = runner.invoke(app, ["info", str(map_file), "--all"]).output
-    assert table_row(every, "config.coarse_neighbours") == ["4"]
+    assert table_row(every, "kernels.coarse_neighbours") == ["4"]
     assert table_row(info.output, "dimensions") == ["2"]
     assert table_row(info.output, "scans") == ["5"]
     path = hilbert_map.sensor_path
@@ -171,8 +172,8 @@ def test_map_at_another_resolution_scales_its_settings(plan_log, tmp_path, table
     info = runner.invoke(app, ["info", str(output)])
     assert "resolution" in info.output and "0.1 m (outputs default to it)" in info.output
     # Only the setting given differs from the defaults at 0.1 m.
-    assert table_row(info.output, "config.min_std") == ["0.03"]
-    assert "config.cluster_radius" not in info.output
+    assert table_row(info.output, "kernels.min_std") == ["0.03"]
+    assert "clustering.cluster_radius" not in info.output
     grid_path = tmp_path / "coarse.npz"
     result = runner.invoke(app, ["grid", str(output), "-o", str(grid_path)])
     assert result.exit_code == 0, result.output
@@ -497,3 +498,25 @@ def test_verbose_logs_each_scan_on_stderr(tmp_path, plan_log):
     assert "scan 4: 180 rays in" in " ".join(result.output.split())
     unwritable = runner.invoke(app, ["--log", str(tmp_path), "info", str(tmp_path / "a.ehm")])
     assert unwritable.exit_code == 2 and f"--log {tmp_path}: Is a directory" in unwritable.output
+
+
+def test_a_map_keeps_its_settings_beside_it_and_config_reads_them(tmp_path, plan_log):
+    first = tmp_path / "first.ehm"
+    made = runner.invoke(app, ["map", str(plan_log), "-o", str(first), "-q", "--resolution",
+                               "0.1", "--set", "neighbours=6"])  # fmt: skip
+    assert made.exit_code == 0, made.output
+    settings = tmp_path / "first.settings.toml"
+    assert "[kernels]" in settings.read_text()
+    again = tmp_path / "again.ehm"
+    result = runner.invoke(app, ["map", str(plan_log), "-o", str(again), "-q", "--config",
+                                 str(settings), "--set", "epochs=3"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    expected = MapConfig.for_resolution(0.1, neighbours=6, epochs=3)
+    assert ehm.load(again).config == expected
+    assert MapConfig.from_toml((tmp_path / "again.settings.toml").read_text()) == expected
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[queries]\nepochs = 3\n")
+    refused = runner.invoke(app, ["map", str(plan_log), "-o", str(tmp_path / "c.ehm"),
+                                  "--config", str(bad)])  # fmt: skip
+    assert refused.exit_code == 2
+    assert "[queries] has no setting 'epochs' (it is in [learning])" in refused.output

@@ -1,7 +1,7 @@
 import pytest
 
 from ehm import HilbertMap, MapConfig, SettingsError
-from ehm.config import DEFAULT_RESOLUTION, LENGTH_SETTINGS
+from ehm.config import DEFAULT_RESOLUTION, LENGTH_SETTINGS, SECTIONS
 
 
 def test_overrides_and_validation():
@@ -88,3 +88,44 @@ def test_a_configuration_knows_the_resolution_it_was_made_for():
     assert MapConfig().resolution == DEFAULT_RESOLUTION
     assert MapConfig.for_resolution(0.2).resolution == pytest.approx(0.2)
     assert MapConfig.for_resolution(0.1, max_range=30.0).resolution == pytest.approx(0.1)
+
+
+def test_settings_files_round_trip_in_sections():
+    config = MapConfig.for_resolution(0.2, replay_cap=None, learn_box=(0, 0, 0, 4, 4, 2))
+    text = config.to_toml()
+    assert "[clustering]\ncluster_radius = 0.48\n" in text and 'replay_cap = "none"' in text
+    assert MapConfig.from_toml(text) == config
+    assert set(config.section("memory")) == {
+        "keep_evidence", "replay_ratio", "replay_cap", "pass_retraction", "forget_after",
+    }  # fmt: skip
+    assert sum(len(config.section(name)) for name in SECTIONS) == len(config.to_dict())
+
+
+def test_a_settings_file_may_be_partial_flat_or_at_another_resolution():
+    partial = MapConfig.from_toml(
+        "resolution = 0.1\n[kernels]\nneighbours = 6\nfeatures = 'support'\n"
+    )
+    assert partial == MapConfig.for_resolution(0.1, neighbours=6, features="support")
+    assert MapConfig.from_toml("neighbours = 6") == MapConfig(neighbours=6)
+    # Another resolution scales the file's lengths, as it scales the defaults.
+    rescaled = MapConfig.from_toml(MapConfig().to_toml(), resolution=0.2)
+    assert rescaled == MapConfig.for_resolution(0.2)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "[kernels]\ncluster_radius = 0.2\n",
+            r"\[kernels\] has no setting 'cluster_radius' \(it is in \[clustering\]\)",
+        ),
+        ("[kernels]\nradius = 0.2\n", r"\[kernels\] has no setting 'radius'$"),
+        ("neighbours = 0\n", "a.toml: MapConfig.neighbours must be an integer >= 1, got 0"),
+        ("resolution = -1\n", "a.toml: resolution must be a positive number of metres"),
+        ("neighbours = \n", "a.toml: not TOML"),
+        ("speed = 3\n", "a.toml: unknown MapConfig setting"),
+    ],
+)
+def test_settings_files_are_refused_by_name(text, message):
+    with pytest.raises(SettingsError, match=message):
+        MapConfig.from_toml(text, "a.toml")

@@ -128,6 +128,7 @@ def configure_logging(verbose: bool, log_file: Path | None) -> None:
         logger.removeHandler(handler)
         handler.close()
     logger.setLevel(logging.INFO if verbose or log_file else logging.WARNING)
+    logger.addHandler(logging.NullHandler())  # else Python prints warnings on its own
     if verbose:
         from rich.logging import RichHandler
 

@@ -96,16 +96,16 @@ def info(
 def _settings_rows(table: Table, config, every: bool) -> None:
     """A row per setting that differs from MapConfig.for_resolution's at the map's resolution
     (every one when `every`), and a row saying how many are left out."""
-    from ehm.config import MapConfig
+    from ehm.config import SECTIONS, MapConfig
 
     defaults = MapConfig.for_resolution(config.resolution).to_dict()
     same = 0
-    for name, value in config.to_dict().items():
-        default = defaults.get(name)
-        if not every and _same_setting(value, default):
-            same += 1
-            continue
-        table.add_row(f"config.{name}", repr(value))
+    for section in SECTIONS:
+        for name, value in config.section(section).items():
+            if not every and _same_setting(value, defaults[name]):
+                same += 1
+                continue
+            table.add_row(f"{section}.{name}", repr(value))
     if same:
         table.add_row(
             "other settings", f"{same} at their defaults for {config.resolution:g} m (--all)"

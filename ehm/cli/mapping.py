@@ -200,6 +200,14 @@ def map_command(
             "about 0.2 for long-range outdoor LiDAR.  \\[default: 0.05]"
         ),
     ] = None,
+    config_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--config",
+            help="Settings file (TOML: resolution, then a table per section of MapConfig, as "
+            "the .settings.toml written beside every map); --resolution and --set override it.",
+        ),
+    ] = None,
     setting: Annotated[
         list[str] | None, typer.Option("--set", help="MapConfig override name=value.")
     ] = None,
@@ -247,8 +255,9 @@ def map_command(
         ),
     ] = False,
 ) -> None:
-    """Build a map from scans of any supported format and save it."""
-    from ehm.config import MapConfig
+    """Build a map from scans of any supported format and save it, with the settings it was
+    made with beside it (map.settings.toml; `--config` reads such a file)."""
+    from ehm.io.output_paths import check_output
     from ehm.io.readers import ScanFiles
 
     given = [*inputs, *(p for p in (poses, calib) if p is not None)]
@@ -268,20 +277,40 @@ def map_command(
     if tiled and (batch or view):
         raise InputError("--batch and --view are for single maps, not tiled ones")
     if update:
-        if overrides or settings or resolution is not None or tiles is not None:
+        asked = (overrides, settings, resolution, tiles, config_file)
+        if any(item for item in asked if item is not None):
             raise InputError(
                 "--update adds scans to a map with its own settings: leave out --resolution, "
-                "--set, --min-range, --max-range and --tiles"
+                "--config, --set, --min-range, --max-range and --tiles"
             )
         target = _map_to_update(output, given, tiled, batch)
     else:
-        detail = 0.05 if resolution is None else resolution
-        config = MapConfig.for_resolution(detail, **settings, **overrides)
+        config = _settings(config_file, resolution).replace(**settings, **overrides)
         target = _new_map(output, given, force, config, tiles if tiled else None, overlap)
+        if not tiled:  # a tiled map's folder is its own
+            check_output(settings_path(output, tiled), given, force)
     if tiled:
         _build_tiles(target, files, output, workers, scheduler, quiet)
     else:
         _learn_scans(target, files, output, batch, quiet, port if view else None)
+
+
+def _settings(config_file: Path | None, resolution: float | None):
+    """The settings of a new map: the file's (its resolution replaced by `resolution` when
+    given), else the defaults at `resolution` (0.05 m when None)."""
+    from ehm.config import DEFAULT_RESOLUTION, MapConfig
+    from ehm.io.files import read_input
+
+    if config_file is None:
+        return MapConfig.for_resolution(DEFAULT_RESOLUTION if resolution is None else resolution)
+    text = read_input(config_file).decode("utf-8", errors="replace")
+    return MapConfig.from_toml(text, str(config_file), resolution)
+
+
+def settings_path(output: Path, tiled: bool) -> Path:
+    """Where the settings a map was made with are written: beside a map file (map.ehm:
+    map.settings.toml), inside a tiled map's folder (settings.toml)."""
+    return output / "settings.toml" if tiled else output.with_suffix(".settings.toml")
 
 
 def _map_to_update(output: Path, given: list[Path], tiled: bool, batch: bool):
@@ -324,6 +353,7 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
     """Learn the scans of `files` into `hilbert_map` and save it at `output`, with a progress
     bar and a summary unless `quiet`; with a `port`, showing it live in the browser there and
     after, until Ctrl-C."""
+    from ehm.io.files import write_atomically
     from ehm.pipeline import MappingPipeline, ProgressBar
 
     observers = [] if quiet else [ProgressBar(console)]
@@ -341,6 +371,7 @@ def _learn_scans(hilbert_map, files, output: Path, batch: bool, quiet: bool, por
             scans, hilbert_map, batch, observers, None if total < 0 else total
         ).run()
         hilbert_map.save(output)
+        write_atomically(settings_path(output, False), hilbert_map.config.to_toml().encode())
     if interrupt.asked:
         stopped = f"stopped by Ctrl-C after {run.n_scans} scans; the map of those is saved:"
         stopped += f" {output}"
@@ -429,11 +460,13 @@ def _build_tiles(
     written to the folder `output` as they come, with a progress bar unless `quiet`."""
     from contextlib import nullcontext
 
+    from ehm.io.files import write_atomically
     from ehm.tiles.progress import TileProgressBar
 
     progress = nullcontext(None) if quiet else TileProgressBar(console)
     with progress as observer:
         report = tiled_map.build(files, scheduler, workers, output, observer)
+    write_atomically(settings_path(output, True), tiled_map.config.to_toml().encode())
     if not quiet:
         console.print(
             f"{report.n_scans} scans, {report.n_rays} rays -> {len(report.tiles)} tiles learned "
