@@ -20,7 +20,7 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 # the next, for 300,000 turns unless told otherwise. Learning runs many short loops with Python
 # work between them, which spinning threads slow on a machine of few cores; they wait 3,000
 # turns here and then sleep, unless the environment sets the count. Set before any loop starts
-# OpenMP (BENCHMARKS.md, "The real-time issue, thirteenth step").
+# OpenMP.
 os.environ.setdefault("GOMP_SPINCOUNT", "3000")
 
 if TYPE_CHECKING:

@@ -71,19 +71,11 @@ from ehm.io.map_file import read_map, write_map
 # radii (ehm.core.queries.raycast.CandidateCells).
 RAY_CELLS_PER_RADIUS = 4.0
 # How far beyond the grid's crossing a ray looks for the exact one before it marches the exact
-# log-odds from its start, in cluster radii (voxels of the grid). Where a surface is sharper
-# than a voxel, the grid, interpolated between voxel centres, crosses early, and with
-# 'nearest' it also sums kernels the queries leave out: of the rays of six TUM frames the grid
-# guided, 9.6 % crossed more than two radii beyond its crossing and 0.7 % more than four (the
-# street 14.9 % and 2.3 %, the warehouse 1.2 % and 0.5 %). Each of them marched from its
-# start: looking on to four radii first read 17 % fewer points on TUM and 26 % on the street
-# (BENCHMARKS.md).
+# log-odds from its start, in cluster radii (voxels of the grid): the grid, interpolated
+# between voxel centres, crosses early where a surface is sharper than a voxel.
 RAY_GUESS_BEHIND = 4.0
 # Rays read the log-odds in batch mode in groups of cells this many times `query_cell` wide:
-# a ray's samples lie a few centimetres apart, and in cells of 0.1 m most made a neighbour
-# search of their own. With 0.2 m, 100,000 rays cost 25-30 % less on the warehouse and the
-# errors against its surfaces stayed (median 0.042 m, 90 % 0.158 against 0.160; the sample
-# scan 0.057 / 0.371 against 0.057 / 0.370; BENCHMARKS.md).
+# a ray's samples lie a few centimetres apart, and smaller cells make a search each.
 RAY_QUERY_CELLS = 2.0
 
 
@@ -673,8 +665,8 @@ class HilbertMap:
         cluster_radius voxels, put where the log-odds meet the level as point queries read
         them, from one search of nearest clusters around each surfel
         (ehm.core.queries.distance, ehm.grid.planner_support), made on the first call for a
-        level and boxes and kept up to date as the map learns (each update's stage 'grids'; on
-        large maps learned scan by scan this costs up to twice the update, BENCHMARKS.md).
+        level and boxes and kept up to date as the map learns (each update's stage 'grids',
+        which on large maps learned scan by scan can cost more than the update itself).
         NaN rows for points that are not finite; InputError for a box of another shape or
         with low > high, and for maps whose grid would be too large to keep (tile them)."""
         self._learned("measure distances in it")

@@ -195,8 +195,7 @@ def _accumulate_planes(
                 if k_high < k_low:
                     continue
                 # The row's kernel codes, then their values in one loop LLVM vectorises, then
-                # the sums: the warehouse's planner grid in 514 ms against 1,039 with each value
-                # found and added voxel by voxel, the same to the last bit (BENCHMARKS.md).
+                # the sums: twice as fast as voxel by voxel, the same to the last bit.
                 run = row_values[: k_high - k_low + 1]
                 for k in range(k_low, k_high + 1):
                     dz = origin[2] + (k + 0.5) * resolution - means[m, 2]

@@ -10,11 +10,8 @@ of its log-odds, averaged over the cell, is at most KNOWN_VARIANCE_SHARE of the 
 from anything observed it keeps the prior's, ehm.core.weights.uncertainty). Every other cell
 is unknown.
 
-On the Intel lab and a generated office floor (3 seeds, 80 % and 40 % of the rays train;
-benchmarks/nav2_maps.py), map_server reads 96-97 % of the held-out free points free and 93-95 %
-of the hits occupied (OctoMap: 95-99 % and 53-71 %), and 3-4 % of the points 0.2-1 m behind
-walls that no ray saw free (OctoMap: none). Read through map_server's thresholds, the map's
-probabilities at the cell centres gave 78-82 % free and 52-73 % of the hits occupied.
+How these maps read held-out free points and hits against OctoMap's is measured by
+benchmarks/nav2_maps.py.
 
     nav = navigation_grid(hilbert_map, resolution=0.05)
     write_map_server(nav, "floor.pgm")
@@ -44,9 +41,8 @@ surface (which reads occupied a voxel or two thick), kerbs and ground noise, to 
 ground robot."""
 KNOWN_VARIANCE_SHARE = 0.8
 """A cell is known, and may read free, where its log-odds variance is at most this share of the
-prior's, 1 / prior_precision. On the two data sets above (seed 0, 80 %), 0.8 read 97 % and 95 %
-of the free points free and 3.0 % and 1.4 % of the unseen points free; 0.7: 96 %, 94 %, 1.9 %,
-0.7 %; 0.5: 93 %, 90 %, 1.0 %, 0.3 %."""
+prior's, 1 / prior_precision: lower reads less of the explored space free, higher more of the
+unseen space."""
 
 
 class GriddedMap(Protocol):

@@ -16,8 +16,7 @@ reaches somewhat beyond the map, and at least a distance field's reach; a map th
 beyond that has it made again as it learns, and a grid too large to keep is tried again at the
 next query after an update (distances are then read from a grid around the points asked, and
 rays march point queries). Keeping a distance field costs a search of nearest clusters per
-surfel an update moves, where the map is large and every scan changes most of it
-(BENCHMARKS.md, "Distances").
+surfel an update moves: much where the map is large and every scan changes most of it.
 """
 
 from __future__ import annotations

@@ -160,10 +160,8 @@ def training_features(
     """Features of training points (n, d), metres (Alg. 2 lines 22-25), each over the
     clusters its group's neighbour search found: neighbours (G, k) int64 rows, -1 for none
     (ehm.core.search.index.ClusterIndex.group_neighbours)."""
-    # Each point's clusters written beside its codes: compressing them then reads both in
-    # order, not the neighbours of each point's group again: after the neighbour searches, 71 ms
-    # to 58 on the sample scan, 36 to 30 on a TUM frame (BENCHMARKS.md); in 32 bits, half the
-    # bytes written: the sample scan's codes 25-27 ms -> 16-18.
+    # Each point's clusters written beside its codes, in 32 bits: compressing them then reads
+    # both in order, not each point's group's neighbours again, and half the bytes.
     of_point = np.empty((len(points), neighbours.shape[1]), dtype=np.int32)
     codes = _kernel_codes(
         points,

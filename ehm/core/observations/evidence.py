@@ -16,8 +16,8 @@ Kinds: occupied samples and free samples in front of hits live in fine cells, fr
 along rays in coarse cells (`cell_sides`). Free samples along a ray are stratified, one in
 each `spacing` of its length from a random offset, so a ray of length L gives L / spacing of
 them in expectation, as independent draws would, with less noise. The cells are small against
-the kernels they train (a quarter of a cluster radius, a third of a free cluster's): cells of
-half a radius lost 0.005-0.016 held-out F1 in one batch (BENCHMARKS.md). With
+the kernels they train (a quarter of a cluster radius, a third of a free cluster's): coarser
+cells blur what the kernels learn. With
 `surface_pooling`, the samples behind and in front of hits, which fill a slab around the
 surface where the hits fill its face, are gathered in cells that many times as wide
 (`kind_sides`).
@@ -58,18 +58,16 @@ FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED, OCCUPIED_BEHIND = 0, 1, 2, 3
 KIND_BITS = 2
 KIND_MASK = (1 << KIND_BITS) - 1
 # Cells of each kind across the cluster radius of its kind (`cluster_radius` around hits,
-# `free_cluster_radius` along rays): 3 cm and 20 cm at the default 5 cm of detail. Measured
-# over three seeds on every data set (BENCHMARKS.md): coarse cells of 30 cm lost 0.027
-# held-out F1 on the PCL room scan by scan, 15 cm ones cost 40 % more cells for no gain.
+# `free_cluster_radius` along rays): 3 cm and 20 cm at the default 5 cm of detail; coarser
+# cells lose accuracy, finer ones cost cells for no gain.
 FINE_CELLS_PER_RADIUS = 4
 COARSE_CELLS_PER_RADIUS = 3
 # A batch of at least PARALLEL_MIN_SAMPLES samples (a sweep of 88,000 rays gives 1.1 million)
 # is gathered in GATHER_PARTS parts of its rays, about as many samples in each, each part in a
 # table of its own on a thread of its own as far as there are threads; a cell a later part
-# met too (0.5-1.1 % of the cells of OctoMap's sample scan, a TUM frame and a street sweep,
-# most of them coarse cells along rays) is folded into the earlier part's, and the parts'
-# cells follow one another. The parts do not follow the threads, so a map is the same on any
-# machine.
+# met too (a few, most of them coarse cells along rays) is folded into the earlier part's, and
+# the parts' cells follow one another. The parts do not follow the threads, so a map is the
+# same on any machine.
 PARALLEL_MIN_SAMPLES = 100_000
 GATHER_PARTS = 2
 # A table starts with a row for every SAMPLES_PER_CELL samples: a scan's samples fill 3-7 per
@@ -184,9 +182,8 @@ def gather_kernel(
     metres: the cell side of each kind (kind_sides); behind_kind: the kind of the occupied
     sample behind each hit (OCCUPIED or OCCUPIED_BEHIND); bits: bits per axis of a key.
 
-    Each sample is added where it is made, in one place of this loop: the same work in a
-    helper taking the table's arrays, called once per sample, took five times as long
-    (BENCHMARKS.md, the real-time issue's eighth step).
+    Each sample is added where it is made, in one place of this loop: a helper taking the
+    table's arrays, called once per sample, is several times slower.
     """
     keys, index, row_key, stats = table
     d = directions.shape[1]

@@ -7,8 +7,8 @@ reaches, in the proportions in which it was seen, as learning all scans in one b
 the replay. From the cells around hits comes as much weight as the batch has there, from cells
 along rays the rest (ratio times the batch's own), each cell in proportion to what it has
 seen. Every batch's rays cross open space that earlier ones crossed too: in proportion alone
-the replay was 89-96 % free samples along rays against 72-83 % in the scans (the warehouse),
-which moved the occupied boundary into free space.
+the replay would be far more free samples along rays than the scans hold, moving the occupied
+boundary into free space.
 
 Evidence that formed no cluster when it came (its quick-means seed gathered too little) waits
 in the memory and joins the clustering again when a later batch brings evidence to its cell,
@@ -553,8 +553,8 @@ class EvidenceMemory:
         if not self.enabled or len(samples) == 0:
             return
         # A batch's samples lie one to a cell and kind (ehm.core.observations.evidence): their
-        # keys are distinct, and a sort that is not stable serves (9 ms for the sample scan's
-        # 261,000 against 22); where keys repeat, their sums do not depend on the order.
+        # keys are distinct, and a sort that is not stable serves (faster than a stable one);
+        # where keys repeat, their sums do not depend on the order.
         order = np.argsort(visit.keys)
         new_keys, w, place_sums, formed = batch_entries(
             visit.keys[order],

@@ -44,9 +44,8 @@ from ehm.core.search.index import PARALLEL_SEARCH_POINTS
 # of detail).
 PASS_REACH_CELLS = 1.0
 # Within the band behind which a hit's surface is taken to be solid, a ray passes the entries
-# farther than this from the plane of its batch's hits around its hit, in fine evidence cells.
-# On the changing room (pass_retraction 0.5, three seeds; BENCHMARKS.md) ghosts six scans
-# through 0.048 against 0.084 without it; held-out F1 on TUM and the Intel lab 0.001 lower.
+# farther than this from the plane of its batch's hits around its hit, in fine evidence cells:
+# a departed object's old faces then fade, where the band would shield them.
 OFF_PLANE_CELLS = 1.5
 # Rays at more than this angle to the normal of the plane a region's occupied entries lie on
 # pass none of them, degrees.
@@ -58,32 +57,28 @@ GRAZING_DEGREES = 70.0
 PLANAR_SPREAD = 0.35
 # The solid band in front of a hit grows by this many metres per square metre of the ray's
 # length: at 2 m it is `occupied_depth` and 16 cm deep, at 5 m a metre more. Depth cameras'
-# range noise grows with the square of range; on TUM's frames, walls 4-6 m away seen by one
-# frame were passed by the next, ending 16-50 cm beyond (held-out F1 at 80 %, seed 0: 0.963
-# without the growth, 0.975 with it and the slack below, 0.977 keeping all evidence).
+# range noise grows with the square of range, and far walls seen by one frame would otherwise
+# be passed by the next.
 BAND_GROWTH = 0.04
 # A batch's hit within this share of its range of an entry's mean (0.02: the lateral shift of
 # about a degree of orientation error), or within `reach`, keeps the entry from being passed.
 REGISTRATION_SLACK = 0.02
 # Rays a batch must have before its passes are found in PASS_PARTS parts of its rays, shared
 # by as many threads as there are. A frame's rows of rays differ in length and in the memory
-# they cross: a TUM frame's two halves on two threads took 60 ms, eight parts 45.
+# they cross, so more parts than threads share the work more evenly.
 PARALLEL_MIN_RAYS = 20_000
 PASS_PARTS = 8
 # Regions a bitmap of the regions that hold occupied entries may span (2^28 bits, 32 MB): a ray
-# tests each region it walks in the bitmap and looks up only those it holds (on a TUM frame,
-# 7 % of 2.5 million steps). A box of more regions goes without, and every step is looked up.
+# tests each region it walks in the bitmap and looks up only those it holds (a small share of
+# its steps). A box of more regions goes without, and every step is looked up.
 BITMAP_REGIONS = 1 << 28
 # Regions holding occupied entries, per ray of a batch, beyond which the rays first mark the
-# regions they cross and only those regions' normals are found. The benchmarks' data sets
-# hold 0.3 (TUM) to 1.9 (the warehouse's last scan) and their passes took as long or longer
-# with the marking (TUM's over a build 334-419 ms against 293-307, the warehouse's 294-301
-# against 251-284); the warehouse drive holds 10-15 in its second lap, and with the marking
-# from 4 on its passes took 2.4-2.8 s over the drive against 3.7-4.1 (the maps the same to
-# the last bit either way).
+# regions they cross and only those regions' normals are found: worth it only where a drive
+# passes its places again and the memory holds many regions per ray (the maps are the same
+# either way).
 MARKED_REGIONS_PER_RAY = 4.0
 # Regions one thread lays out or fits a plane to at a time, with one set of scratch arrays
-# (made per region, the layout of TUM's tenth frame took 3.6 ms against 2.9).
+# (made per region, they would slow the layout).
 CHUNK = 1024
 
 
@@ -476,7 +471,7 @@ def occupied_passes(
         _in_parts((*walk, unread, *tests, wanted), len(rays))
     normals = region_normals(memory, layout, wanted)
     found = _in_parts((*walk, normals, *tests, np.zeros(0, dtype=bool)), len(rays))
-    # Counted by entry rather than sorted (np.unique): 0.6 ms a TUM frame against 3.2.
+    # Counted by entry rather than sorted (np.unique), which is several times faster.
     passes = np.bincount(found)
     entries = np.flatnonzero(passes)
     return entries, passes[entries]

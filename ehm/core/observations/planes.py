@@ -21,7 +21,7 @@ PLANE_HITS = 6
 HIT_PLANAR_SPREAD = 0.1
 LINEAR_SPREAD = 0.1
 # Cells one thread decomposes at a time, with one set of scratch arrays (made per cell, they
-# took a third of the pass: a TUM frame's planes 4.9 ms against 3.1-3.3).
+# would cost a good part of the pass).
 CHUNK = 1024
 
 

@@ -55,10 +55,8 @@ def _statistics(
     return centres + local_mean, covariances
 
 
-# Cells of the neighbour hash per outer radius. On the sample scan (821k free samples along
-# rays, 176k occupied) 1, 2 and 3 took 220, 225, 215 ms on the free samples and 53, 80, 107 ms
-# on the occupied ones: what counts is that taken points leave their cells and that a cell's
-# points lie together in memory (363 and 82 ms before, cells of side r_o without either).
+# Cells of the neighbour hash per outer radius: finer cells gain nothing; what counts is that
+# taken points leave their cells and that a cell's points lie together in memory.
 CELLS_PER_RADIUS = 1
 
 
@@ -152,9 +150,7 @@ def _quick_means_kernel(
                 step = cell_keys[slot] - row_key - cells[seed, 0]
                 if row_gap + _row_reach(offset0, step, cell) < ro2:
                     # The distances of the cell's points first, in one loop without branches
-                    # (each kind of samples of the sample scan, the street and TUM in up to 15 %
-                    # less time, the same clusters to the last bit; BENCHMARKS.md), then the
-                    # points within r_o.
+                    # that LLVM vectorises, then the points within r_o.
                     first_m = cell_starts[slot]
                     for q in range(cell_sizes[slot]):
                         total = 0.0

@@ -293,7 +293,7 @@ def _above_at(
 ) -> np.ndarray:
     """(n, k) bool: whether the log-odds exceed `threshold` at distances t (n, k), metres,
     ascending along each ray (origins, directions (n, d)), each distance of a row read once: a
-    ladder capped at its end repeats it (4-8 % of the points of TUM's and the street's rays)."""
+    ladder capped at its end repeats it."""
     fresh = np.ones(t.shape, dtype=bool)
     fresh[:, 1:] = t[:, 1:] != t[:, :-1]
     rows, columns = np.nonzero(fresh)

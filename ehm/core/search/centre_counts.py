@@ -4,10 +4,9 @@ of any box of cells is 2^d lookups apart.
 
 A search for a point's nearest clusters within a bound (ehm.core.search.index) finds none when
 no centre lies within the bound, and a k-d tree takes about as long to find none as to find
-eight: on TUM's map, two in three of the points drawn in the box of its hits lie beyond every
-fine kernel's reach, and their searches took 63 of the 106 ms the fine searches took
-(BENCHMARKS.md). The box of cells around a point that holds its ball of the bound tells which
-points can be left out: none of its centres, no neighbour.
+eight, while in open space most points are beyond every fine kernel's reach. The box of cells
+around a point that holds its ball of the bound tells which points can be left out: none of
+its centres, no neighbour.
 """
 
 from __future__ import annotations

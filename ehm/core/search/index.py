@@ -36,10 +36,8 @@ from ehm.core.search.centre_counts import CentreCounts
 _KDTREE_NODE_BYTES = 80
 _KDTREE_LEAF_SIZE = 16
 # The trees split at the middle of a node's box (sliding midpoint) and keep the nodes' boxes
-# as split, not shrunk to their points: made in half the time of median splits, and searched
-# as fast or faster, most where points lie far from every centre (occupancy of 100,000 points
-# in the box of the hits 0.82-0.98x the time, around them 0.92-1.02x; BENCHMARKS.md). The
-# neighbours are the same.
+# as split, not shrunk to their points: made faster than with median splits, searched as fast,
+# the neighbours the same.
 _KDTREE_OPTIONS = {"leafsize": _KDTREE_LEAF_SIZE, "balanced_tree": False, "compact_nodes": False}
 
 

@@ -394,9 +394,7 @@ def _candidates(points, bound, table):  # pragma: no cover - compiled
 # part lays its lists out in buffers of its own, made once.
 _LIST_PARTS = 64
 # Points a list must serve to be laid out along itself first (_gather_list); fewer project
-# onto its kernels one by one. On the sample scan's map, where 262,838 training samples fall
-# into 110,644 lists, laying every list out took 56 ms to count the kernels in one run, this
-# 39 in the next (BENCHMARKS.md).
+# onto its kernels one by one, as most lists serve only a few points.
 _LAID_OUT_POINTS = 4
 
 

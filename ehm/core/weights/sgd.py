@@ -8,8 +8,8 @@ A sample that stands for w samples (ehm.core.observations.evidence) is one step:
 w times in the step and w times its square in the accumulator, so for a fresh weight the step is lr
 sqrt(w), about what w steps of one sample each would take, and the cost of a pass follows the
 samples, not what they stand for. Steps of one unweighted sample each would be a million on a LiDAR
-sweep; one weighted step per cell scores the same held-out F1 (BENCHMARKS.md), while one step scaled
-by w alone (no sqrt) lost 0.02-0.05 against stepping w times.
+sweep; one weighted step per cell scores as well, while one step scaled by w alone (no sqrt) scores
+worse than stepping w times.
 
 AdaGrad's step does not shrink with the error: a fresh weight moves lr sqrt(w) whether its
 sample is badly or nearly right, and cells pooled where many rays pass (beside the sensor) stand
@@ -32,11 +32,8 @@ from ehm.core.model.features import SparseFeatures
 from ehm.core.primitives.logistic import sigmoid, sigmoid_scalar
 
 EPSILON = 1e-8
-# The most one sample's step moves a weight, log-odds. Beside the sensor of OctoMap's sample
-# scan, free cells of hundreds of samples each threw two free kernels of 'support' features
-# (learning rate 0.6, seed 0) to +0.87 and +0.83 and held-out F1 to 0.893 (0.970 with seed
-# 1); with steps of at most 3 (or 1) it is 0.971. The default's F1 stays the same
-# (BENCHMARKS.md).
+# The most one sample's step moves a weight, log-odds: a free cell of hundreds of samples can
+# otherwise throw a free kernel to positive log-odds in one step.
 MAX_STEP = 3.0
 SGD_BLOCK = 4096
 """Samples a pass visits together (see `blocked_order`): their features stay in cache. A
@@ -83,7 +80,7 @@ def train_weights(
     if len(labels) >= TWO_SIDED_MIN_SAMPLES:
         sides, cluster_side = space_sides(features, clusters.means)
         # Each side's clusters stored together while they learn, so that the two threads
-        # seldom write to one cache line (an epoch of TUM's fourth frame: 15 ms against 19-20).
+        # seldom write to one cache line.
         stored = np.argsort(cluster_side, kind="stable")
         place = np.empty_like(stored)  # where each cluster is stored: stored's inverse
         place[stored] = np.arange(len(stored))
@@ -204,9 +201,7 @@ def blocked_order(n: int, rng: np.random.Generator, block: int = SGD_BLOCK) -> n
     time: the blocks in random order, the samples of each in the order they are stored. Over
     samples shuffled once before (their features are computed in that order), each block is a
     random draw in a random order that every pass repeats, and the features are read as they
-    lie in memory: a pass over the sample scan's samples takes 15 ms, against 28 with the
-    samples of each block shuffled again, and a fresh permutation each pass was three times
-    slower still; held-out F1 is the same (BENCHMARKS.md).
+    lie in memory: faster than shuffling within blocks or every pass, and as accurate.
     """
     blocks = [np.arange(start, min(start + block, n)) for start in range(0, n, block)]
     picked = rng.permutation(len(blocks))
