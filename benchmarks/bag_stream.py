@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from common import heading, markdown_table
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.datasets.simulated import warehouse_drive
@@ -122,4 +123,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

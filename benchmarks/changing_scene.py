@@ -29,6 +29,7 @@ from common import (
     settings_of,
     settings_text,
 )
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
@@ -127,4 +128,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

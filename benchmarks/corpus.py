@@ -16,7 +16,7 @@ the hits read occupied (p > 0.5 at a sample of up to 5,000 of them), the sensor 
 (p <= 0.5), the raw ranges lie where the recording's documentation puts them (the scale: a
 depth unit or a foot read wrong moves them), and for 3D LiDAR sweeps the floor found under
 the sensor lies where a plane fitted to the raw points puts it. Results go to
-benchmarks/results/corpus.json.
+benchmarks/results/corpus_records.json.
 """
 
 from __future__ import annotations
@@ -36,13 +36,14 @@ from pathlib import Path
 
 import numpy as np
 from common import heading, markdown_table
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.datasets.real import data_dir
 from ehm.grid.navigation import floor_below
 from ehm.io.readers import read_scans
 
-RESULTS = Path(__file__).parent / "results" / "corpus.json"
+RESULTS = Path(__file__).parent / "results" / "corpus_records.json"
 EHM = str(Path(sys.executable).with_name("ehm"))
 HITS_CHECKED = 5000
 
@@ -335,4 +336,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table
+from results_file import run_recorded
 from scipy.spatial import cKDTree
 
 import ehm
@@ -108,4 +109,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

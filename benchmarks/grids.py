@@ -23,6 +23,7 @@ import time
 
 import numpy as np
 from common import RESOLUTION, heading, octomap_mapper, timed
+from results_file import run_recorded
 from scipy.spatial import cKDTree
 
 import ehm
@@ -170,4 +171,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

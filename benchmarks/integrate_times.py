@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from common import add_settings_argument, heading, markdown_table, settings_of, settings_text
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
@@ -128,4 +129,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 from common import RESOLUTION, heading
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.datasets import virtual_room, warehouse
@@ -106,4 +107,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

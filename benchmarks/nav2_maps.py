@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from common import RESOLUTION, heading, markdown_table, sweep_arguments
 from PIL import Image
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
@@ -153,4 +154,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

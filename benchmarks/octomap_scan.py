@@ -22,6 +22,7 @@ from common import (
     print_held_out_table,
     timed,
 )
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.datasets.real import DataMissingError, octomap_scan
@@ -95,4 +96,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -33,6 +33,7 @@ from common import (
     settings_text,
     sweep_arguments,
 )
+from results_file import run_recorded
 from scipy.spatial import cKDTree
 
 from ehm.core.sensor.scan import Scan
@@ -188,4 +189,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -9,7 +9,7 @@ then runs as a user runs it, a fresh `ehm` process with nothing but the map and 
 named, so each time holds reading the map and loading the compiled kernels from their cache
 (each command runs once before it is timed). Peak memory is the process's maximum resident
 set. The distance query asks 2,000 points drawn within 10 m of the sensor, 0.5-2.5 m above
-the floor. Results go to benchmarks/results/outdoor_outputs.json.
+the floor. Results go to benchmarks/results/outdoor_outputs_records.json.
 """
 
 from __future__ import annotations
@@ -25,11 +25,12 @@ from pathlib import Path
 
 import numpy as np
 from common import heading, markdown_table
+from results_file import run_recorded
 
 from ehm.eval.datasets.real import data_dir
 
 CAPTURE = Path("ouster_pcap") / "OS-0-128-U1_v2.3.0_1024x10.pcap"
-RESULTS = Path(__file__).parent / "results" / "outdoor_outputs.json"
+RESULTS = Path(__file__).parent / "results" / "outdoor_outputs_records.json"
 EHM = str(Path(sys.executable).with_name("ehm"))
 
 
@@ -115,4 +116,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -6,7 +6,7 @@ method on every data set (time per scan against the scans in the map: scan_times
 
 Rewrites its section of BENCHMARKS.md (between the paper-evaluation markers, appended when
 missing), draws Figure 9 into docs/images/ (the docs show it too) and writes every record to
-benchmarks/results/paper_evaluation.json. Data sets whose files are absent are left out,
+benchmarks/results/paper_evaluation_records.json. Data sets whose files are absent are left out,
 with a line saying so.
 """
 
@@ -23,6 +23,7 @@ from datetime import date
 from pathlib import Path
 
 from common import markdown_table
+from results_file import run_recorded
 
 from ehm.eval.baselines import METHODS, make_mapper
 from ehm.eval.datasets import DATASETS, DataMissingError, load_dataset
@@ -226,14 +227,14 @@ def main() -> None:
         "held-out hit occupied, one free point uniform along each held-out ray up to 2 "
         "resolutions before its end); accuracy and F1 at p = 0.5, unknown = share of test "
         "points at exactly 0.5. Build = everything a method does before it can answer. "
-        "Resolution 0.05 m. Records: benchmarks/results/paper_evaluation.json.\n\n"
+        "Resolution 0.05 m. Records: benchmarks/results/paper_evaluation_records.json.\n\n"
         f"Methods:\n\n{descriptions}\n" + "\n".join(parts)
     )
     args.output.write_text(replace_section(args.output.read_text(), section))
     records = [r.to_dict() for r in runs.records.values()]
-    (results / "paper_evaluation.json").write_text(json.dumps(records, indent=1) + "\n")
+    (results / "paper_evaluation_records.json").write_text(json.dumps(records, indent=1) + "\n")
     print(f"wrote {args.output}, {figures}, {results} in {minutes:.1f} min")
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

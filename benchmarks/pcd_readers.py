@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 from common import heading, markdown_table
+from results_file import run_recorded
 
 from ehm.eval.datasets.real import data_dir
 from ehm.io.pcd import read_pcd
@@ -99,4 +100,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -33,6 +33,7 @@ from common import (
     sweep_arguments,
 )
 from online_mapping import SIMULATED, near_surface_test_points, scans_and_scene
+from results_file import run_recorded
 
 from ehm.core.sensor.scan import Scan
 from ehm.eval.baselines import make_mapper
@@ -180,4 +181,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

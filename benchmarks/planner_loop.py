@@ -26,6 +26,7 @@ import time
 import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table
 from raycast import octomap_cast
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
@@ -132,4 +133,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 from common import RESOLUTION, RESOLUTIONS, markdown_table
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
@@ -106,4 +107,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

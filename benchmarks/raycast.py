@@ -30,6 +30,7 @@ from common import (
     settings_of,
     settings_text,
 )
+from results_file import run_recorded
 
 import ehm
 from ehm.core.sensor.scan import Scan
@@ -178,4 +179,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 from common import heading, markdown_table
+from results_file import run_recorded
 
 import ehm
 from ehm.core.sensor.scan import Scan
@@ -134,4 +135,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

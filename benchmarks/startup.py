@@ -14,16 +14,13 @@ writes none compiled nothing.
 
 In a second new environment, `ehm warm` compiles every kernel; then a new process loads the
 sample scan's map and makes each query's and output's first call, timed (target: at most 1 s
-each), counting the kernels it compiles (target: none). Results in
-benchmarks/results/startup.json.
+each), counting the kernels it compiles (target: none).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -32,11 +29,11 @@ import time
 from pathlib import Path
 
 from common import heading
+from results_file import run_recorded
 
 from ehm.eval.datasets.real import data_dir
 
 PROJECT = Path(__file__).resolve().parents[1]
-RESULTS = Path(__file__).parent / "results" / "startup.json"
 # A new process's first call of each query and output on the sample scan's map: it prints
 # "name seconds" per call.
 FIRST_CALLS = """
@@ -133,7 +130,7 @@ def print_first_runs() -> None:
             print(f"| {run} | {seconds:.1f} | {compiled} |")
 
 
-def print_first_calls_after_warm() -> dict:
+def print_first_calls_after_warm() -> None:
     scan = data_dir() / "octomap_scan" / "scan.dat.bz2"
     print(heading("First calls after `ehm warm`", "a new process, OctoMap's sample scan map"))
     env = {**os.environ, "NUMBA_DEBUG_CACHE": "1"}
@@ -166,7 +163,6 @@ def print_first_calls_after_warm() -> dict:
     for name, seconds in first.items():
         print(f"| {name} | {seconds:.2f} | <= 1 |")
     print(f"\nkernels compiled by these first calls: {compiled} (target 0)")
-    return {"warm_seconds": warm_seconds, "first_call_seconds": first, "compiled": compiled}
 
 
 def main() -> None:
@@ -177,12 +173,8 @@ def main() -> None:
     print_start_up(args.repeats)
     if not args.no_install:
         print_first_runs()
-        after_warm = print_first_calls_after_warm()
-        RESULTS.parent.mkdir(exist_ok=True)
-        record = {"machine": f"{platform.machine()}, {os.cpu_count()} cores", **after_warm}
-        record["date"] = time.strftime("%Y-%m-%d")
-        RESULTS.write_text(json.dumps(record, indent=1) + "\n")
+        print_first_calls_after_warm()
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table
+from results_file import run_recorded
 
 from ehm.config import MapConfig
 from ehm.eval.datasets import DataMissingError, floor_plan_2d, load_dataset
@@ -310,4 +311,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 from common import RESOLUTION, RESOLUTIONS, heading, markdown_table, sweep_arguments
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.datasets import DataMissingError, load_dataset
@@ -116,4 +117,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from common import heading, markdown_table
 from PIL import Image
+from results_file import run_recorded
 
 import ehm
 from ehm.eval.datasets import DataMissingError, load_dataset, virtual_room
@@ -81,4 +82,4 @@ def take_picture(hilbert_map: ehm.HilbertMap, path: Path, attempts: int = 5) -> 
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)

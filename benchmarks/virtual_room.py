@@ -22,6 +22,7 @@ from common import (
     octomap_mapper,
     print_held_out_table,
 )
+from results_file import run_recorded
 
 from ehm.eval.datasets import virtual_room
 from ehm.eval.metrics import score
@@ -70,4 +71,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_recorded(main, __file__)
