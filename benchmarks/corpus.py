@@ -83,6 +83,8 @@ class Recording:
 _RUST_LIDAR = "jerry73204/rust-lidar-utils", "8b96a14c735fa30ea9e366a7dd558ba38b045e2e", "MIT"
 _RADISH = "MOLAorg/mola_test_datasets", "13a2ed141116bc654e14ffca1d88fb740b3d1253", "CC BY 3.0"
 _SCAN_PARSER = "btlad/ScanParser", "0e7d2ba809276b684994f5859f232b63611df628", "CC0 1.0"
+# KITTI's object set frames, cut to the camera's view; KITTI's licence, the repository none.
+_KITTI_OBJECT = "Kazuki-Hara/kitti", "4bf765af1e7f49aa6f566e173a733bc812d7f66c", "CC BY-NC-SA 3.0"
 
 
 def _radish(name: str, sha256: str) -> Source:
@@ -174,6 +176,12 @@ CORPUS = [
         {"vlp16.pcap": Source(*_SCAN_PARSER[:2], "data/my.pcap", "f7b70ee87910cc02",
                               _SCAN_PARSER[2])},
         "vlp16.pcap", [], (0.1, 100.0),
+    ),
+    Recording(
+        "kitti_frame", "KITTI frame alone, HDL-64E (the camera's view)",
+        {"kitti/000000.bin": Source(*_KITTI_OBJECT[:2], "velodyne/000000.bin",
+                                    "77392e8cbd2f1ff9", _KITTI_OBJECT[2])},
+        "kitti/000000.bin", ["--resolution", "0.2"], (5.0, 120.0), floor=-1.70,
     ),
     Recording(
         "octomap_scan", "3D points, text", {"scan.dat.bz2": "octomap_scan/scan.dat.bz2"},
