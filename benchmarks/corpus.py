@@ -85,6 +85,7 @@ _RADISH = "MOLAorg/mola_test_datasets", "13a2ed141116bc654e14ffca1d88fb740b3d125
 _SCAN_PARSER = "btlad/ScanParser", "0e7d2ba809276b684994f5859f232b63611df628", "CC0 1.0"
 # KITTI's object set frames, cut to the camera's view; KITTI's licence, the repository none.
 _KITTI_OBJECT = "Kazuki-Hara/kitti", "4bf765af1e7f49aa6f566e173a733bc812d7f66c", "CC BY-NC-SA 3.0"
+_CUPOCH = "neka-nat/cupoch", "1f0ece043025ac53831d7502b38b8efceef33555", "MIT"
 
 
 def _radish(name: str, sha256: str) -> Source:
@@ -114,6 +115,15 @@ CORPUS = [
         "mit_csail", "2D log, FLASER",
         {"mit-csail.clf.bz2": _radish("mit-csail.clf.bz2", "e010703e450a20e7")},
         "mit-csail.clf.bz2", ["--limit", "300"], (0.0, 81.9), moving=True,
+    ),
+    Recording(
+        "stage_2d_bag", "ROS 1 bag, LaserScan placed by odometry (Stage)",
+        {"Mapping1.bag": Source(*_CUPOCH[:2], "examples/testdata/Mapping1.bag", "b8995459d9a41727",
+                                _CUPOCH[2])},
+        "Mapping1.bag",
+        ["--topic", "/base_scan", "--odometry", "/base_pose_ground_truth", "--frame", "odom",
+         "--limit", "300"],
+        (0.0, 5.0), moving=True,
     ),
     Recording(
         "tum_fr2_pioneer", "RGB-D, TUM layout",

@@ -92,6 +92,7 @@ class BagScans:
         self.path = bag_folder(Path(path))
         self.skipped = 0
         self._frame, self._odometry = frame, odometry
+        self._scan_frame: str | None = None  # the scans' frame, once an odometry needs it
         with self._reader() as reader:
             topics = {c.topic: c.msgtype for c in reader.connections}
             self.topic = self._scan_topic(topic, topics)
@@ -235,7 +236,8 @@ class BagScans:
                     stamp = _nanoseconds(message.header.stamp)
                     pose = message.pose.pose
                     T = _pose_matrix(pose.position, pose.orientation)
-                    frames.add(message.header.frame_id, message.child_frame_id, stamp, T)
+                    child = message.child_frame_id or self._unnamed_child(reader)
+                    frames.add(message.header.frame_id, child, stamp, T)
                     continue
                 for transform in message.transforms:
                     t = transform.transform
@@ -246,6 +248,20 @@ class BagScans:
                     else:
                         frames.add(parent, child, _nanoseconds(transform.header.stamp), T)
         return frames
+
+    def _unnamed_child(self, reader) -> str:
+        """The frame an odometry message without a child frame places: the scans' own frame,
+        said in a note once (Stage's ground-truth odometry names none)."""
+        if self._scan_frame is None:
+            connections = [c for c in reader.connections if c.topic == self.topic]
+            for connection, _, raw in reader.messages(connections=connections):
+                self._scan_frame = reader.deserialize(raw, connection.msgtype).header.frame_id
+                break
+            assumed(
+                f"{self.path}: {self._odometry} names no child frame: its poses are taken as "
+                f"those of the scans' frame, {self._scan_frame!r}"
+            )
+        return self._scan_frame
 
     def _scan_topic(self, topic: str | None, topics: dict[str, str]) -> str:
         found = [t for t, kind in topics.items() if kind in SCAN_TYPES]
@@ -362,13 +378,14 @@ def point_cloud_points(message) -> np.ndarray:
 
 def laser_scan_points(message) -> tuple[np.ndarray, np.ndarray]:
     """(n, 3) float64 ray ends of a sensor_msgs/LaserScan in its frame (z = 0), metres, and
-    (n,) which returned: readings under range_min or NaN are left out; readings beyond
-    range_max (or infinite) are rays without return, ending at range_max."""
+    (n,) which returned: readings under range_min or NaN are left out; readings at range_max
+    or beyond (or infinite) are rays without return, ending at range_max, as gmapping and
+    slam_toolbox read them (simulators and many drivers report no return as range_max)."""
     ranges = np.asarray(message.ranges, dtype=np.float64)
     angles = message.angle_min + np.arange(len(ranges)) * message.angle_increment
     kept = ~np.isnan(ranges) & (ranges >= message.range_min)
     ranges, angles = ranges[kept], angles[kept]
-    hits = ranges <= message.range_max
+    hits = ranges < message.range_max
     ranges = np.where(hits, ranges, message.range_max)
     points = np.column_stack(
         [ranges * np.cos(angles), ranges * np.sin(angles), np.zeros(len(ranges))]

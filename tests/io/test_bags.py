@@ -306,3 +306,17 @@ def test_depth_image_bags_without_a_camera_name_the_option(tmp_path):
     with pytest.warns(UserWarning):
         (scan,) = read_scans(bag, frame="map", intrinsics=[2, 2, 2, 2])
     assert len(scan) == 4 and np.allclose(scan.points_world[:, 2], 1.0)
+
+
+def test_laser_readings_at_range_max_are_rays_without_return():
+    from types import SimpleNamespace
+
+    from ehm.io.bags import laser_scan_points
+
+    message = SimpleNamespace(
+        ranges=[1.0, 5.0, np.inf, 4.999, 0.01], angle_min=0.0, angle_increment=np.pi / 2,
+        range_min=0.1, range_max=5.0,
+    )  # fmt: skip
+    points, hits = laser_scan_points(message)
+    np.testing.assert_array_equal(hits, [True, False, False, True])
+    np.testing.assert_allclose(np.linalg.norm(points, axis=1), [1.0, 5.0, 5.0, 4.999])
