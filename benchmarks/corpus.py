@@ -86,6 +86,8 @@ _SCAN_PARSER = "btlad/ScanParser", "0e7d2ba809276b684994f5859f232b63611df628", "
 # KITTI's object set frames, cut to the camera's view; KITTI's licence, the repository none.
 _KITTI_OBJECT = "Kazuki-Hara/kitti", "4bf765af1e7f49aa6f566e173a733bc812d7f66c", "CC BY-NC-SA 3.0"
 _CUPOCH = "neka-nat/cupoch", "1f0ece043025ac53831d7502b38b8efceef33555", "MIT"
+_NEBULA = "tier4/nebula", "74b4f37c14499a7100b723d1a30ccd01ff490975", "Apache-2.0"
+_NEBULA_VLP16 = "nebula_drivers/test/data/velodyne/vlp16/1673400471837873222"
 
 
 def _radish(name: str, sha256: str) -> Source:
@@ -124,6 +126,19 @@ CORPUS = [
         ["--topic", "/base_scan", "--odometry", "/base_pose_ground_truth", "--frame", "odom",
          "--limit", "300"],
         (0.0, 5.0), moving=True,
+    ),
+    Recording(
+        "ros2_vlp16_packets", "ROS 2 bag (sqlite3, format 4), VLP-16 packets, no /tf",
+        {
+            "vlp16_bag/1673400471837873222_0.db3": Source(
+                *_NEBULA[:2], f"{_NEBULA_VLP16}/1673400471837873222_0.db3", "71262f490f04456a",
+                _NEBULA[2],
+            ),
+            "vlp16_bag/metadata.yaml": Source(
+                *_NEBULA[:2], f"{_NEBULA_VLP16}/metadata.yaml", "068a9e1cc8b3990a", _NEBULA[2]
+            ),
+        },
+        "vlp16_bag", ["--origin", "0,0,0", "--resolution", "0.2"], (0.1, 100.0),
     ),
     Recording(
         "tum_fr2_pioneer", "RGB-D, TUM layout",

@@ -128,7 +128,9 @@ def map_command(
     origin: Annotated[
         str | None,
         typer.Option(
-            help="Sensor origin 'x,y,z', world frame, for point clouds (xyz ply pcd las)."
+            help="Sensor origin 'x,y,z', world frame: for point clouds (xyz ply pcd las), and "
+            "where a sensor that stood still stands (KITTI .bin without poses, LiDAR captures, "
+            "bags without /tf)."
         ),
     ] = None,
     poses: Annotated[

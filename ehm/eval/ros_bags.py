@@ -10,6 +10,8 @@ from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from ehm.io.bags import VELODYNE_TYPES
+
 SECOND = 1_000_000_000  # nanoseconds
 QUARTER_TURN = (0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5))  # x y z w: 90 degrees about z
 
@@ -140,10 +142,8 @@ class Messages:
         """A velodyne_msgs/VelodyneScan of (time in nanoseconds, 1206 bytes) packets."""
         t = self.types
         if "velodyne_msgs/msg/VelodyneScan" not in t:
-            packet = "builtin_interfaces/Time stamp\nuint8[1206] data"
-            scan = "std_msgs/Header header\nvelodyne_msgs/VelodynePacket[] packets"
-            self.typestore.register(get_types_from_msg(packet, "velodyne_msgs/msg/VelodynePacket"))
-            self.typestore.register(get_types_from_msg(scan, "velodyne_msgs/msg/VelodyneScan"))
+            for name, definition in VELODYNE_TYPES.items():
+                self.typestore.register(get_types_from_msg(definition, name))
         time, packet = t["builtin_interfaces/msg/Time"], t["velodyne_msgs/msg/VelodynePacket"]
         return t["velodyne_msgs/msg/VelodyneScan"](
             header=self.header(stamp, frame),
@@ -167,11 +167,13 @@ def write_bag(
     messages: Iterable[tuple[str, int, Callable[[Messages], Any]]],
     storage: Any = None,
     compression: Any = None,
+    version: int = 9,
 ) -> Path:
     """Write (topic, stamp, message) triples, in order, to a ROS 1 bag (its chunks compressed
-    with `compression`, a Writer1.CompressionFormat, or not) or a ROS 2 folder."""
+    with `compression`, a Writer1.CompressionFormat, or not) or a ROS 2 folder of rosbag2's
+    format `version` (before 8, without the messages' type definitions)."""
     build = Messages(store)
-    writer = Writer1(path) if build.ros1 else Writer2(path, version=9, storage_plugin=storage)
+    writer = Writer1(path) if build.ros1 else Writer2(path, version=version, storage_plugin=storage)
     if compression is not None:
         writer.set_compression(compression)
     with writer:

@@ -33,6 +33,12 @@ from ehm.io.velodyne import PacketDecoder
 
 INSTALL_HINT = "ROS bags need the rosbags library: pip install 'ehm[ros]'"
 VELODYNE_SCAN = "velodyne_msgs/msg/VelodyneScan"
+# velodyne_msgs' types, which ROS 2 bags before rosbag2's version 8 do not carry and the
+# distributions' type stores do not hold: a packet of 1206 bytes and its time, a scan of them.
+VELODYNE_TYPES = {
+    "velodyne_msgs/msg/VelodynePacket": "builtin_interfaces/Time stamp\nuint8[1206] data",
+    VELODYNE_SCAN: "std_msgs/Header header\nvelodyne_msgs/VelodynePacket[] packets",
+}
 IMAGE, CAMERA_INFO = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo"
 SCAN_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan", VELODYNE_SCAN, IMAGE)
 # Depth image encodings, and the raw units a metre each holds (REP 118: 16-bit millimetres,
@@ -88,6 +94,7 @@ class BagScans:
         poses: str | PathLike[str] | None = None,
         intrinsics: Sequence[float] | None = None,
         depth_scale: float | None = None,
+        origin: Sequence[float] | None = None,
     ) -> None:
         self.path = bag_folder(Path(path))
         self.skipped = 0
@@ -110,7 +117,21 @@ class BagScans:
         elif (intrinsics, depth_scale) != (None, None):
             raise InputError("intrinsics and depth_scale are for depth images (Image topics)")
         self._poses = read_poses(poses) if poses is not None else None
-        if self._poses is None:
+        # A sensor that stood still: every scan placed at `origin`, the world's axes its own.
+        self._fixed = None
+        if origin is not None:
+            if (frame, odometry) != (None, None):
+                raise InputError(
+                    "an origin places every scan: --frame and --odometry would be ignored"
+                )
+            self._fixed = np.eye(4)
+            self._fixed[:3, 3] = origin
+        if self._poses is None and self._fixed is None:
+            if odometry is None and "/tf" not in topics and "/tf_static" not in topics:
+                raise InputError(
+                    f"{self.path}: no /tf in the bag: give an odometry topic (--odometry), a "
+                    "poses file (--poses), or the origin of a sensor that stood still (--origin)"
+                )
             if frame is None:
                 raise InputError(
                     f"{self.path}: give the fixed frame the scans are placed in (--frame)"
@@ -119,11 +140,6 @@ class BagScans:
                 raise InputError(
                     f"{self.path}: {odometry!r} is not a {ODOMETRY_TYPE} topic "
                     f"({', '.join(t for t, k in topics.items() if k == ODOMETRY_TYPE) or 'none'})"
-                )
-            if odometry is None and "/tf" not in topics and "/tf_static" not in topics:
-                raise InputError(
-                    f"{self.path}: no /tf in the bag: give an odometry topic (--odometry) or "
-                    "a poses file (--poses)"
                 )
             self._frames = self._read_frames()
 
@@ -148,7 +164,9 @@ class BagScans:
         """The message as a Scan in world frame, at its header's stamp, or None without a
         transform at that stamp."""
         stamp = _nanoseconds(message.header.stamp)
-        if self._poses is not None:
+        if self._fixed is not None:
+            T_world_sensor = self._fixed
+        elif self._poses is not None:
             if index >= len(self._poses):
                 raise InputError(f"{len(self._poses)} poses for more messages on {self.topic}")
             T_world_sensor = self._poses[index]
@@ -288,10 +306,13 @@ class BagScans:
     def _reader(self):
         try:
             from rosbags.highlevel import AnyReader
-            from rosbags.typesys import Stores, get_typestore
+            from rosbags.typesys import Stores, get_types_from_msg, get_typestore
         except ImportError as error:
             raise ImportError(INSTALL_HINT) from error
-        reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        store = get_typestore(Stores.ROS2_HUMBLE)
+        for name, definition in VELODYNE_TYPES.items():
+            store.register(get_types_from_msg(definition, name))
+        reader = AnyReader([self.path], default_typestore=store)
         return _Opened(reader, self.path)
 
 

@@ -160,8 +160,8 @@ class ScanFiles:
     format: one of FORMATS (None: guessed from the names, guess_format).
     origin: sensor position (3,), metres, world frame, for point clouds (xyz, ply, pcd, las),
         which do not record it; PCD falls back to its VIEWPOINT, the others to (0, 0, 0).
-        For KITTI .bin scans without poses and LiDAR captures (Ouster, Velodyne), where the
-        LiDAR's own frame is placed.
+        For KITTI .bin scans without poses, LiDAR captures (Ouster, Velodyne) and bags
+        without transforms, where the sensor's own frame is placed (a sensor that stood still).
     poses: a poses file. For KITTI .bin scans the sequence's poses (line i places frame i);
         for LiDAR captures one T_world_sensor per frame, over all captures in order;
         for point clouds one T_world_sensor per file, in the order given (KITTI or TUM layout,
@@ -248,7 +248,7 @@ class ScanFiles:
                 ]
         elif fmt == "bag":
             self._streams = [
-                BagScans(item, topic, frame, odometry, poses, intrinsics, depth_scale)
+                BagScans(item, topic, frame, odometry, poses, intrinsics, depth_scale, origin)
                 for item in items
             ]
             return
@@ -431,8 +431,6 @@ def _check_options(
         raise InputError(
             f"{fmt} files hold each scan's sensor pose: {' and '.join(given)} would be ignored"
         )
-    if fmt == "bag" and origin is not None:
-        raise InputError("bag scans are placed by their poses: origin would be ignored")
     if origin is not None and poses is not None:
         raise InputError("give an origin or poses, not both: each pose places its sensor")
     if calib is not None and fmt != "kitti":

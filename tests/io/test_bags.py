@@ -243,6 +243,43 @@ def test_velodyne_packet_bags_decode_as_the_capture_does(tmp_path, store, storag
     np.testing.assert_allclose(scan.origin, [0, 0, 2])
 
 
+def test_a_ros2_bag_without_type_definitions_or_transforms_maps_from_an_origin(tmp_path):
+    """Bags of rosbag2's formats before 8 carry no type definitions (here a format 8 bag with
+    them taken out): velodyne_msgs' are ehm's own. Without /tf, a sensor that stood still is
+    placed by --origin."""
+    pytest.importorskip("velodyne_decoder")
+    import sqlite3
+    from pathlib import Path
+
+    from ehm.io.pcap import udp_payloads
+
+    capture = Path(__file__).parent / "data" / "hdl32e.pcap"
+    packets = [
+        (int(d.time * SECOND), d.payload) for d in udp_payloads(capture) if len(d.payload) == 1206
+    ]
+    stamp = packets[-1][0]
+    messages = [("/packets", stamp, lambda m: m.velodyne_scan(stamp, "velodyne", packets))]
+    bag = write_bag(
+        tmp_path / "old", Stores.ROS2_HUMBLE, messages, StoragePlugin.SQLITE3, version=8
+    )
+    with sqlite3.connect(next(bag.glob("*.db3"))) as database:
+        database.execute("DELETE FROM message_definitions")
+    with pytest.raises(
+        InputError, match=r"or the origin of a sensor that stood still \(--origin\)"
+    ):
+        read_scans(bag)
+    (scan,) = read_scans(bag, origin=(1.0, 0.0, 2.0))
+    with pytest.warns(UserWarning):
+        rotations = read_scans(capture)
+    expected = np.concatenate([r.points_world for r in rotations]) + np.array([1.0, 0.0, 2.0])
+    np.testing.assert_allclose(
+        np.sort(scan.points_world, axis=0), np.sort(expected, axis=0), atol=1e-5
+    )
+    np.testing.assert_allclose(scan.origin, [1.0, 0.0, 2.0])
+    with pytest.raises(InputError, match="--frame and --odometry would be ignored"):
+        read_scans(bag, origin=(0, 0, 0), frame="map")
+
+
 def test_raw_ouster_packets_in_bags_are_refused_naming_what_to_record(tmp_path):
     from rosbags.typesys import get_types_from_msg
 
