@@ -16,6 +16,7 @@ where no training ray passed: OctoMap's voxel there is unknown), and held-out F1
 
 from __future__ import annotations
 
+import sys
 import tempfile
 from pathlib import Path
 
@@ -136,7 +137,7 @@ def main() -> None:
             for method in sweep.methods:
                 means = np.mean([measures(method, split) for split in splits], axis=0)
                 rows.append([name, f"{fraction:.0%}", method, *(f"{v:.3f}" for v in means)])
-                print(rows[-1], flush=True)
+                print(" | ".join(rows[-1]), file=sys.stderr, flush=True)  # progress
     detail = f"seeds {','.join(map(str, sweep.seeds))}, {RESOLUTION} m"
     print(heading("map_server's reading of 2D maps", detail))
     header = [

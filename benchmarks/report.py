@@ -5,9 +5,9 @@
 Each script in benchmarks/ leaves benchmarks/results/<script>.json when it ends well
 (benchmarks/results_file.py). This writes one section per script, in the order of SECTIONS,
 under its title there: what it measures (the script's docstring), the command, the date and
-the machine of its last run, and what that run printed. Each section sits between snippet
-markers named after its script, which the documentation's benchmarks page includes. Scripts
-without results are listed at the end with the command that makes them.
+the machine of its last run, and what that run printed, the last two between snippet markers
+named after its script, which the documentation's benchmarks page includes. Scripts without
+results are listed at the end with the command that makes them.
 """
 
 from __future__ import annotations
@@ -67,16 +67,18 @@ def purpose(script: Path) -> str:
 
 
 def section(name: str, record: dict) -> str:
-    """One script's section of BENCHMARKS.md, between its snippet markers."""
+    """One script's section of BENCHMARKS.md: its title, what it measures, then between
+    snippet markers named after it (which the docs' benchmarks page includes) its command and
+    what it printed."""
     title, measures = SECTIONS[name], purpose(BENCHMARKS / f"{name}.py")
     printed = "\n".join(
         "#" + line if line.startswith("## ") else line
         for line in record["markdown"].strip().splitlines()
     )
     parts = [
-        f"<!-- --8<-- [start:{name}] -->",
         f"## {title}",
         measures,
+        f"<!-- --8<-- [start:{name}] -->",
         f"Command: `{record['command']}`, {record['date']}, {record['machine']}.",
         printed,
         f"<!-- --8<-- [end:{name}] -->",
