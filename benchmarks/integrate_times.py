@@ -28,7 +28,10 @@ import ehm
 from ehm.eval.baselines.octree import OctoMapMapper
 from ehm.eval.datasets import DataMissingError, load_dataset, street
 
-STAGES = ("samples", "clustering", "forgetting", "length_scales", "features", "sgd", "memory")
+STAGES = (
+    "samples", "memory_lookup", "forgetting", "clustering", "merging", "features", "sgd",
+    "memory_insert",
+)  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -344,7 +344,7 @@ class HilbertMap:
             self._relist(None)
         clusters, memory = self.clusters_, self.memory_
         n_new = len(samples)
-        with timer("clustering"):
+        with timer("memory_lookup"):
             visit = memory.visit(samples)
         with timer("forgetting"):
             faded = self._fade(clusters, memory, time)
@@ -352,7 +352,7 @@ class HilbertMap:
         with timer("clustering"):
             pending = memory.pending(visit)
             grouped = group_samples(samples + pending.samples, cfg, self._rng)
-        with timer("length_scales"):
+        with timer("merging"):
             new = grouped.clusters
             if cfg.features == "support":
                 at_means = self._features(new.means, None)
@@ -416,7 +416,7 @@ class HilbertMap:
             # The new samples' curvature, once each: replayed ones were counted when new.
             new_weights = np.where(shuffle < n_new, weights, 0.0)
             add_curvature(features, new_weights, clusters.weights, self.bias_, clusters.precision)
-        with timer("memory"):
+        with timer("memory_insert"):
             if fading:
                 mark_seen(clusters, features, shuffle < n_new, time)
             memory.mark_clustered(pending, grouped.in_cluster[n_new:])

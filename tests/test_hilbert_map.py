@@ -85,15 +85,16 @@ def test_incremental_merges_reobserved_clusters(room):
     assert hilbert_map.n_scans_ == 2
     assert set(hilbert_map.timings_) == {
         "samples",
-        "clustering",
+        "memory_lookup",
         "forgetting",
-        "length_scales",
+        "clustering",
+        "merging",
         "index",
         "replay",
         "features",
         "sgd",
         "precision",
-        "memory",
+        "memory_insert",
     }
 
 
