@@ -924,8 +924,8 @@ class HilbertMap:
 
     @property
     def n_clusters(self) -> int:
-        """Clusters of the map, after learning any scans waiting for their batch."""
-        self.flush()
+        """Clusters the map has learned. Scans waiting for their batch are in none of them
+        until a query, a grid or `flush()` learns them; looking learns nothing."""
         return 0 if self.clusters_ is None else len(self.clusters_)
 
     def __repr__(self) -> str:
@@ -940,22 +940,26 @@ class HilbertMap:
         return f"HilbertMap({', '.join(parts)})"
 
     def clusters(self) -> ClusterView:
-        """A copy of the clusters: centres, covariances, weights, kind ('planar' or
-        'volumetric'), kernel, scale and label, one row per cluster (see ClusterView)."""
-        view = ClusterView.of(self._learned("look at its clusters"))
+        """A copy of the learned clusters: centres, covariances, weights, kind ('planar' or
+        'volumetric'), kernel, scale and label, one row per cluster (see ClusterView); scans
+        waiting for their batch are not learned by looking."""
+        if self.clusters_ is None:
+            raise EmptyMapError("the map has learned no clusters yet: integrate, then flush")
+        view = ClusterView.of(self.clusters_)
         return replace(view, means=self._world(view.means))
 
     def memory_bytes(self) -> int:
         """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
         sample memory, anchor layers, the search structure over cluster centres, the sensor
-        path, and while kept, the grid and cells rays march (`raycast`)."""
-        self.flush()
+        path, the scans waiting for their batch, and while kept, the grid and cells rays march
+        (`raycast`). Counting learns nothing."""
         clusters = 0 if self.clusters_ is None else self.clusters_.nbytes
         memory = 0 if self.memory_ is None else self.memory_.nbytes
         learned = clusters + memory + self.bias_state_.nbytes + self.anchors_.nbytes
         search = self._supports if self.config.features == "support" else self._index
         path = sum(origin.nbytes for origin in self._origins)
-        return learned + search.nbytes + self._planner.nbytes + path
+        waiting = sum(scan.points_world.nbytes + scan.hit_mask.nbytes for scan in self._waiting)
+        return learned + search.nbytes + self._planner.nbytes + path + waiting
 
     def state(self) -> MapState:
         """Everything the map has learned and the scans waiting for their batch, as plain data
