@@ -79,7 +79,8 @@ def measure(capture: Path, resolution: float, folder: Path) -> list[dict]:
         if failure:
             record["failure"] = failure
         records.append(record)
-        print(f"  {resolution} m {name}: {seconds:.1f} s, {gib:.2f} GiB {failure or ''}")
+        print(f"  {resolution} m {name}: {seconds:.1f} s, {gib:.2f} GiB {failure or ''}",
+              file=sys.stderr)  # progress; the table follows  # fmt: skip
     return records
 
 

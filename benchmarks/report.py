@@ -4,9 +4,9 @@
 
 Each script in benchmarks/ leaves benchmarks/results/<script>.json when it ends well
 (benchmarks/results_file.py). This writes one section per script, in the order of SECTIONS,
-under its title there: what it measures (the script's docstring), the command, the date and
-the machine of its last run, and what that run printed, the last two between snippet markers
-named after its script, which the documentation's benchmarks page includes. Scripts without
+under its title there: what it measures (its docstring's first paragraph), then between
+snippet markers named after the script (the documentation's benchmarks page includes them)
+the command, date and machine of its last run and what that run printed. Scripts without
 results are listed at the end with the command that makes them.
 """
 
@@ -60,10 +60,10 @@ defaults are what they are: docs/reference/defaults.md.
 
 
 def purpose(script: Path) -> str:
-    """What a script measures: its docstring without the usage lines indented in it."""
+    """What a script measures: its docstring's first paragraph (the title line), the rest
+    being for whoever runs it."""
     docstring = ast.get_docstring(ast.parse(script.read_text())) or ""
-    paragraphs = [p for p in docstring.strip().split("\n\n") if not p.startswith("    ")]
-    return "\n\n".join(paragraphs)
+    return docstring.strip().split("\n\n")[0]
 
 
 def section(name: str, record: dict) -> str:

@@ -50,7 +50,9 @@ def soak(
             saved.save(path)
             saved = ehm.load(path)
         if index % every == 0 or index == len(scans):
-            saved.flush()  # both at the same scans, so both learn the same batches
+            # Both at the same scans, so both learn the same batches.
+            saved.flush()
+            plain.flush()
             rows.append(
                 [
                     f"{index:,}",

@@ -23,6 +23,7 @@ spread over the workers and the client receiving and writing each tile in turn.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import numpy as np
@@ -141,7 +142,7 @@ def accuracy_rows() -> list[list[str]]:
                 f"{one_seconds:.1f} / {tiled_seconds:.1f}",
             ]
         )
-        print(rows[-1], flush=True)
+        print(" | ".join(rows[-1]), file=sys.stderr, flush=True)  # progress
     return rows
 
 

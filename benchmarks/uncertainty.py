@@ -18,6 +18,7 @@ Prints one markdown table, mean over seeds.
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -110,8 +111,7 @@ def main() -> None:
                     f"{mean['with std s']:.2f}",
                 ]
             )
-            print(" | ".join(rows[-1]), flush=True)
-    print()
+            print(" | ".join(rows[-1]), file=sys.stderr, flush=True)  # progress
     print(heading("Uncertainty", f"seeds {seeds}, train fractions {fractions}, scan by scan"))
     print(markdown_table(["data set", "train", *COLUMNS], rows, text_columns=3))
 

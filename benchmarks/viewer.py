@@ -13,6 +13,7 @@ Chromium, into docs/images/viewer.png.
 from __future__ import annotations
 
 import socket
+import sys
 import time
 from pathlib import Path
 
@@ -63,7 +64,7 @@ def main() -> None:
     print(markdown_table(["step", "seconds"], rows))
     picture = Path(__file__).resolve().parents[1] / "docs" / "images" / "viewer.png"
     take_picture(ehm.HilbertMap().fit(virtual_room().scans), picture)
-    print(f"wrote {picture}")
+    print(f"wrote {picture}", file=sys.stderr)
 
 
 def take_picture(hilbert_map: ehm.HilbertMap, path: Path, attempts: int = 5) -> None:
