@@ -944,7 +944,9 @@ class HilbertMap:
         'volumetric'), kernel, scale and label, one row per cluster (see ClusterView); scans
         waiting for their batch are not learned by looking."""
         if self.clusters_ is None:
-            raise EmptyMapError("the map has learned no clusters yet: integrate, then flush")
+            if self._waiting:
+                raise EmptyMapError("no clusters learned yet: flush() learns the waiting scans")
+            raise EmptyMapError("the map is empty: integrate a scan or fit before you look at it")
         view = ClusterView.of(self.clusters_)
         return replace(view, means=self._world(view.means))
 

@@ -557,10 +557,11 @@ class TiledMap:
         return points
 
     def _answering(self, key: TileKey) -> HilbertMap | None:
-        """The map that answers for tile `key`, or None where it learned no cluster."""
+        """The map that answers for tile `key`, its waiting scans learned first, or None where
+        it learned no cluster."""
         if key not in self._records and key not in self._changed:
             return None
-        tile_map = self.tile(key)
+        tile_map = self.tile(key).flush()
         return tile_map if tile_map.n_clusters > 0 else None
 
     def _require_dim(self, action: str) -> int:
