@@ -7,6 +7,7 @@ import math
 import types
 import typing
 from dataclasses import dataclass
+from functools import cache
 from typing import Any, Literal
 
 from ehm.errors import SettingsError
@@ -272,13 +273,12 @@ class MapConfig:
     far beyond the map, and an update looks this far around what changed."""
 
     def __post_init__(self) -> None:
-        hints = typing.get_type_hints(MapConfig)
-        for field in dataclasses.fields(self):
+        for field, kind, may_be_off in _fields():
             value = getattr(self, field.name)
-            if field.name == "learn_box" or (value is None and MapConfig.may_be_off(field.name)):
+            if field.name == "learn_box" or (value is None and may_be_off):
                 continue
-            _check_type(field, value, hints[field.name])
-            _check_bounds(field, value)
+            _check_type(field, value, kind)
+            _check_bounds(field, value, may_be_off)
         self._check_learn_box()
         if not (self.max_range == 0 or self.max_range > self.min_range):
             raise SettingsError(
@@ -346,9 +346,7 @@ class MapConfig:
     @staticmethod
     def may_be_off(name: str) -> bool:
         """Whether setting `name` takes None, which turns it off."""
-        return any(
-            f.name == name and f.type.endswith("| None") for f in dataclasses.fields(MapConfig)
-        )
+        return any(f.name == name and off for f, _, off in _fields())
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -419,13 +417,24 @@ class MapConfig:
         return cls().replace(**values)
 
 
-def _check_type(field: dataclasses.Field, value: Any, hint: Any) -> None:
-    """SettingsError unless `value` is of the setting's type: True or False, an integer, a
-    finite number, or one of a Literal's words."""
+@cache
+def _fields() -> tuple[tuple[dataclasses.Field, Any, bool], ...]:
+    """Each MapConfig field with its type (X of X | None) and whether it may be None (off),
+    read from the annotations once."""
+    hints = typing.get_type_hints(MapConfig)
+    found = []
+    for field in dataclasses.fields(MapConfig):
+        kind, hint = hints[field.name], hints[field.name]
+        if typing.get_origin(hint) in (typing.Union, types.UnionType):  # X | None: X
+            kind = next(k for k in typing.get_args(hint) if k is not type(None))
+        found.append((field, kind, kind is not hint))
+    return tuple(found)
+
+
+def _check_type(field: dataclasses.Field, value: Any, kind: Any) -> None:
+    """SettingsError unless `value` is of the setting's type `kind`: True or False, an
+    integer, a finite number, or one of a Literal's words."""
     name = field.name
-    kind = hint
-    if typing.get_origin(hint) in (typing.Union, types.UnionType):  # X | None: X
-        kind = next(k for k in typing.get_args(hint) if k is not type(None))
     if typing.get_origin(kind) is Literal:
         words = typing.get_args(kind)
         if value not in words:
@@ -445,18 +454,11 @@ def _check_type(field: dataclasses.Field, value: Any, hint: Any) -> None:
             raise SettingsError(f"MapConfig.{name} must be a finite number, got {value!r}")
 
 
-def _check_bounds(field: dataclasses.Field, value: Any) -> None:
+def _check_bounds(field: dataclasses.Field, value: Any, may_be_off: bool) -> None:
     """SettingsError unless a number keeps its setting's bounds (setting's low and high)."""
     low, high = field.metadata["low"], field.metadata["high"]
     low_open, high_open = field.metadata["low_open"], field.metadata["high_open"]
     unit = field.metadata["unit"]
-    may_be_off = MapConfig.may_be_off(field.name)
-    if isinstance(value, int) and not isinstance(value, bool) and field.type == "int":
-        if low is not None and value < low:
-            raise SettingsError(
-                f"MapConfig.{field.name} must be an integer >= {low:g}, got {value!r}"
-            )
-        return
     if low is not None and high is not None and not (low_open or high_open):
         if not low <= value <= high:
             raise SettingsError(
@@ -469,7 +471,8 @@ def _check_bounds(field: dataclasses.Field, value: Any) -> None:
             of_unit = " of seconds" if unit == "s" else ""
             wanted = f"{off}a positive number{of_unit}"
         else:
-            wanted = f"above {low:g}" if low_open else f">= {low:g}"
+            integer = "an integer " if field.type == "int" else ""
+            wanted = f"above {low:g}" if low_open else f"{integer}>= {low:g}"
         raise SettingsError(f"MapConfig.{field.name} must be {wanted}, got {value!r}")
     if high is not None and (value >= high if high_open else value > high):
         wanted = f"below {high:g}" if high_open else f"<= {high:g}"

@@ -930,7 +930,8 @@ class HilbertMap:
 
     def __repr__(self) -> str:
         """The map as it stands, without learning the scans that wait for their batch."""
-        changed = {k: v for k, v in self.config.to_dict().items() if getattr(MapConfig(), k) != v}
+        defaults = MapConfig().to_dict()
+        changed = {k: v for k, v in self.config.to_dict().items() if defaults[k] != v}
         parts = [f"dim={self.dim}"]
         parts.append(f"clusters={0 if self.clusters_ is None else len(self.clusters_)}")
         parts.append(f"scans={self.n_scans_}")
