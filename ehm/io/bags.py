@@ -99,7 +99,6 @@ class BagScans:
         self.path = bag_folder(Path(path))
         self.skipped = 0
         self._frame, self._odometry = frame, odometry
-        self._scan_frame: str | None = None  # the scans' frame, once an odometry needs it
         with self._reader() as reader:
             topics = {c.topic: c.msgtype for c in reader.connections}
             self.topic = self._scan_topic(topic, topics)
@@ -246,6 +245,9 @@ class BagScans:
         """Every /tf and /tf_static transform, and the odometry topic's poses."""
         frames = FrameTree()
         with self._reader() as reader:
+            # An odometry without child frame (Stage's ground truth) places the scans' frame.
+            unnamed = self._scan_frame(reader) if self._odometry else ""
+            noted = False
             topics = [*TF_TOPICS, *([self._odometry] if self._odometry else [])]
             connections = [c for c in reader.connections if c.topic in topics]
             for connection, _, raw in reader.messages(connections=connections):
@@ -254,7 +256,13 @@ class BagScans:
                     stamp = _nanoseconds(message.header.stamp)
                     pose = message.pose.pose
                     T = _pose_matrix(pose.position, pose.orientation)
-                    child = message.child_frame_id or self._unnamed_child(reader)
+                    if not message.child_frame_id and not noted:
+                        assumed(
+                            f"{self.path}: {self._odometry} names no child frame: its poses "
+                            f"are taken as those of the scans' frame, {unnamed!r}"
+                        )
+                        noted = True
+                    child = message.child_frame_id or unnamed
                     frames.add(message.header.frame_id, child, stamp, T)
                     continue
                 for transform in message.transforms:
@@ -267,19 +275,12 @@ class BagScans:
                         frames.add(parent, child, _nanoseconds(transform.header.stamp), T)
         return frames
 
-    def _unnamed_child(self, reader) -> str:
-        """The frame an odometry message without a child frame places: the scans' own frame,
-        said in a note once (Stage's ground-truth odometry names none)."""
-        if self._scan_frame is None:
-            connections = [c for c in reader.connections if c.topic == self.topic]
-            for connection, _, raw in reader.messages(connections=connections):
-                self._scan_frame = reader.deserialize(raw, connection.msgtype).header.frame_id
-                break
-            assumed(
-                f"{self.path}: {self._odometry} names no child frame: its poses are taken as "
-                f"those of the scans' frame, {self._scan_frame!r}"
-            )
-        return self._scan_frame
+    def _scan_frame(self, reader) -> str:
+        """The frame of the first message on the scan topic."""
+        connections = [c for c in reader.connections if c.topic == self.topic]
+        for connection, _, raw in reader.messages(connections=connections):
+            return reader.deserialize(raw, connection.msgtype).header.frame_id
+        return ""
 
     def _scan_topic(self, topic: str | None, topics: dict[str, str]) -> str:
         found = [t for t, kind in topics.items() if kind in SCAN_TYPES]

@@ -357,3 +357,27 @@ def test_laser_readings_at_range_max_are_rays_without_return():
     points, hits = laser_scan_points(message)
     np.testing.assert_array_equal(hits, [True, False, False, True])
     np.testing.assert_allclose(np.linalg.norm(points, axis=1), [1.0, 5.0, 5.0, 4.999])
+
+
+def test_an_odometry_without_child_frame_places_the_scans_frame(tmp_path):
+    """Stage's ground-truth odometry names no child frame: its poses are the laser's, said in
+    a note."""
+    bag = write_bag(
+        tmp_path / "stage.bag",
+        Stores.ROS1_NOETIC,
+        [
+            ("/truth", 0, lambda m: m.odometry(0, "odom", "", (1, 2, 0), QUARTER_TURN)),
+            ("/scan", SECOND, lambda m: m.laser(SECOND, "base_laser_link", [2.0, 10.0, 3.0])),
+            ("/truth", 2 * SECOND, lambda m: m.odometry(
+                2 * SECOND, "odom", "", (1, 2, 0), QUARTER_TURN)),
+        ],
+    )  # fmt: skip
+    with pytest.warns(UserWarning, match="names no child frame: its poses are taken as those of "
+                                         "the scans' frame, 'base_laser_link'"):  # fmt: skip
+        (scan,) = read_scans(bag, topic="/scan", frame="odom", odometry="/truth")
+    # The laser at (1, 2) facing +y: 2 m ahead a hit, the beam at range_max no return, 3 m
+    # toward -y a hit.
+    np.testing.assert_allclose(scan.origin, [1.0, 2.0], atol=1e-12)
+    np.testing.assert_allclose(scan.points_world, [[1.0, 4.0], [-9.0, 2.0], [1.0, -1.0]],
+                               atol=1e-6)  # fmt: skip
+    np.testing.assert_array_equal(scan.hit_mask, [True, False, True])
