@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ehm.core.sensor.scan import Scan
+from ehm.errors import InputError
 from ehm.eval.datasets import floor_plan_2d
 from ehm.eval.datasets.simulated import lidar_directions, simulate_scan, virtual_room_scene
 from ehm.io.frames import matrix_to_quaternion
@@ -30,8 +31,6 @@ def write_guide_files(folder: Path, report: Callable[[str], None] | None = None)
     `report(line)`. The bag needs the `ros` extra (rosbags): without it, it is left out, said
     so, and the others written. Returns the paths written; refuses a folder that holds any of
     them already, before writing."""
-    from ehm.errors import InputError
-
     names = ("floor.log", "tum_fr2", "kitti", "room.bag")
     taken = [name for name in names if (folder / name).exists()]
     if taken:
