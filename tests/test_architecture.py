@@ -21,6 +21,7 @@ LAYERS = (
     "ehm.core",
     "ehm.grid",
     "ehm.io",
+    "ehm.map_queries",
     "ehm.hilbert_map",
     "ehm.pipeline",
     "ehm.tiles",

@@ -348,7 +348,7 @@ def test_a_georeferenced_map_answers_as_the_same_map_near_the_origin(room, tmp_p
     """Scans in UTM-like coordinates: the map keeps its clusters relative to a local origin
     near the first sensor pose and answers in world coordinates, as the same scans near the
     world origin do (a shift by whole steps of the local origin changes nothing else)."""
-    from ehm.hilbert_map import LOCAL_ORIGIN_STEP
+    from ehm.core.sensor.local_frame import LOCAL_ORIGIN_STEP
 
     shift = np.array([488.0, 4101.0, 3.0]) * LOCAL_ORIGIN_STEP  # 500 km east, 4200 km north
     near, far = ehm.HilbertMap(), ehm.HilbertMap()
@@ -379,7 +379,7 @@ def test_a_georeferenced_map_answers_as_the_same_map_near_the_origin(room, tmp_p
 
 
 def test_maps_near_the_world_origin_keep_it():
-    from ehm.hilbert_map import local_origin_for
+    from ehm.core.sensor.local_frame import local_origin_for
 
     assert local_origin_for(np.array([9_999.0, -50.0, 2.0])).tolist() == [0.0, 0.0, 0.0]
     np.testing.assert_array_equal(

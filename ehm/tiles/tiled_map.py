@@ -26,22 +26,15 @@ from typing import Any
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.primitives.logistic import sigmoid
-from ehm.core.queries.raycast import (
-    checked_rays,
-    first_crossings,
-    log_odds_level,
-    segment_rays,
-    stop_at_unknown,
-    unknown_is_obstacle,
-)
+from ehm.core.queries.raycast import cast_rays, unknown_is_obstacle
 from ehm.core.sensor.scan import Scan
-from ehm.core.weights.uncertainty import logit_variance, occupancy_std
+from ehm.core.weights.uncertainty import logit_variance
 from ehm.errors import EmptyMapError, InputError, SettingsError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, aligned_bounds, bytes_per_voxel, grid_shape
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap
 from ehm.io.map_file import map_bytes, map_state_of_bytes
+from ehm.map_queries import MapQueries
 from ehm.tiles.build import (
     BuildObserver,
     BuildReport,
@@ -68,7 +61,7 @@ MAX_LOADED_TILES = 64
 INDEX_EVERY_SECONDS = 10.0
 
 
-class TiledMap:
+class TiledMap(MapQueries):
     """A continuous occupancy map cut into tiles (see the module's docstring).
 
     tile_size: side of the square (2D) or cubic (3D) tiles, metres; overlap: how far each
@@ -364,43 +357,10 @@ class TiledMap:
         return None
 
     # ---------------------------------------------------------------- queries
-    def occupancy(
-        self, points: np.ndarray, mode: str | None = None, return_std: bool = False
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """(n,) float64 probability that each of (n, d) points, metres, world frame, is
-        occupied, blended over the tiles that hold it; with return_std, also its (n,)
-        standard deviation (see HilbertMap.occupancy). Reads the tiles it needs; where no
-        tile learned, 0.5. NaN for rows that are not finite."""
-        log_odds, variance = self._blended(points, mode, return_std)
-        if not return_std:
-            return sigmoid(log_odds)
-        return sigmoid(log_odds), occupancy_std(log_odds, variance)
-
-    def predict_proba(
-        self, points: np.ndarray, mode: str | None = None, return_std: bool = False
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """(n, 2) float64 [p(free), p(occupied)] per point; with return_std, also the (n,)
-        standard deviation of either (see `occupancy`)."""
-        log_odds, variance = self._blended(points, mode, return_std)
-        occupied = sigmoid(log_odds)
-        proba = np.column_stack([1.0 - occupied, occupied])
-        return (proba, occupancy_std(log_odds, variance)) if return_std else proba
-
-    def decision_function(
-        self, points: np.ndarray, mode: str | None = None, return_variance: bool = False
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """(n,) float64 log-odds of occupancy: the tiles' log-odds (HilbertMap.
-        decision_function) weighted by their blending weights; with return_variance, also the
-        (n,) variance of the log-odds, blended alike."""
-        log_odds, variance = self._blended(points, mode, return_variance)
-        return (log_odds, variance) if return_variance else log_odds
-
-    def _blended(
-        self, points: np.ndarray, mode: str | None, with_variance: bool
+    def _log_odds(
+        self, points: np.ndarray, mode: str, with_variance: bool
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(n,) blended log-odds at `points` and, when with_variance, their (n,) variance;
-        NaN for rows that are not finite."""
-        points = self._checked_points(points)
+        """The tiles' log-odds (and variance) weighted by their blending weights."""
         rows, keys, weights = self.tiling.blend(points)
         finite = np.all(np.isfinite(points), axis=1)
         log_odds = np.where(finite, 0.0, np.nan)
@@ -440,54 +400,27 @@ class TiledMap:
             out[chosen] += tile_map.decision_function(at, mode)[:, None] * slope
         return out
 
-    def raycast(
+    def _cast(
         self,
         origins: np.ndarray,
         directions: np.ndarray,
-        max_range: float | np.ndarray,
-        level: float = 0.5,
-        mode: str | None = None,
-        unknown: str = "occupied",
+        max_range: np.ndarray,
+        threshold: float,
+        mode: str,
+        stop_at_unknown: bool,
     ) -> np.ndarray:
-        """(n,) distance, metres, along each ray to the first point whose blended occupancy
-        rises above `level`, or with unknown 'occupied' (the default) to the first point no
-        tile knows (`known`) where that is nearer; inf where neither comes within `max_range`
-        (see HilbertMap.raycast for the arguments). Rays march the blended log-odds
-        cluster_radius / 2 apart all the way (a single map's grid and candidate cells are not
-        kept across tiles), and each crossing is located to cluster_radius / 10
-        (ehm.core.queries.raycast.first_crossings)."""
-        dim = self._require_dim("cast rays through it")
-        origins, directions, max_range = checked_rays(origins, directions, max_range, dim)
-        stop = unknown_is_obstacle(unknown)
-        threshold = log_odds_level(level)
-        radius = self.config.cluster_radius
-
-        def log_odds(points: np.ndarray) -> np.ndarray:
-            return self.decision_function(points, mode)
-
-        step, tolerance = radius / 2.0, radius / 10.0
-        distance = first_crossings(
-            log_odds, origins, directions, max_range, threshold, step, tolerance
+        """Rays march the blended log-odds all the way (a single map's grid and candidate
+        cells are not kept across tiles); with stop_at_unknown they stop where no tile knows
+        (`known`)."""
+        return cast_rays(
+            partial(self.decision_function, mode=mode),
+            origins,
+            directions,
+            max_range,
+            threshold,
+            self.config.cluster_radius,
+            known=partial(self.known, mode=mode) if stop_at_unknown else None,
         )
-        if not stop:
-            return distance
-        known = partial(self.known, mode=mode)
-        return stop_at_unknown(known, origins, directions, distance, max_range, step, tolerance)
-
-    def segment_free(
-        self,
-        starts: np.ndarray,
-        ends: np.ndarray,
-        level: float = 0.5,
-        mode: str | None = None,
-        unknown: str = "occupied",
-    ) -> np.ndarray:
-        """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
-        one (d,) point each, metres, world frame) has blended occupancy above `level`, nor,
-        with unknown 'occupied' (the default), lies where no tile knows, as `raycast` finds
-        it."""
-        starts, directions, lengths = segment_rays(starts, ends, self._require_dim("query it"))
-        return np.isinf(self.raycast(starts, directions, lengths, level, mode, unknown))
 
     def known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
         """(n,) bool: True where a tile that weighs in the blend at each of (n, d) points,
@@ -547,15 +480,6 @@ class TiledMap:
                     distance[entries], gradient[entries] = -reach, 0.0
         return (distance, gradient) if return_gradient else distance
 
-    def _checked_points(self, points: np.ndarray) -> np.ndarray:
-        """(n, d) float64 query points; InputError for another shape, EmptyMapError for an
-        empty map."""
-        dim = self._require_dim("query it")
-        points = np.asarray(points, dtype=np.float64)
-        if points.ndim != 2 or points.shape[1] != dim:
-            raise InputError(f"query points must have shape (n, {dim}), got {points.shape}")
-        return points
-
     def _answering(self, key: TileKey) -> HilbertMap | None:
         """The map that answers for tile `key`, its waiting scans learned first, or None where
         it learned no cluster."""
@@ -564,7 +488,7 @@ class TiledMap:
         tile_map = self.tile(key).flush()
         return tile_map if tile_map.n_clusters > 0 else None
 
-    def _require_dim(self, action: str) -> int:
+    def _query_dim(self, action: str) -> int:
         if self._dim is None or not self.tile_keys:
             raise EmptyMapError(f"the map is empty: integrate or build scans before you {action}")
         return self._dim
@@ -598,7 +522,7 @@ class TiledMap:
         also each voxel's standard deviation.
         InputError for grids over `max_bytes`, before allocating. Reads the tiles it needs;
         memory holds the grid and one tile's part of it."""
-        dim = self._require_dim("build a grid")
+        dim = self._query_dim("build a grid")
         resolution = self.config.resolution if resolution is None else resolution
         if bounds is None:
             bounds = self.extent()
@@ -641,7 +565,7 @@ class TiledMap:
         """Write the map as a map directory at `path` (ehm.tiles.store): each tile that
         learned since it was last written (or every tile, to a new directory), atomically,
         then the index. Saving learns nothing: scans waiting in a tile stay waiting."""
-        self._require_dim("save it")
+        self._query_dim("save it")
         store = TileStore(path)
         same = self._store is not None and _same_folder(self._store.directory, store.directory)
         store.prepare()

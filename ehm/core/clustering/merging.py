@@ -12,37 +12,10 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.clustering.grouping import NewClusters
 from ehm.core.model.clusters import ClusterSet
-from ehm.core.model.features import SparseFeatures
 from ehm.core.model.kernels import Eigen, covariance_square_roots, transform_square_roots
 from ehm.core.primitives.eigen import symmetric_eigen
 from ehm.core.primitives.hashing import sorted_distinct
-from ehm.core.search.index import ClusterIndex
-
-
-@dataclass(frozen=True)
-class MergeCandidates:
-    """Map clusters a new cluster may merge into, as pairs: pair_new (p,) int64 rows of new
-    clusters, pair_old (p,) int64 rows of the map's clusters."""
-
-    pair_new: np.ndarray
-    pair_old: np.ndarray
-
-    @classmethod
-    def nearest(cls, index: ClusterIndex, new: NewClusters, k: int = 4) -> MergeCandidates:
-        """The k nearest centres of each new cluster's scale in `index` (the paper's search)."""
-        nearest = np.full((len(new), k), -1, dtype=np.int64)
-        for coarse in (False, True):
-            rows = new.coarse == coarse
-            nearest[rows] = index.nearest_of_scale(new.means[rows], coarse, k)
-        pair_new, column = np.nonzero(nearest >= 0)
-        return cls(pair_new, nearest[pair_new, column])
-
-    @classmethod
-    def covering(cls, features_at_means: SparseFeatures) -> MergeCandidates:
-        """The clusters whose kernels are not zero at each new cluster's mean (their
-        features there)."""
-        indptr = features_at_means.indptr
-        return cls(np.repeat(np.arange(len(indptr) - 1), np.diff(indptr)), features_at_means.rows)
+from ehm.core.search.kernel_search import MergeCandidates
 
 
 @dataclass(frozen=True)

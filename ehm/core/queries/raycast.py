@@ -94,6 +94,66 @@ def unknown_is_obstacle(unknown: str) -> bool:
     return unknown == "occupied"
 
 
+# How far beyond the grid's crossing a ray looks for the exact one before it marches the exact
+# log-odds from its start, in steps of the grid: the grid, interpolated between voxel centres,
+# crosses early where a surface is sharper than a voxel.
+GUESS_BEHIND_VOXELS = 4.0
+
+
+def cast_rays(
+    log_odds: Callable[[np.ndarray], np.ndarray],
+    origins: np.ndarray,
+    directions: np.ndarray,
+    max_range: np.ndarray,
+    threshold: float,
+    voxel: float,
+    ray_grid: GridLogOdds | None = None,
+    cells: CandidateCells | None = None,
+    known: Callable[[np.ndarray], np.ndarray] | None = None,
+    known_runs: CandidateCells | None = None,
+) -> np.ndarray:
+    """(n,) distance, metres, along each ray to the first point where `log_odds` exceeds
+    `threshold`, or with `known` to the first point of unknown space where that is nearer
+    (stop_at_unknown); inf where neither comes within max_range. Rays march `voxel` / 2
+    apart and each crossing is located to `voxel` / 10. With `ray_grid` (voxels of `voxel`
+    metres), the exact crossing is looked for from two voxels before the grid's to two after,
+    and where none is, on to GUESS_BEHIND_VOXELS after; the other rays march the exact
+    log-odds through the runs of `cells` (None: all along)."""
+    step, tolerance = voxel / 2.0, voxel / 10.0
+    distance = np.full(len(origins), np.nan)
+    if ray_grid is not None:
+        guess = ray_grid.crossings(origins, directions, max_range, threshold, step)
+        guided = np.flatnonzero(np.isfinite(guess))
+        reach = max_range[guided]
+        distance[guided] = refine_guesses(
+            log_odds,
+            origins[guided],
+            directions[guided],
+            np.maximum(guess[guided] - 2.0 * voxel, 0.0),
+            np.minimum(guess[guided] + 2.0 * voxel, reach),
+            threshold,
+            step,
+            tolerance,
+            np.minimum(guess[guided] + GUESS_BEHIND_VOXELS * voxel, reach),
+        )
+    rest = np.flatnonzero(np.isnan(distance))
+    distance[rest] = first_crossings(
+        log_odds,
+        origins[rest],
+        directions[rest],
+        max_range[rest],
+        threshold,
+        step,
+        tolerance,
+        cells,
+    )
+    if known is None:
+        return distance
+    return stop_at_unknown(
+        known, origins, directions, distance, max_range, step, tolerance, known_runs
+    )
+
+
 def stop_at_unknown(
     known: Callable[[np.ndarray], np.ndarray],
     origins: np.ndarray,

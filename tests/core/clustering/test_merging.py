@@ -6,7 +6,6 @@ import pytest
 from ehm.config import MapConfig
 from ehm.core.clustering.grouping import NewClusters
 from ehm.core.clustering.merging import (
-    MergeCandidates,
     absorb_clusters,
     anisotropic_distances,
     anisotropic_distances_reference,
@@ -17,8 +16,8 @@ from ehm.core.clustering.merging import (
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.kernels import covariance_square_roots
 from ehm.core.primitives.eigen import symmetric_eigen
-from ehm.core.search.index import ClusterIndex
-from ehm.core.search.supports import SupportHash
+from ehm.core.search.anchors import AnchorLayers
+from ehm.core.search.kernel_search import kernel_search
 
 
 def _set_from(groups, coarse=None, occupied=None):
@@ -41,13 +40,9 @@ def _new(means, covariances, coarse, occupied):
 def _candidates(clusters, new, search):
     """Merge candidates of `new` among `clusters`: the nearest centres, or the clusters whose
     kernels cover each new mean."""
-    if search == "nearest":
-        return MergeCandidates.nearest(ClusterIndex.of(clusters), new)
-    config = MapConfig()
-    table = SupportHash.of_radii(3, config.cluster_radius, config.free_cluster_radius)
-    kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
-    table.update(np.arange(len(clusters)), *kernels, clusters.coarse)
-    return MergeCandidates.covering(table.features(new.means, *kernels))
+    found = kernel_search(MapConfig(features=search), 3)
+    found.relist(clusters, AnchorLayers(), None)
+    return found.merge_candidates(new.means, new.coarse, clusters)
 
 
 def _match(clusters, new, search):

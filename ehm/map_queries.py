@@ -1,0 +1,156 @@
+"""The queries every map answers from its log-odds, written once for HilbertMap and TiledMap:
+probabilities, log-odds, their uncertainty, and rays and segments for planners."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from ehm.config import MapConfig
+from ehm.core.primitives.logistic import sigmoid
+from ehm.core.queries.raycast import (
+    checked_rays,
+    log_odds_level,
+    segment_rays,
+    unknown_is_obstacle,
+)
+from ehm.core.weights.uncertainty import occupancy_std
+from ehm.errors import InputError
+
+
+class MapQueries(ABC):
+    """Occupancy, probabilities, log-odds, rays and segments of a map whose subclass reads its
+    log-odds (`_log_odds`) and casts its rays (`_cast`)."""
+
+    config: MapConfig
+
+    @abstractmethod
+    def _query_dim(self, action: str) -> int:
+        """The map's axes (2 or 3), after it learned the scans waiting for their batch;
+        EmptyMapError naming `action` when it has learned nothing."""
+
+    @abstractmethod
+    def _log_odds(
+        self, points: np.ndarray, mode: str, with_variance: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) log-odds at (n, d) checked points, metres, world frame, NaN for rows that are
+        not finite, and with_variance their (n,) variance (else an empty array)."""
+
+    @abstractmethod
+    def _cast(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        max_range: np.ndarray,
+        threshold: float,
+        mode: str,
+        stop_at_unknown: bool,
+    ) -> np.ndarray:
+        """`raycast` of checked rays, world frame, to log-odds `threshold`."""
+
+    def occupancy(
+        self, points: np.ndarray, mode: str | None = None, return_std: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n,) float64 probability that each point is occupied; with return_std, the pair
+        (probability, std): std (n,) float64 is the standard deviation of the occupancy
+        probability under the weights' Gaussian posterior (ehm.core.weights.uncertainty),
+        high where nothing was observed (0.21 with prior_precision 1) and shrinking as a
+        place is seen again.
+
+        points: (n, d) float, metres, world frame. mode: 'batch' (Alg. 3: one neighbour search
+        per group of nearby points) or 'exact' (one per point); default config.query_mode.
+        Rows with NaN or infinite coordinates give NaN. A tiled map blends its tiles' answers
+        (where no tile learned: 0.5).
+        """
+        scores, variance = self._log_odds(
+            self._checked_points(points), self._mode(mode), return_std
+        )
+        if not return_std:
+            return sigmoid(scores)
+        return sigmoid(scores), occupancy_std(scores, variance)
+
+    def predict_proba(
+        self, points: np.ndarray, mode: str | None = None, return_std: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n, 2) float64 [p(free), p(occupied)] per point, scikit-learn style; with
+        return_std, also the (n,) standard deviation of either (see `occupancy`)."""
+        scores, variance = self._log_odds(
+            self._checked_points(points), self._mode(mode), return_std
+        )
+        occupied = sigmoid(scores)
+        proba = np.column_stack([1.0 - occupied, occupied])
+        return (proba, occupancy_std(scores, variance)) if return_std else proba
+
+    def decision_function(
+        self, points: np.ndarray, mode: str | None = None, return_variance: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n,) float64 log-odds of occupancy: w^T phi(x), plus the intercept b when
+        config.query_intercept is set (Alg. 3); with return_variance, the pair (log-odds,
+        variance): (n,) float64 variance of the log-odds under the weights' posterior, from
+        which `occupancy`'s std follows (ehm.core.weights.uncertainty.occupancy_std)."""
+        checked = self._checked_points(points)
+        scores, variance = self._log_odds(checked, self._mode(mode), return_variance)
+        return (scores, variance) if return_variance else scores
+
+    def raycast(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        max_range: float | np.ndarray,
+        level: float = 0.5,
+        mode: str | None = None,
+        unknown: str = "occupied",
+    ) -> np.ndarray:
+        """(n,) distance, metres, along each ray to the first point whose occupancy rises
+        above `level`, or with unknown 'occupied' (the default) to the first point of unknown
+        space (see `known`) where that is nearer, as OctoMap's castRay stops there; inf where
+        neither comes within `max_range`. origins: (n, d) or one (d,) point, metres, world
+        frame; directions: (n, d), any length but 0; max_range: metres, one for all rays or
+        (n,). Rays march cluster_radius / 2 apart and each crossing is located to
+        cluster_radius / 10 (ehm.core.queries.raycast.cast_rays); a HilbertMap guides them
+        by a grid of its log-odds, kept up to date as it learns (each update's stage 'grids',
+        ehm.grid.planner_support). A ray starting inside reads 0. With unknown 'free',
+        unknown space reads as its occupancy, 0.5: it stops no ray at the default level."""
+        dim = self._query_dim("cast rays through it")
+        stop = unknown_is_obstacle(unknown)
+        origins, directions, max_range = checked_rays(origins, directions, max_range, dim)
+        threshold = log_odds_level(level)
+        return self._cast(origins, directions, max_range, threshold, self._mode(mode), stop)
+
+    def segment_free(
+        self,
+        starts: np.ndarray,
+        ends: np.ndarray,
+        level: float = 0.5,
+        mode: str | None = None,
+        unknown: str = "occupied",
+    ) -> np.ndarray:
+        """(n,) bool: True where no point of the segment from starts[i] to ends[i] ((n, d) or
+        one (d,) point each, metres, world frame) has occupancy above `level`, as `raycast`
+        finds it; with unknown 'occupied' (the default), nor lies in unknown space (see
+        `known`): never-seen space is never free. unknown 'free' lets segments cross it."""
+        starts, directions, lengths = segment_rays(starts, ends, self._query_dim("query it"))
+        return np.isinf(self.raycast(starts, directions, lengths, level, mode, unknown))
+
+    def _checked_points(self, points: np.ndarray, action: str = "query it") -> np.ndarray:
+        """(n, d) float64 query points; InputError for another shape, EmptyMapError naming
+        `action` for an empty map."""
+        dim = self._query_dim(action)
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != dim:
+            raise InputError(f"query points must have shape (n, {dim}), got {tuple(points.shape)}")
+        return points
+
+    def _mode(self, mode: str | None) -> str:
+        """`mode`, default config.query_mode; InputError for another than 'batch' or 'exact'."""
+        mode = mode or self.config.query_mode
+        if mode not in ("batch", "exact"):
+            raise InputError(f"query mode must be 'batch' or 'exact', got {mode!r}")
+        return mode
+
+
+def finite_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) bool, which rows of (n, d) points are finite, and those rows, contiguous."""
+    finite = np.all(np.isfinite(points), axis=1)
+    return finite, np.ascontiguousarray(points[finite])
