@@ -79,7 +79,8 @@ def maps_equal(a: ehm.HilbertMap, b: ehm.HilbertMap) -> bool:
         _equal(array, getattr(b.clusters_, name)) for name, array in a.clusters_.arrays().items()
     )
     same &= all(
-        _equal(array, b.memory_.arrays()[name]) for name, array in a.memory_.arrays().items()
+        _equal(array, b.model_.memory.arrays()[name])
+        for name, array in a.model_.memory.arrays().items()
     )
     means = b.clusters_.means
     rng = np.random.default_rng(0)

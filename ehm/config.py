@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, Literal
 
-from ehm.errors import SettingsError
+from ehm.errors import InputError, SettingsError
 
 FeatureSearch = Literal["support", "nearest"]
 MergeRule = Literal["pooled", "average"]
@@ -323,6 +323,20 @@ class MapConfig:
         scale = resolution / DEFAULT_RESOLUTION
         scaled = {name: getattr(defaults, name) * scale for name in LENGTH_SETTINGS}
         return defaults.replace(**{**scaled, **overrides})
+
+    @classmethod
+    def of(cls, config: MapConfig | None = None, **overrides: Any) -> MapConfig:
+        """The settings a map is made with: `config` (None: the defaults) with keyword
+        `overrides`; resolution=r among them, in place of a config, starts from
+        for_resolution(r)."""
+        if "resolution" in overrides:
+            if config is not None:
+                raise InputError(
+                    "give a resolution or a config, not both: the config holds its resolution"
+                )
+            config = cls.for_resolution(overrides.pop("resolution"))
+        base = config if config is not None else cls()
+        return base.replace(**overrides) if overrides else base
 
     @property
     def resolution(self) -> float:

@@ -27,26 +27,23 @@ from ehm.config import MapConfig
 from ehm.core.learned_model import LearnedModel
 from ehm.core.model.clusters import ClusterSet, ClusterView
 from ehm.core.observations.evidence import gather_evidence
-from ehm.core.observations.memory import EvidenceMemory
 from ehm.core.observations.samples import scan_rays
-from ehm.core.queries.gradient import logit_gradients
-from ehm.core.queries.raycast import cast_rays, log_odds_level, unknown_is_obstacle
-from ehm.core.search.anchors import AnchorLayers
-from ehm.core.search.kernel_search import KernelSums, ReadRows
-from ehm.core.sensor.local_frame import local_origin_for, scans_from
+from ehm.core.queries.raycast import cast_rays
+from ehm.core.search.kernel_search import ReadRows
+from ehm.core.sensor.local_frame import in_frame, local_origin_for
 from ehm.core.sensor.scan import Scan
+from ehm.core.sensor.waiting_scans import WaitingScans, check_scan
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
 from ehm.core.timing import StageTimer
 from ehm.core.update import update
-from ehm.core.weights.uncertainty import logit_variance
 from ehm.errors import EmptyMapError, InputError
 from ehm.grid.blocks import grid_blocks
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.grid.planner_support import PlannerSupport
 from ehm.io.map_file import read_map, write_map
-from ehm.map_queries import MapQueries, finite_rows
+from ehm.map_queries import MapQueries
 
 # Side of the cells that tell rays where the occupancy may rise above the level, in cluster
 # radii (ehm.core.queries.raycast.CandidateCells).
@@ -78,43 +75,31 @@ class HilbertMap(MapQueries):
     config: a MapConfig; keyword overrides replace single settings, for example
     HilbertMap(cluster_radius=0.2); resolution=r, in place of a config, starts from
     MapConfig.for_resolution(r) (HilbertMap(resolution=0.2, max_range=80.0)). Learned state
-    ends in an underscore: clusters_ (a ClusterSet), memory_, anchors_ (AnchorLayers, empty
-    unless config.anchor_layers > 1), bias_, local_origin_ (the world point, metres, clusters_
-    and the memory are kept relative to, see ehm.core.sensor.local_frame; None before the
-    first scan is learned), n_scans_, timings_ (seconds per stage of the last update),
-    last_update_ (clusters added and merged by it, its samples and those replayed from the
-    memory) and time_ (seconds, the latest time stamp of the scans learned; None without).
-    Everything the map takes and answers is in world frame, whatever its local origin.
+    ends in an underscore: model_ (a LearnedModel: clusters, memory, anchors, bias, search;
+    None before the first scan is learned), clusters_ and bias_ (its), local_origin_ (the
+    world point, metres, the model is kept relative to, ehm.core.sensor.local_frame),
+    n_scans_, timings_ (seconds per stage of the last update), last_update_ (clusters added
+    and merged by it, its samples and those replayed from the memory) and time_ (seconds, the
+    latest time stamp learned; None without). Everything the map takes and answers is in
+    world frame, whatever its local origin.
     """
 
     def __init__(self, config: MapConfig | None = None, **overrides: Any) -> None:
-        if "resolution" in overrides:
-            if config is not None:
-                raise InputError(
-                    "give a resolution or a config, not both: the config holds its resolution"
-                )
-            config = MapConfig.for_resolution(overrides.pop("resolution"))
-        base = config if config is not None else MapConfig()
-        self.config = base.replace(**overrides) if overrides else base
+        self.config = MapConfig.of(config, **overrides)
         self._reset()
         self._followers: weakref.WeakSet[OccupancyGrid] = weakref.WeakSet()
 
     def _reset(self) -> None:
         """Forget everything learned."""
-        self._model: LearnedModel | None = None
+        self.model_: LearnedModel | None = None
         self.local_origin_: np.ndarray | None = None
-        # Scans given but not learned yet, waiting for config.batch_rays rays.
-        self._waiting: list[Scan] = []
-        self._waiting_rays = 0
+        self._waiting = WaitingScans(self.config.batch_rays)
         self.n_scans_ = 0
-        # The origin of every scan given, in order (see sensor_path).
-        self._origins: list[np.ndarray] = []
         self.timings_: dict[str, float] = {}
         self.last_update_: dict[str, int] = {}
         # Snapshots carry this token, so grids tell a map that was refitted from one that grew.
         self._lineage = object()
-        # What rays march and distances are read from, made when first needed and kept up to
-        # date as it learns.
+        # What rays and distances read, made when first needed, then following the map.
         self._planner = PlannerSupport(
             self.config.cluster_radius,
             RAY_CELLS_PER_RADIUS * self.config.cluster_radius,
@@ -126,34 +111,25 @@ class HilbertMap(MapQueries):
     # ------------------------------------------------------------ learned state
     @property
     def clusters_(self) -> ClusterSet | None:
-        return None if self._model is None else self._model.clusters
-
-    @property
-    def memory_(self) -> EvidenceMemory | None:
-        return None if self._model is None else self._model.memory
-
-    @property
-    def anchors_(self) -> AnchorLayers:
-        return AnchorLayers() if self._model is None else self._model.anchors
-
-    @property
-    def bias_state_(self) -> np.ndarray:
-        return np.zeros(2) if self._model is None else self._model.bias_state
+        """The learned clusters, metres, the map's own frame; None before learning."""
+        return None if self.model_ is None else self.model_.clusters
 
     @property
     def bias_(self) -> float:
-        return float(self.bias_state_[0])
+        """The learned bias, log-odds (added to queries when config.query_intercept)."""
+        return 0.0 if self.model_ is None else self.model_.bias
 
     @property
     def time_(self) -> float | None:
-        return None if self._model is None else self._model.time
+        """Seconds, the latest time stamp of the scans learned; None without."""
+        return None if self.model_ is None else self.model_.time
 
     def _learned(self, action: str) -> LearnedModel:
         """The model, after learning any scans waiting for their batch."""
         self.flush()
-        if self._model is None:
+        if self.model_ is None:
             raise EmptyMapError(f"the map is empty: integrate a scan or fit before you {action}")
-        return self._model
+        return self.model_
 
     def _query_dim(self, action: str) -> int:
         return self._learned(action).clusters.dim
@@ -177,22 +153,16 @@ class HilbertMap(MapQueries):
     def integrate_scan(self, scan: Scan) -> HilbertMap:
         """Learn one Scan (Alg. 2); returns self. With config.batch_rays, the scan waits
         until the waiting scans hold that many rays, and they are learned together."""
-        self._check_scan(scan, "scan", self.dim, "the map")
-        self._waiting.append(scan)
-        self._waiting_rays += len(scan)
-        self._origins.append(scan.origin)
+        check_scan(scan, "scan", self.dim, "the map", self.config.forget_after)
         self.n_scans_ += 1
         self.timings_ = {}
-        if self._waiting_rays >= self.config.batch_rays:
-            self.flush()
-        return self
+        return self.flush() if self._waiting.add(scan) else self
 
     def flush(self) -> HilbertMap:
         """Learn the scans waiting for their batch (config.batch_rays) now, as one batch;
         returns self. Queries, grids and saves do this themselves."""
-        if self._waiting:
-            scans, self._waiting, self._waiting_rays = self._waiting, [], 0
-            self._learn(scans)
+        if len(self._waiting):
+            self._learn(self._waiting.take())
         return self
 
     def fit(self, scans: Iterable[Scan]) -> HilbertMap:
@@ -201,40 +171,25 @@ class HilbertMap(MapQueries):
         if not scans:
             raise InputError("fit needs at least one scan, got none")
         for i, scan in enumerate(scans):
-            self._check_scan(scan, f"scan {i}", scans[0].dim if i else None, "scan 0")
+            dim = scans[0].dim if i else None
+            check_scan(scan, f"scan {i}", dim, "scan 0", self.config.forget_after)
         self._reset()
         self._learn(scans)
         self.n_scans_ = len(scans)
-        self._origins = [scan.origin for scan in scans]
+        self._waiting.origins = [scan.origin for scan in scans]
         return self
-
-    def _check_scan(self, scan: Scan, what: str, dim: int | None, holder: str) -> None:
-        """InputError for what is not a Scan, a scan of other than `dim` axes (those of
-        `holder`), and a scan without time stamp given to a map that fades."""
-        if not isinstance(scan, Scan):
-            raise InputError(f"{what}: expected ehm.Scan, got {type(scan).__name__}")
-        if dim is not None and scan.dim != dim:
-            raise InputError(f"{what} points are {scan.dim}D, {holder} is {dim}D")
-        if self.config.forget_after is not None and scan.time is None:
-            raise InputError(
-                f"{what} has no time stamp, and the map forgets what it has not seen for "
-                f"{self.config.forget_after} s (MapConfig.forget_after): give each scan its time "
-                "(integrate(..., time=seconds))"
-            )
 
     def _learn(self, scans: list[Scan]) -> None:
         """Alg. 2 on `scans` as one batch, in the map's own frame, whose origin the first
         scans learned choose; then every following grid and what rays march catch up."""
         if self.local_origin_ is None:
             self.local_origin_ = local_origin_for(scans[0].origin)
-        if self._model is None:
-            self._model = LearnedModel.empty(self.config, scans[0].dim)
-        model, config, timer = self._model, self.config, StageTimer()
-        if config.learn_box and self.local_origin_.any():
-            box = np.asarray(config.learn_box).reshape(2, -1) - self.local_origin_
-            config = config.replace(learn_box=tuple(box.ravel()))
+        if self.model_ is None:
+            self.model_ = LearnedModel.empty(self.config, scans[0].dim)
+        model, timer = self.model_, StageTimer()
         with timer("samples"):
-            rays = scan_rays(scans_from(scans, self.local_origin_), config)
+            local_scans, config = in_frame(scans, self.config, self.local_origin_)
+            rays = scan_rays(local_scans, config)
             samples = gather_evidence(rays, config, model.rng)
         times = [scan.time for scan in scans if scan.time is not None]
         self.last_update_ = update(model, rays, samples, max(times, default=None), timer)
@@ -255,52 +210,13 @@ class HilbertMap(MapQueries):
         return points if offset is None or not offset.any() else points - offset
 
     # ---------------------------------------------------------------- queries
-    def _summed(
-        self, points: np.ndarray, mode: str, with_variance: bool, cell: float
-    ) -> KernelSums:
-        """The log-odds at (n, d) points of the map's own frame and with_variance their
-        variance sums (see KernelSums), NaN for rows that are not finite."""
-        finite, query = finite_rows(points)
-        found = self._learned("query it").sums(query, with_variance, mode, cell)
-        scores = np.full(len(points), np.nan)
-        scores[finite] = found.scores
-        if not with_variance:
-            return KernelSums(scores, found.variance_sums)
-        sums = np.full((len(points), 2), np.nan)
-        sums[finite] = found.variance_sums
-        return KernelSums(scores, sums)
-
     def _log_odds(
         self, points: np.ndarray, mode: str, with_variance: bool
     ) -> tuple[np.ndarray, np.ndarray]:
-        found = self._summed(self._local(points), mode, with_variance, self.config.query_cell)
-        if not with_variance:
-            return found.scores, np.zeros(0)
-        sums = found.variance_sums
-        return found.scores, logit_variance(sums[:, 0], sums[:, 1], self.config.prior_precision)
+        return self._learned("query it").log_odds(self._local(points), mode, with_variance)
 
-    def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """(n, d) float64 gradient of the occupancy log-odds (`decision_function`) with respect to
-        position, 1/m, world frame, at (n, d) points, metres: it points toward more occupied space,
-        and p(1 - p) times it is the gradient of the probability. Over the same kernels as
-        `decision_function` in `mode`; planar-surface kernels are flat (0 or 1) and add nothing
-        (ehm.core.queries.gradient). NaN rows where points are not finite."""
-        points = self._checked_points(points)
-        model = self._learned("query it")
-        finite, query = finite_rows(self._local(points))
-        indptr, rows = model.search.rows(query, model.clusters, self._mode(mode))
-        out = np.full(points.shape, np.nan)
-        clusters = model.clusters
-        out[finite] = logit_gradients(
-            query,
-            indptr,
-            rows,
-            clusters.means,
-            clusters.transforms,
-            clusters.planar_kernel,
-            clusters.weights,
-        )
-        return out
+    def _gradient(self, points: np.ndarray, mode: str) -> np.ndarray:
+        return self._learned("query it").gradients(self._local(points), mode)
 
     def _cast(
         self,
@@ -311,12 +227,11 @@ class HilbertMap(MapQueries):
         mode: str,
         stop_at_unknown: bool,
     ) -> np.ndarray:
-        """Rays guided by the planner support's grid and candidate cells, read in mode 'batch'
-        in cells RAY_QUERY_CELLS times query_cell wide, stopped by the known cells."""
-        cell = RAY_QUERY_CELLS * self.config.query_cell
+        """Rays guided by the planner support's grid and cells, read in wider query cells."""
+        model, cell = self._learned("query it"), RAY_QUERY_CELLS * self.config.query_cell
         take = self._local_snapshot
         return cast_rays(
-            lambda points: self._summed(points, mode, False, cell).scores,
+            lambda points: model.sums(points, False, mode, cell).scores,
             self._local(origins),
             directions,
             max_range,
@@ -324,95 +239,49 @@ class HilbertMap(MapQueries):
             self.config.cluster_radius,
             self._planner.grid(take),
             self._planner.cells(take, threshold),
-            partial(self._known, mode=mode) if stop_at_unknown else None,
+            partial(self._known_local, mode=mode) if stop_at_unknown else None,
             self._planner.known_cells(take) if stop_at_unknown else None,
         )
 
-    def known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """(n,) bool: True where the map has evidence at each of (n, d) points, metres, world
-        frame: some cluster's kernel reaches it (clusters form where scans gave samples, free
-        and occupied); False where none does (no ray came near: occupancy reads 0.5 there, std
-        the prior's) and for rows that are not finite. Planner queries stop there unless
-        asked not to (`raycast`, `segment_free`)."""
-        return self._known(self._local(self._checked_points(points)), mode)
+    def _known_at(self, points: np.ndarray, mode: str) -> np.ndarray:
+        return self._known_local(self._local(points), mode)
 
-    def _known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """`known` of points in the map's own frame. A search of the nearest clusters may
-        leave out the one whose support holds a point: the cells known all through
-        (ehm.core.queries.known_cells) say so first."""
+    def _known_local(self, points: np.ndarray, mode: str) -> np.ndarray:
+        """`known` in the map's own frame: where the search truncates (nearest clusters), the
+        cells known all through (ehm.core.queries.known_cells) answer first."""
         model = self._learned("query it")
         known = np.zeros(len(points), dtype=bool)
         if model.search.truncated:
             known = self._planner.known_cells(self._local_snapshot).contains(points)
         ask = np.flatnonzero(~known)
-        sums = self._summed(points[ask], self._mode(mode), True, self.config.query_cell)
+        sums = model.sums(points[ask], True, mode, self.config.query_cell)
         known[ask] = sums.variance_sums[:, 1] > 0.0
         return known
 
-    def distance(
+    def _distances(
         self,
         points: np.ndarray,
-        level: float = 0.5,
-        return_gradient: bool = False,
-        unknown: str = "occupied",
-        unknown_box: np.ndarray | None = None,
-        obstacle_box: np.ndarray | None = None,
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
-        frame) to the nearest point whose occupancy is at or above `level`: positive outside,
-        negative inside; with return_gradient, also its (n, d) gradient (unit vectors away from
-        the nearest obstacle; 0 beyond reach). Distances are kept up to
-        config.distance_reach: farther points read that. Unknown space (no kernel reaches it)
-        is an obstacle, as raycast and segment_free stop at it (unknown="occupied"), or free
-        (unknown="free"); unknown_box, (2, d) metres [low, high] corners,
-        world frame, makes it an obstacle only inside that box (a planner's workspace);
-        obstacle_box, alike, counts obstacles (occupied, and unknown when asked) only inside
-        it (a tile's core). Read from a signed distance field of surfels on
-        cluster_radius voxels, put where the log-odds meet the level as point queries read
-        them, from one search of nearest clusters around each surfel
-        (ehm.core.queries.distance, ehm.grid.planner_support), made on the first call for a
-        level and boxes and kept up to date as the map learns (each update's stage 'grids',
-        which on large maps learned scan by scan can cost more than the update itself).
-        NaN rows for points that are not finite; InputError for a box of another shape or
-        with low > high, and for maps whose grid would be too large to keep (tile them)."""
-        points = self._checked_points(points, "measure distances in it")
-        finite, query = finite_rows(self._local(points))
-        found, gradient = self._planner.distances(
+        threshold: float,
+        unknown_is_occupied: bool,
+        with_gradient: bool,
+        unknown_box: np.ndarray | None,
+        obstacle_box: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """From the planner support's field for the level and boxes, in the map's own frame."""
+        return self._planner.distances(
             self._local_snapshot,
-            query,
-            log_odds_level(level),
-            unknown_is_obstacle(unknown),
-            return_gradient,
-            self._checked_box("unknown_box", unknown_box),
-            self._checked_box("obstacle_box", obstacle_box),
+            self._local(points),
+            threshold,
+            unknown_is_occupied,
+            with_gradient,
+            None if unknown_box is None else self._local(unknown_box),
+            None if obstacle_box is None else self._local(obstacle_box),
         )
-        distance = np.full(len(points), np.nan)
-        distance[finite] = found
-        if not return_gradient:
-            return distance
-        gradients = np.full(points.shape, np.nan)
-        gradients[finite] = gradient
-        return distance, gradients
-
-    def _checked_box(self, name: str, box: np.ndarray | None) -> np.ndarray | None:
-        """A (2, d) float64 box of [low, high] corners, metres, world frame, in the map's own
-        frame, or None; InputError naming `name` for another shape, NaN or low > high."""
-        if box is None:
-            return None
-        box = np.asarray(box, dtype=np.float64)
-        if box.shape != (2, self.dim):
-            raise InputError(f"{name} must have shape (2, {self.dim}), got {box.shape}")
-        if np.isnan(box).any() or np.any(box[0] > box[1]):
-            raise InputError(
-                f"{name} must be [low corner, high corner] with low <= high and no NaN, "
-                f"got {box.tolist()}"
-            )
-        return self._local(box)
 
     def _point_log_odds(self, points: np.ndarray) -> np.ndarray:
         """(n,) log-odds at (n, d) points of the map's own frame as `occupancy` reads each
         point alone (mode 'exact': a function of the point, whatever else is asked with it)."""
-        return self._summed(points, "exact", False, self.config.query_cell).scores
+        return self._learned("query it").log_odds(points, "exact", False)[0]
 
     def _near_log_odds(self, places: np.ndarray, spread: float) -> ReadRows:
         """What reads the log-odds at points within `spread` metres of (m, d) `places`, metres,
@@ -466,9 +335,7 @@ class HilbertMap(MapQueries):
     def snapshot(self, action: str = "take a snapshot") -> MapSnapshot:
         """A read-only copy of the map's kernels and weights, for grids and pictures, in world
         frame."""
-        origin = self.local_origin_
-        shift = origin if origin is not None and origin.any() else None
-        return self._learned(action).snapshot(self._lineage, shift)
+        return self._learned(action).snapshot(self._lineage, self.local_origin_)
 
     def _local_snapshot(self) -> MapSnapshot:
         """The snapshot in the map's own frame, as the planner support keeps it."""
@@ -495,7 +362,7 @@ class HilbertMap(MapQueries):
     def state(self) -> MapState:
         """Everything the map has learned and the scans waiting for their batch, as plain data
         (shared, not copied). Taking it learns nothing."""
-        dim, model = self.dim, self._model
+        dim, model = self.dim, self.model_
         if dim is None:
             raise EmptyMapError("the map is empty: integrate a scan or fit before you save it")
         if model is None:  # waiting scans only: the model they will start
@@ -508,7 +375,7 @@ class HilbertMap(MapQueries):
             self.n_scans_,
             model.rng_state,
             model.memory,
-            tuple(self._waiting),
+            tuple(self._waiting.scans),
             self.sensor_path,
             model.time,
             self.local_origin_,
@@ -519,21 +386,21 @@ class HilbertMap(MapQueries):
         """The map whose learned state is `state`: it answers and goes on learning exactly as
         the map the state was taken from (when the state has its rng_state)."""
         hilbert_map = cls(state.config)
-        hilbert_map._model = LearnedModel.of_state(state)
+        hilbert_map.model_ = LearnedModel.of_state(state)
         hilbert_map.n_scans_ = state.n_scans
-        hilbert_map.local_origin_ = state.local_origin
-        hilbert_map._waiting = list(state.waiting)
-        hilbert_map._waiting_rays = sum(len(scan) for scan in state.waiting)
-        if state.sensor_path is not None:
-            hilbert_map._origins = list(state.sensor_path)
+        # Maps saved before they kept a local origin keep their clusters in world frame.
+        world = np.zeros(state.clusters.dim) if len(state.clusters) else None
+        hilbert_map.local_origin_ = world if state.local_origin is None else state.local_origin
+        path = () if state.sensor_path is None else state.sensor_path
+        hilbert_map._waiting = WaitingScans(state.config.batch_rays, state.waiting, path)
         return hilbert_map
 
     # ------------------------------------------------------------------ looking
     @property
     def dim(self) -> int | None:
-        if self._model is not None:
-            return self._model.clusters.dim
-        return self._waiting[0].dim if self._waiting else None
+        if self.model_ is not None:
+            return self.model_.clusters.dim
+        return self._waiting.dim
 
     @property
     def n_waiting_scans(self) -> int:
@@ -545,22 +412,20 @@ class HilbertMap(MapQueries):
     def sensor_path(self) -> np.ndarray:
         """(n, d) float64, metres, world frame: the origin of every scan given, in order (for
         maps loaded from files older than format 11, only the scans given since)."""
-        if not self._origins:
-            return np.zeros((0, self.dim or 3))
-        return np.stack(self._origins)
+        return self._waiting.sensor_path(self.dim or 3)
 
     @property
     def n_clusters(self) -> int:
         """Clusters the map has learned. Scans waiting for their batch are in none of them
         until a query, a grid or `flush()` learns them; looking learns nothing."""
-        return 0 if self._model is None else len(self._model.clusters)
+        return 0 if self.model_ is None else len(self.model_.clusters)
 
     def __repr__(self) -> str:
         """The map as it stands, without learning the scans that wait for their batch."""
         defaults = MapConfig().to_dict()
         changed = {k: v for k, v in self.config.to_dict().items() if defaults[k] != v}
         parts = [f"dim={self.dim}", f"clusters={self.n_clusters}", f"scans={self.n_scans_}"]
-        if self._waiting:
+        if len(self._waiting):
             parts.append(f"waiting={len(self._waiting)}")
         parts += [f"{k}={v!r}" for k, v in changed.items()]
         return f"HilbertMap({', '.join(parts)})"
@@ -569,22 +434,17 @@ class HilbertMap(MapQueries):
         """A copy of the learned clusters: centres, covariances, weights, kind ('planar' or
         'volumetric'), kernel, scale and label, one row per cluster (see ClusterView); scans
         waiting for their batch are not learned by looking."""
-        if self._model is None:
-            if self._waiting:
+        if self.model_ is None:
+            if len(self._waiting):
                 raise EmptyMapError("no clusters learned yet: flush() learns the waiting scans")
             raise EmptyMapError("the map is empty: integrate a scan or fit before you look at it")
-        view = ClusterView.of(self._model.clusters)
-        offset = self.local_origin_
-        return (
-            view if offset is None or not offset.any() else replace(view, means=view.means + offset)
-        )
+        offset, view = self.local_origin_, ClusterView.of(self.model_.clusters)
+        return view if offset is None else replace(view, means=view.means + offset)
 
     def memory_bytes(self) -> int:
         """Bytes of everything the map keeps: cluster arrays, weights, optimiser state, the
         sample memory, anchor layers, the search structure over cluster centres, the sensor
         path, the scans waiting for their batch, and while kept, the grid and cells rays march
         (`raycast`). Counting learns nothing."""
-        learned = 0 if self._model is None else self._model.nbytes
-        path = sum(origin.nbytes for origin in self._origins)
-        waiting = sum(scan.points_world.nbytes + scan.hit_mask.nbytes for scan in self._waiting)
-        return learned + self._planner.nbytes + path + waiting
+        learned = 0 if self.model_ is None else self.model_.nbytes
+        return learned + self._planner.nbytes + self._waiting.nbytes

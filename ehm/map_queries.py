@@ -8,6 +8,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from ehm.config import MapConfig
+from ehm.core.learned_model import finite_rows
 from ehm.core.primitives.logistic import sigmoid
 from ehm.core.queries.raycast import (
     checked_rays,
@@ -36,6 +37,28 @@ class MapQueries(ABC):
     ) -> tuple[np.ndarray, np.ndarray]:
         """(n,) log-odds at (n, d) checked points, metres, world frame, NaN for rows that are
         not finite, and with_variance their (n,) variance (else an empty array)."""
+
+    @abstractmethod
+    def _gradient(self, points: np.ndarray, mode: str) -> np.ndarray:
+        """`gradient` at (n, d) checked points, metres, world frame."""
+
+    @abstractmethod
+    def _known_at(self, points: np.ndarray, mode: str) -> np.ndarray:
+        """`known` at (n, d) checked points, metres, world frame."""
+
+    @abstractmethod
+    def _distances(
+        self,
+        points: np.ndarray,
+        threshold: float,
+        unknown_is_occupied: bool,
+        with_gradient: bool,
+        unknown_box: np.ndarray | None,
+        obstacle_box: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`distance` at (n, d) finite points, metres, world frame, to log-odds `threshold`:
+        (n,) distances and with_gradient their (n, d) gradients (else (0, d)); boxes checked,
+        world frame."""
 
     @abstractmethod
     def _cast(
@@ -92,6 +115,70 @@ class MapQueries(ABC):
         checked = self._checked_points(points)
         scores, variance = self._log_odds(checked, self._mode(mode), return_variance)
         return (scores, variance) if return_variance else scores
+
+    def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n, d) float64 gradient of the occupancy log-odds (`decision_function`) with
+        respect to position, 1/m, world frame, at (n, d) points, metres: it points toward more
+        occupied space, and p(1 - p) times it is the gradient of the probability. Over the
+        same kernels as `decision_function` in `mode`; planar-surface kernels are flat (0 or
+        1) and add nothing (ehm.core.queries.gradient); a tiled map adds each tile's log-odds
+        times the gradient of its blending weight. NaN rows where points are not finite."""
+        return self._gradient(self._checked_points(points), self._mode(mode))
+
+    def known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
+        """(n,) bool: True where the map has evidence at each of (n, d) points, metres, world
+        frame: some cluster's kernel reaches it (clusters form where scans gave samples, free
+        and occupied); False where none does (no ray came near: occupancy reads 0.5 there, std
+        the prior's) and for rows that are not finite. Planner queries stop there unless
+        asked not to (`raycast`, `segment_free`). A tiled map asks the tiles that weigh in
+        the blend at each point."""
+        return self._known_at(self._checked_points(points), self._mode(mode))
+
+    def distance(
+        self,
+        points: np.ndarray,
+        level: float = 0.5,
+        return_gradient: bool = False,
+        unknown: str = "occupied",
+        unknown_box: np.ndarray | None = None,
+        obstacle_box: np.ndarray | None = None,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
+        frame) to the nearest point whose occupancy is at or above `level`: positive outside,
+        negative inside; with return_gradient, also its (n, d) gradient (unit vectors away
+        from the nearest obstacle; 0 beyond reach). Distances are kept up to
+        config.distance_reach: farther points read that. Unknown space (no kernel reaches it)
+        is an obstacle, as raycast and segment_free stop at it (unknown="occupied"), or free
+        (unknown="free"); unknown_box, (2, d) metres [low, high] corners, world frame, makes
+        it an obstacle only inside that box (a planner's workspace); obstacle_box, alike,
+        counts obstacles (occupied, and unknown when asked) only inside it.
+
+        Read from a signed distance field of surfels on cluster_radius voxels, put where the
+        log-odds meet the level as point queries read them (ehm.core.queries.distance,
+        ehm.grid.planner_support), made on the first call for a level and boxes and kept up
+        to date as the map learns (each update's stage 'grids', which on large maps learned
+        scan by scan can cost more than the update itself). A tiled map asks each tile of
+        the obstacles in its core; the nearest wins, and a point inside any obstacle is
+        inside (the deepest wins). NaN rows for points that are not finite; InputError for
+        a box of another shape or with low > high, and for maps whose grid would be too
+        large to keep (tile them)."""
+        points = self._checked_points(points, "measure distances in it")
+        finite, query = finite_rows(points)
+        found, gradient = self._distances(
+            query,
+            log_odds_level(level),
+            unknown_is_obstacle(unknown),
+            return_gradient,
+            checked_box("unknown_box", unknown_box, points.shape[1]),
+            checked_box("obstacle_box", obstacle_box, points.shape[1]),
+        )
+        distance = np.full(len(points), np.nan)
+        distance[finite] = found
+        if not return_gradient:
+            return distance
+        gradients = np.full(points.shape, np.nan)
+        gradients[finite] = gradient
+        return distance, gradients
 
     def raycast(
         self,
@@ -150,7 +237,17 @@ class MapQueries(ABC):
         return mode
 
 
-def finite_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) bool, which rows of (n, d) points are finite, and those rows, contiguous."""
-    finite = np.all(np.isfinite(points), axis=1)
-    return finite, np.ascontiguousarray(points[finite])
+def checked_box(name: str, box: np.ndarray | None, dim: int) -> np.ndarray | None:
+    """A (2, dim) float64 box of [low, high] corners, metres, or None; InputError naming
+    `name` for another shape, NaN or low > high."""
+    if box is None:
+        return None
+    box = np.asarray(box, dtype=np.float64)
+    if box.shape != (2, dim):
+        raise InputError(f"{name} must have shape (2, {dim}), got {box.shape}")
+    if np.isnan(box).any() or np.any(box[0] > box[1]):
+        raise InputError(
+            f"{name} must be [low corner, high corner] with low <= high and no NaN, "
+            f"got {box.tolist()}"
+        )
+    return box

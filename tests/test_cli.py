@@ -51,7 +51,7 @@ def test_map_then_info_and_query(map_file, tmp_path, table_row):
     assert table_row(info.output, "sensor path") == [f"5 poses, {length:.2f} m long"]
     assert table_row(info.output, "clusters") == [str(hilbert_map.n_clusters)]
     assert table_row(info.output, "memory") == [f"{hilbert_map.memory_bytes() / 1e6:.3f} MB"]
-    kept = hilbert_map.memory_
+    kept = hilbert_map.model_.memory
     assert len(kept) > 0
     assert table_row(info.output, "past evidence kept") == [
         f"{len(kept)} cells, {kept.weight.sum():.0f} samples"

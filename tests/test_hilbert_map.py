@@ -257,7 +257,7 @@ def test_scan_by_scan_with_the_memory_does_not_forget():
             for scan in split.train:
                 hilbert_map.integrate_scan(scan)
             f1[keep].append(score(split.occupied, hilbert_map.occupancy(split.points)).f1)
-            assert (len(hilbert_map.memory_) > 0) == keep
+            assert (len(hilbert_map.model_.memory) > 0) == keep
         batch = ehm.HilbertMap().fit(split.train)
         f1["batch"].append(score(split.occupied, batch.occupancy(split.points)).f1)
     mean = {key: np.mean(values) for key, values in f1.items()}
@@ -376,15 +376,6 @@ def test_a_georeferenced_map_answers_as_the_same_map_near_the_origin(room, tmp_p
     loaded = ehm.load(tmp_path / "far.ehm")
     np.testing.assert_array_equal(loaded.local_origin_, shift)
     np.testing.assert_array_equal(loaded.occupancy(points + shift), far.occupancy(points + shift))
-
-
-def test_maps_near_the_world_origin_keep_it():
-    from ehm.core.sensor.local_frame import local_origin_for
-
-    assert local_origin_for(np.array([9_999.0, -50.0, 2.0])).tolist() == [0.0, 0.0, 0.0]
-    np.testing.assert_array_equal(
-        local_origin_for(np.array([499_781.6, 4_200_300.0, 2500.0])), [499_712, 4_200_448, 2048]
-    )
 
 
 def test_a_map_of_a_resolution_takes_that_resolution_s_settings():

@@ -85,5 +85,5 @@ def test_times_are_saved_with_the_map_and_it_goes_on_fading_as_it_would(tmp_path
     loaded.flush()
     for name, array in original.clusters_.arrays().items():
         np.testing.assert_array_equal(getattr(loaded.clusters_, name), array, err_msg=name)
-    np.testing.assert_array_equal(loaded.memory_.seen, original.memory_.seen)
+    np.testing.assert_array_equal(loaded.model_.memory.seen, original.model_.memory.seen)
     assert original.last_update_["faded_clusters"] > 0

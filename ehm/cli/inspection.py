@@ -78,7 +78,7 @@ def info(
     length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) else 0.0
     table.add_row("sensor path", f"{len(path)} poses, {length:.2f} m long")
     table.add_row("memory", f"{hilbert_map.memory_bytes() / 1e6:.3f} MB")
-    memory = hilbert_map.memory_
+    memory = hilbert_map.model_.memory
     table.add_row("past evidence kept", f"{len(memory)} cells, {memory.weight.sum():.0f} samples")
     table.add_row("file size", f"{map_path.stat().st_size / 1e6:.3f} MB")
     means = hilbert_map.clusters().means

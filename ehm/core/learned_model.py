@@ -12,10 +12,12 @@ from ehm.config import MapConfig
 from ehm.core.model.clusters import ClusterSet
 from ehm.core.model.features import PointGroups, SparseFeatures
 from ehm.core.observations.memory import EvidenceMemory
+from ehm.core.queries.gradient import logit_gradients
 from ehm.core.search.anchors import AnchorLayers
 from ehm.core.search.kernel_search import KernelSearch, KernelSums, kernel_search
 from ehm.core.snapshot import MapSnapshot
 from ehm.core.state import MapState
+from ehm.core.weights.uncertainty import logit_variance
 
 
 @dataclass
@@ -96,16 +98,53 @@ class LearnedModel:
         return self.search.features(points, self.clusters, groups)
 
     def sums(self, points: np.ndarray, with_variance: bool, mode: str, cell: float) -> KernelSums:
-        """Log-odds at (n, d) finite points, metres, and their variance sums (see
-        KernelSearch.sums)."""
-        return self.search.sums(points, self.clusters, self.intercept, with_variance, mode, cell)
+        """Log-odds at (n, d) points, metres, and with_variance their variance sums (see
+        KernelSearch.sums); NaN rows for points that are not finite."""
+        finite, query = finite_rows(points)
+        found = self.search.sums(query, self.clusters, self.intercept, with_variance, mode, cell)
+        scores = np.full(len(points), np.nan)
+        scores[finite] = found.scores
+        if not with_variance:
+            return KernelSums(scores, found.variance_sums)
+        sums = np.full((len(points), 2), np.nan)
+        sums[finite] = found.variance_sums
+        return KernelSums(scores, sums)
+
+    def log_odds(
+        self, points: np.ndarray, mode: str, with_variance: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) log-odds at (n, d) points, metres, and with_variance their (n,) variance under
+        the weights' posterior (else an empty array); NaN rows for points not finite."""
+        found = self.sums(points, with_variance, mode, self.config.query_cell)
+        if not with_variance:
+            return found.scores, np.zeros(0)
+        sums = found.variance_sums
+        return found.scores, logit_variance(sums[:, 0], sums[:, 1], self.config.prior_precision)
+
+    def gradients(self, points: np.ndarray, mode: str) -> np.ndarray:
+        """(n, d) gradient of the log-odds, 1/m, at (n, d) points, metres, over the kernels a
+        query in `mode` reads (ehm.core.queries.gradient); NaN rows for points not finite."""
+        finite, query = finite_rows(points)
+        indptr, rows = self.search.rows(query, self.clusters, mode)
+        clusters, out = self.clusters, np.full(points.shape, np.nan)
+        out[finite] = logit_gradients(
+            query,
+            indptr,
+            rows,
+            clusters.means,
+            clusters.transforms,
+            clusters.planar_kernel,
+            clusters.weights,
+        )
+        return out
 
     def snapshot(self, lineage: object, local_origin: np.ndarray | None = None) -> MapSnapshot:
-        """A read-only copy of the kernels and weights, with the means in the frame whose
-        origin is -`local_origin` ((d,) metres; None: as kept), and `lineage`, the token of
-        the map's learning history."""
+        """A read-only copy of the kernels and weights, with the means shifted by
+        `local_origin` ((d,) metres, the origin of the model's frame in the one wanted; None:
+        as kept), and `lineage`, the token of the map's learning history."""
         clusters = self.clusters
-        means = clusters.means if local_origin is None else clusters.means + local_origin
+        shifted = local_origin is not None and local_origin.any()
+        means = clusters.means + local_origin if shifted else clusters.means
         return MapSnapshot(
             means.copy(),
             clusters.transforms.copy(),
@@ -116,3 +155,9 @@ class LearnedModel:
             self.config.prior_precision,
             lineage,
         )
+
+
+def finite_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) bool, which rows of (n, d) points are finite, and those rows, contiguous."""
+    finite = np.all(np.isfinite(points), axis=1)
+    return finite, np.ascontiguousarray(points[finite])

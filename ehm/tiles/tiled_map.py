@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.queries.raycast import cast_rays, unknown_is_obstacle
+from ehm.core.queries.raycast import cast_rays
 from ehm.core.sensor.scan import Scan
 from ehm.core.weights.uncertainty import logit_variance
 from ehm.errors import EmptyMapError, InputError, SettingsError
@@ -80,8 +80,7 @@ class TiledMap(MapQueries):
         max_loaded_tiles: int = MAX_LOADED_TILES,
         **overrides: Any,
     ) -> None:
-        base = config if config is not None else MapConfig()
-        self.config = base.replace(**overrides) if overrides else base
+        self.config = MapConfig.of(config, **overrides)
         if self.config.learn_box:
             raise SettingsError("a tiled map sets each tile's learn_box itself: leave it empty")
         if overlap is None:
@@ -134,9 +133,9 @@ class TiledMap(MapQueries):
 
     @property
     def n_clusters(self) -> int:
-        """Clusters of all tiles, after learning the scans waiting in tiles in memory (a
-        cluster in two tiles' overlap counts twice)."""
-        self.flush()
+        """Clusters all tiles have learned (a cluster in two tiles' overlap counts twice).
+        Scans waiting in a tile are in none of them until a query, a grid or `flush()`
+        learns them; looking learns nothing."""
         return sum(self.tile_record(key).n_clusters for key in self.tile_keys)
 
     @property
@@ -380,12 +379,9 @@ class TiledMap(MapQueries):
                 log_odds[chosen] += weight * found
         return log_odds, variance
 
-    def gradient(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """(n, d) float64 gradient of the blended log-odds (`decision_function`) with respect
-        to position, 1/m, world frame, at (n, d) points, metres: the tiles' gradients
-        (HilbertMap.gradient) blended as the log-odds are, plus each tile's log-odds times the
-        gradient of its weight. NaN rows where points are not finite."""
-        points = self._checked_points(points)
+    def _gradient(self, points: np.ndarray, mode: str) -> np.ndarray:
+        """The tiles' gradients blended as the log-odds are, plus each tile's log-odds times
+        the gradient of its weight."""
         rows, keys, weights = self.tiling.blend(points)
         finite = np.all(np.isfinite(points), axis=1)
         out = np.where(finite[:, None], np.zeros(points.shape), np.nan)
@@ -419,14 +415,11 @@ class TiledMap(MapQueries):
             max_range,
             threshold,
             self.config.cluster_radius,
-            known=partial(self.known, mode=mode) if stop_at_unknown else None,
+            known=partial(self._known_at, mode=mode) if stop_at_unknown else None,
         )
 
-    def known(self, points: np.ndarray, mode: str | None = None) -> np.ndarray:
-        """(n,) bool: True where a tile that weighs in the blend at each of (n, d) points,
-        metres, world frame, has evidence there (HilbertMap.known); False elsewhere and for
-        rows that are not finite."""
-        points = self._checked_points(points)
+    def _known_at(self, points: np.ndarray, mode: str) -> np.ndarray:
+        """True where a tile that weighs in the blend at a point knows it."""
         rows, keys, weights = self.tiling.blend(points)
         found = np.zeros(len(points), dtype=bool)
         for key, entries in _by_tile(np.arange(len(rows)), keys):
@@ -436,49 +429,46 @@ class TiledMap(MapQueries):
                 found[chosen] |= tile_map.known(points[chosen], mode)
         return found
 
-    def distance(
+    def _distances(
         self,
         points: np.ndarray,
-        level: float = 0.5,
-        return_gradient: bool = False,
-        unknown: str = "occupied",
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """(n,) signed Euclidean distance, metres, from each of (n, d) points (metres, world
-        frame) to the nearest point whose occupancy reaches `level`, and with return_gradient
-        its (n, d) gradient, as HilbertMap.distance tells them. Each tile tells of the
-        obstacles in its core (where it weighs most in the blend; its field's obstacle_box),
-        occupied space and, unless unknown="free", unknown space (points in the core of a
-        tile that learned nothing read -reach). The nearest wins, and a point inside any obstacle is
-        inside (the deepest wins). Each tile keeps its field as it learns. NaN rows for points
-        that are not finite."""
-        points = self._checked_points(points)
-        unknown_is_occupied = unknown_is_obstacle(unknown)
-        finite = np.all(np.isfinite(points), axis=1)
+        threshold: float,
+        unknown_is_occupied: bool,
+        with_gradient: bool,
+        unknown_box: np.ndarray | None,
+        obstacle_box: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each tile tells of the obstacles in its core (where it weighs most in the blend)
+        within obstacle_box; points in the core of a tile that learned nothing read -reach
+        when unknown space is an obstacle there. Each tile keeps its field as it learns."""
         reach = self.config.distance_reach
-        distance = np.where(finite, reach, np.nan)
-        gradient = np.where(finite[:, None], np.zeros(points.shape), np.nan)
-        asked = points[finite]
-        if len(asked) == 0:
-            return (distance, gradient) if return_gradient else distance
-        box = np.stack([asked.min(axis=0) - reach, asked.max(axis=0) + reach])
+        distance, gradient = np.full(len(points), reach), np.zeros(points.shape)
+        if len(points) == 0:
+            return distance, gradient
+        box = np.stack([points.min(axis=0) - reach, points.max(axis=0) + reach])
         meeting = set(self.tiling.keys_meeting(box))
         for key in (key for key in self.tile_keys if key in meeting):
-            core = self.tiling.core_box(key)
+            core = _overlap(self.tiling.core_box(key), obstacle_box)
+            if core is None:  # no obstacle of this tile counts
+                continue
             near = np.all((points > core[0] - reach) & (points < core[1] + reach), axis=1)
-            near = np.flatnonzero(near & finite)
+            near = np.flatnonzero(near)
             tile_map = self._answering(key) if len(near) else None
             if tile_map is None:
                 continue
-            found, slope = tile_map.distance(points[near], level, True, unknown, obstacle_box=core)
+            found, slope = tile_map._distances(
+                points[near], threshold, unknown_is_occupied, True, unknown_box, core
+            )
             wins = _nearer(found, distance[near])
             distance[near[wins]], gradient[near[wins]] = found[wins], slope[wins]
-        if unknown_is_occupied:  # points in the core of a tile that learned nothing: inside
-            rows = np.flatnonzero(finite)
-            keys = np.floor(points[rows] / self.tiling.size + 0.5).astype(np.int64)
-            for key, entries in _by_tile(rows, keys):
+        if unknown_is_occupied:
+            keys = np.floor(points / self.tiling.size + 0.5).astype(np.int64)
+            for key, entries in _by_tile(np.arange(len(points)), keys):
                 if self._answering(key) is None:
-                    distance[entries], gradient[entries] = -reach, 0.0
-        return (distance, gradient) if return_gradient else distance
+                    inside = _inside(points[entries], unknown_box)
+                    inside &= _inside(points[entries], obstacle_box)
+                    distance[entries[inside]], gradient[entries[inside]] = -reach, 0.0
+        return distance, gradient
 
     def _answering(self, key: TileKey) -> HilbertMap | None:
         """The map that answers for tile `key`, its waiting scans learned first, or None where
@@ -621,6 +611,22 @@ def _by_tile(values: np.ndarray, keys: np.ndarray) -> Iterator[tuple[TileKey, np
     starts = np.flatnonzero(np.r_[True, np.any(keys[order][1:] != keys[order][:-1], axis=1)])
     for first, end in zip(starts, np.r_[starts[1:], len(order)], strict=True):
         yield tuple(keys[order[first]].tolist()), values[order[first:end]]
+
+
+def _overlap(box: np.ndarray, other: np.ndarray | None) -> np.ndarray | None:
+    """(2, d) the part of `box` inside `other` ([low, high] corners each; None: everywhere),
+    or None where they do not meet."""
+    if other is None:
+        return box
+    part = np.stack([np.maximum(box[0], other[0]), np.minimum(box[1], other[1])])
+    return part if np.all(part[0] <= part[1]) else None
+
+
+def _inside(points: np.ndarray, box: np.ndarray | None) -> np.ndarray:
+    """(n,) bool: each of (n, d) points lies in `box` (None: everywhere)."""
+    if box is None:
+        return np.ones(len(points), dtype=bool)
+    return np.all((points >= box[0]) & (points <= box[1]), axis=1)
 
 
 def _nearer(found: np.ndarray, kept: np.ndarray) -> np.ndarray:

@@ -166,11 +166,13 @@ class MapViewer:
     def _show_samples(self) -> None:
         """The occupied evidence the map keeps near surfaces (ehm.core.observations.memory), as
         points (a tiled map keeps it in its tiles, which the viewer does not read one by one)."""
-        memory = getattr(self.map, "memory_", None)
-        if memory is None or len(memory) == 0:
+        model = getattr(self.map, "model_", None)
+        if model is None or len(model.memory) == 0:
             return
-        evidence = memory.samples()
+        evidence = model.memory.samples()
         points = evidence.points[evidence.occupied]
+        if self.map.local_origin_ is not None:  # kept in the map's own frame
+            points = points + self.map.local_origin_
         if len(points):
             self.samples = self.server.scene.add_point_cloud(
                 "/samples", points.astype(np.float32), SAMPLE_COLOR, point_size=0.01,

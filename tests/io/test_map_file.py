@@ -37,7 +37,7 @@ def test_round_trip_answers_exactly_as_saved(small_map, tmp_path, rng):
 
 def test_memory_bytes_counts_every_array(small_map):
     learned = sum(a.nbytes for a in small_map.clusters_.arrays().values())
-    learned += small_map.memory_.nbytes
+    learned += small_map.model_.memory.nbytes
     assert small_map.memory_bytes() > learned
     assert small_map.memory_bytes() < 2 * learned
 
@@ -69,12 +69,12 @@ def test_loaded_map_goes_on_learning_exactly_as_the_saved_one(plan, tmp_path, ov
     loaded.flush()
     for name, array in original.clusters_.arrays().items():
         np.testing.assert_array_equal(getattr(loaded.clusters_, name), array, err_msg=name)
-    for name, array in original.memory_.arrays().items():
-        np.testing.assert_array_equal(loaded.memory_.arrays()[name], array, err_msg=name)
-    assert len(original.memory_) > 0
-    np.testing.assert_array_equal(loaded.bias_state_, original.bias_state_)
-    for layer, parents in enumerate(original.anchors_.parents):
-        np.testing.assert_array_equal(loaded.anchors_.parents[layer], parents)
+    for name, array in original.model_.memory.arrays().items():
+        np.testing.assert_array_equal(loaded.model_.memory.arrays()[name], array, err_msg=name)
+    assert len(original.model_.memory) > 0
+    np.testing.assert_array_equal(loaded.model_.bias_state, original.model_.bias_state)
+    for layer, parents in enumerate(original.model_.anchors.parents):
+        np.testing.assert_array_equal(loaded.model_.anchors.parents[layer], parents)
     assert loaded.n_scans_ == original.n_scans_ == len(plan.scans)
     points = np.random.default_rng(1).uniform(-6, 6, (2000, 2))
     np.testing.assert_array_equal(loaded.occupancy(points), original.occupancy(points))
@@ -258,11 +258,11 @@ def test_maps_of_format_12_load_their_kept_samples_as_evidence(small_map, tmp_pa
     # Occupied kernels as wide as free ones, as every map of format 12 made them.
     then = small_map.config.replace(occupied_length_scale=small_map.config.length_scale)
     assert loaded.config.keep_evidence and loaded.config == then
-    evidence = loaded.memory_.samples()
+    evidence = loaded.model_.memory.samples()
     assert evidence.weight.sum() == pytest.approx(14.0)
     assert sorted(evidence.weight.tolist()) == pytest.approx([2.0, 4.0, 4.0, 4.0])
     assert evidence.occupied.sum() == 3 and evidence.weight[~evidence.occupied] == 2.0
-    waiting = loaded.memory_.pending(loaded.memory_.visit(evidence))
+    waiting = loaded.model_.memory.pending(loaded.model_.memory.visit(evidence))
     np.testing.assert_allclose(waiting.samples.points, [[2.0, 2.0]], atol=1e-6)
     np.testing.assert_allclose(
         loaded.occupancy(evidence.points), small_map.occupancy(evidence.points), atol=1e-12

@@ -316,6 +316,30 @@ def test_distances_in_2d_tiles_are_not_farther_than_one_maps(rng):
         assert np.mean(kept - alone > 0.1) < farther_share
 
 
+def test_distances_in_2d_tiles_take_the_boxes_one_map_takes(rng):
+    """The same wall: with only its lower half counted (obstacle_box) points above read the
+    distance to that half, and unknown space counted only around the sensor (unknown_box,
+    all seen) adds nothing, in tiles as in one map."""
+    angles = np.linspace(-1.2, 1.2, 400)
+    ends = 4.0 * np.column_stack([np.cos(angles), np.sin(angles)])
+    one = HilbertMap(batch_rays=0).integrate(ends, np.zeros(2))
+    tiled = TiledMap(2.0, 0.5, batch_rays=0).integrate(ends, np.zeros(2))
+    radius, angle = rng.uniform(2.5, 3.7, 2000), rng.uniform(0.2, 0.8, 2000)
+    points = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
+    reach = one.config.distance_reach
+    lower_half = np.array([[-5.0, -5.0], [5.0, 0.0]])
+    to_lower = np.min(np.linalg.norm(points[:, None] - ends[None, angles <= 0.0], axis=2), axis=1)
+    around_sensor = np.array([[-0.5, -0.5], [0.5, 0.5]])
+    for hilbert_map in (one, tiled):
+        only_lower = hilbert_map.distance(points, unknown="free", obstacle_box=lower_half)
+        assert np.median(np.abs(only_lower - np.minimum(to_lower, reach))) < 0.1
+        assert np.mean(only_lower > hilbert_map.distance(points, unknown="free") + 0.2) > 0.5
+        np.testing.assert_allclose(
+            hilbert_map.distance(points, unknown_box=around_sensor),
+            hilbert_map.distance(points, unknown="free"),
+        )
+
+
 def test_distances_outside_every_tile_and_bad_rows(tiled_room, room_map):
     reach = tiled_room.config.distance_reach
     far = np.array([[40.0, 0.0, 1.0], [np.nan, 0.0, 1.0]])

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ehm.config import MapConfig
 from ehm.core.sensor.scan import Scan
 
 # A map whose first scan's sensor stands farther than this from the world origin, metres,
@@ -25,12 +26,18 @@ def local_origin_for(sensor: np.ndarray) -> np.ndarray:
     return np.round(sensor / LOCAL_ORIGIN_STEP) * LOCAL_ORIGIN_STEP
 
 
-def scans_from(scans: list[Scan], local_origin: np.ndarray) -> list[Scan]:
-    """`scans` (world frame) in the frame whose origin is `local_origin` ((d,) metres, world
-    frame); the same scans where that is the world origin."""
+def in_frame(
+    scans: list[Scan], config: MapConfig, local_origin: np.ndarray
+) -> tuple[list[Scan], MapConfig]:
+    """`scans` (world frame) and `config`'s learn_box in the frame whose origin is
+    `local_origin` ((d,) metres, world frame); both as given where that is the world origin."""
     if not local_origin.any():
-        return scans
-    return [
+        return scans, config
+    if config.learn_box:
+        box = np.asarray(config.learn_box).reshape(2, -1) - local_origin
+        config = config.replace(learn_box=tuple(box.ravel()))
+    shifted = [
         Scan(scan.points_world - local_origin, scan.origin - local_origin, scan.hit_mask, scan.time)
         for scan in scans
     ]
+    return shifted, config

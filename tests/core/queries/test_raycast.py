@@ -256,7 +256,7 @@ def test_runs_of_known_cells_halve_the_queries_and_keep_the_stops(room_map, rng)
 
     def known(points):
         asked.append(len(points))
-        return room_map._known(points)
+        return room_map._known_at(points, "batch")
 
     origins = rng.uniform([-2.0, -1.5, 0.5], [2.0, 1.5, 2.0], (400, 3))
     directions = unit_rows(rng, 400, 3)

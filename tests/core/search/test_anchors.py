@@ -80,13 +80,13 @@ def test_new_clusters_join_or_create_anchors_as_scans_arrive(room):
     halves = [scan.subset(np.arange(len(scan)) % 2 == i) for i in (0, 1)]
     hilbert_map = ehm.HilbertMap(anchor_layers=3)
     hilbert_map.integrate_scan(halves[0])
-    before = [len(c) for c in hilbert_map.anchors_.coarse]
+    before = [len(c) for c in hilbert_map.model_.anchors.coarse]
     hilbert_map.integrate_scan(halves[1])
-    after = [len(c) for c in hilbert_map.anchors_.coarse]
+    after = [len(c) for c in hilbert_map.model_.anchors.coarse]
     assert len(before) == 2 and before[0] > before[1] > 1
     assert after[0] >= before[0] and after[1] >= before[1]
-    assert len(hilbert_map.anchors_.parents[0]) == hilbert_map.n_clusters
-    assert hilbert_map.anchors_.parents[0].min() >= 0
+    assert len(hilbert_map.model_.anchors.parents[0]) == hilbert_map.n_clusters
+    assert hilbert_map.model_.anchors.parents[0].min() >= 0
 
 
 def test_top_down_searches_skip_only_points_with_no_centre_near(rng, random_clusters):

@@ -29,7 +29,7 @@ def test_ehm_alone_learns_scan_by_scan_without_a_memory(plan):
     mapper = LocalizedMapper("ehm-alone")
     mapper.build(plan.scans)
     assert len(mapper.scan_seconds) == len(plan.scans)
-    assert not mapper.map.config.keep_evidence and len(mapper.map.memory_) == 0
+    assert not mapper.map.config.keep_evidence and len(mapper.map.model_.memory) == 0
 
 
 def test_lls_hm_searches_per_point():
