@@ -159,33 +159,76 @@ def scans_and_scene(name: str) -> tuple[list[Scan], Scene | None] | None:
         return None
 
 
+# The methods whose measures near surfaces the second table shows: the peer comparison.
+NEAR_METHODS = ("ehm", "octomap")
+NEAR_MEASURES = ("near precision", "near recall", "near F1", "thin recall")
+
+
+def mean_and_spread(values: list[float], digits: int) -> str:
+    spread = statistics.stdev(values) if len(values) > 1 else 0.0
+    return f"{statistics.fmean(values):.{digits}f}±{spread:.{digits}f}"
+
+
+def summary_tables(
+    results: dict[tuple[str, float], list[dict[str, dict[str, float]]]], methods: Sequence[str]
+) -> str:
+    """Two markdown tables of `results` (per data set and train fraction, `measure`'s results
+    for each seed), mean ± standard deviation over seeds: held-out F1 and build seconds of
+    every method, then the measures near surfaces of NEAR_METHODS where there are some."""
+    over_seeds = {
+        key: {
+            method: {
+                measure_name: mean_and_spread(
+                    [run[method][measure_name] for run in runs],
+                    2 if measure_name == "build s" else 3,
+                )
+                for measure_name in runs[0][method]
+            }
+            for method in methods
+        }
+        for key, runs in results.items()
+    }
+    rows = [
+        [name, f"{fraction:.0%}"]
+        + [found[method]["held-out F1"] for method in methods]
+        + [found[method]["build s"] for method in methods]
+        for (name, fraction), found in over_seeds.items()
+    ]
+    header = ["data set", "train"]
+    header += [f"F1 {method}" for method in methods] + [f"build s {method}" for method in methods]
+    text = "### Held-out F1 and build seconds\n\n" + markdown_table(header, rows, 2)
+    near = [
+        [name, f"{fraction:.0%}", method]
+        + [found[method].get(measure_name, "") for measure_name in NEAR_MEASURES]
+        for (name, fraction), found in over_seeds.items()
+        for method in NEAR_METHODS
+        if method in found and "near F1" in found[method]
+    ]
+    if near:
+        text += "\n### Near surfaces, against the exact occupancy\n\n"
+        text += markdown_table(["data set", "train", "method", *NEAR_MEASURES], near, 3)
+    return text
+
+
 def main() -> None:
     sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, METHODS, with_settings=True)
     seeds, fractions, methods = sweep.seeds, sweep.fractions, sweep.methods
     settings = settings_text(sweep.settings)
     print(heading("Online mapping", f"seeds {seeds}, train fractions {fractions}{settings}"))
+    results = {}
     for name in sweep.datasets:
         loaded = scans_and_scene(name)
         if loaded is None:
             continue
         scans, scene = loaded
-        rows = []
+        print(f"- {name}: {len(scans)} scans, {sum(len(s) for s in scans):,} rays")
         for fraction in fractions:
-            runs = [
+            results[(name, fraction)] = [
                 measure(name, scans, scene, fraction, seed, methods, sweep.settings)
                 for seed in seeds
             ]
-            for method in methods:
-                cells = [method, f"{fraction:.0%}"]
-                for measure_name in runs[0][method]:
-                    values = [run[method][measure_name] for run in runs]
-                    spread = statistics.stdev(values) if len(values) > 1 else 0.0
-                    digits = 2 if measure_name == "build s" else 3
-                    cells.append(f"{statistics.fmean(values):.{digits}f}±{spread:.{digits}f}")
-                rows.append(cells)
-        header = ["method", "train", *runs[0][methods[0]]]
-        print(f"### {name}: {len(scans)} scans, {sum(len(s) for s in scans):,} rays\n")
-        print(markdown_table(header, rows, text_columns=2))
+    print()
+    print(summary_tables(results, methods))
 
 
 if __name__ == "__main__":
