@@ -26,15 +26,10 @@ from ehm.core.observations.memory import (
 )
 from ehm.core.observations.memory_keys import (
     REGION_BITS,
-    SUB_BITS,
-    cell_corners,
-    cell_corners_reference,
     memory_keys,
-    memory_keys_reference,
     reached_regions,
 )
 from ehm.core.observations.samples import TrainingSamples
-from ehm.errors import InputError
 
 # Fine cells of 0.25 m (regions of 1 m around hits), coarse ones of 2.5 m (regions of 5 m).
 SIDES = (0.25, 2.5)
@@ -48,30 +43,6 @@ def samples_at(points, kind=FREE_AT_SURFACE, weight=None) -> TrainingSamples:
 
 def insert(memory, samples, clustered=True):
     memory.insert(memory.visit(samples), np.full(len(samples), clustered))
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_memory_keys_name_the_cell_and_kind_of_each_point(rng, dim):
-    points = rng.uniform(-80.0, 80.0, (2000, dim))
-    kinds = rng.integers(0, 3, 2000)
-    keys = memory_keys(points, kinds, SIDES)
-    np.testing.assert_array_equal(keys, memory_keys_reference(points, kinds, SIDES))
-    corners = cell_corners(keys, dim, SIDES)
-    np.testing.assert_array_equal(corners, cell_corners_reference(keys, dim, SIDES))
-    side = np.where(kinds == FREE_ALONG_RAY, SIDES[1], SIDES[0])[:, None]
-    assert np.all((points >= corners - 1e-9) & (points < corners + side + 1e-9))
-    np.testing.assert_array_equal((keys >> SUB_BITS) & 3, kinds)
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_memory_keys_agree_with_their_twin_on_the_sides_of_cells(rng, dim):
-    """Points a whole number of centimetres from the origin in cells of 3 cm and 20 cm: many
-    lie on a side, where the rounding of the division decides."""
-    points = rng.integers(-3000, 3000, (5000, dim)) * 0.01
-    kinds = rng.integers(0, 3, 5000)
-    for sides in ((0.03, 0.2), (0.12 / 4, 0.6 / 3)):
-        keys = memory_keys(points, kinds, sides)
-        np.testing.assert_array_equal(keys, memory_keys_reference(points, kinds, sides))
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -99,13 +70,6 @@ def test_a_visit_finds_the_entries_of_a_batch_as_its_numpy_twin_does(rng, dim):
     assert len(near) > 1000
     np.testing.assert_array_equal(entries, want_entries)
     np.testing.assert_array_equal(near, want_near)
-
-
-def test_points_beyond_the_reach_of_memory_keys_are_refused():
-    far = np.array([[0.0, 0.0, 1e15]])
-    for keys in (memory_keys, memory_keys_reference):
-        with pytest.raises(InputError, match="set max_range"):
-            keys(far, np.array([OCCUPIED]), SIDES)
 
 
 def test_an_entry_sums_the_weight_and_mean_of_its_cell_and_kind():
