@@ -12,8 +12,10 @@ of what it keeps. Held-out F1 of the occupied class at 0.5; on the simulated sce
 against the exact occupancy at points within 0.3 m of training hits, where a training ray
 reached (benchmarks/online_mapping.py). Each method maps a small scan first, untimed, so
 compilation is not timed. wavemap (../shared/peers/wavemap, built by its build.sh) is left
-out, with a message, where it is not built and on 2D data. `--set` changes EHM's settings
-over the resolution's defaults.
+out, with a message, where it is not built and on 2D data. DUFOMap (`pip install dufomap`,
+UFOMap's ray casting in C++; it keeps no occupancy to ask, so only its build is timed, the
+fastest CPU mapper to compare with) is left out likewise. `--set` changes EHM's settings over
+the resolution's defaults.
 """
 
 from __future__ import annotations
@@ -48,7 +50,9 @@ DATASETS = (
     "intel_lab",
     *SIMULATED,
 )
-METHODS = ("octomap", "wavemap", "ehm")
+METHODS = ("octomap", "wavemap", "dufomap", "ehm")
+# Peers that map 3D scans only.
+THREE_D_ONLY = ("wavemap", "dufomap")
 PEERS = Path(__file__).resolve().parents[2] / "shared" / "peers" / "wavemap"
 
 
@@ -75,9 +79,31 @@ class WavemapMapper:
         return self.peer.memory_bytes()
 
 
+class DufomapMapper:
+    """DUFOMap's integration of each scan's hits from its sensor origin, at `resolution`
+    metres, with the hit inflation (two voxels) and unknown inflation (one voxel) of its own
+    LiDAR configuration; it answers no occupancy query."""
+
+    def __init__(self, resolution: float) -> None:
+        from dufomap import dufomap
+
+        self.map = dufomap(resolution, 2.0 * resolution, 1, num_threads=0)
+
+    def build(self, scans: list[Scan]) -> None:
+        for scan in scans:
+            T_world_sensor = np.eye(4)
+            T_world_sensor[:3, 3] = scan.origin
+            self.map.run(scan.points_world[scan.hit_mask], T_world_sensor, cloud_transform=False)
+
+
 def mapper_of(method: str, resolution: float, seed: int, settings: dict | None = None):
     """A fresh mapper of `method` (EHM with MapConfig overrides `settings`), or the reason
     there is none."""
+    if method == "dufomap":
+        try:
+            return DufomapMapper(resolution)
+        except ImportError:
+            return "not installed: pip install dufomap"
     if method != "wavemap":
         return make_mapper(method, resolution, seed, settings if method == "ehm" else None)
     try:
@@ -93,13 +119,14 @@ def warm_up(method: str, dim: int, settings: dict) -> None:
         warm_up_method(method, dim)
         return
     mapper = mapper_of(method, RESOLUTION, 0, settings)
-    if isinstance(mapper, str) or (method == "wavemap" and dim == 2):
+    if isinstance(mapper, str) or (method in THREE_D_ONLY and dim == 2):
         return
     directions = np.random.default_rng(0).normal(size=(400, dim))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     origins = (np.zeros(dim), np.full(dim, 0.5))
     mapper.build([Scan(2.0 * directions + origin, origin) for origin in origins])
-    mapper.occupancy(directions)
+    if hasattr(mapper, "occupancy"):
+        mapper.occupancy(directions)
 
 
 def measure(
@@ -115,7 +142,7 @@ def measure(
         truth = scene.occupied(near)
     found = {}
     for method in METHODS:
-        if method == "wavemap" and scans[0].dim == 2:
+        if method in THREE_D_ONLY and scans[0].dim == 2:
             found[method] = "3D only"
             continue
         mapper = mapper_of(method, resolution, seed, settings)
@@ -125,6 +152,9 @@ def measure(
         start = time.perf_counter()
         mapper.build(split.train)
         built = time.perf_counter()
+        if not hasattr(mapper, "occupancy"):
+            found[method] = {"build s": built - start}
+            continue
         probability = mapper.occupancy(split.points)
         row = {
             "build s": built - start,
@@ -169,6 +199,11 @@ def main() -> None:
                 cells = [name, f"{fraction:.0%}", method]
                 if isinstance(values, str):
                     rows.append(cells + [values] + [""] * (len(header) - 4))
+                    continue
+                if "query s" not in values:  # a build timed alone
+                    build = [f"{values['build s']:.2f}", "", "", "", ""]
+                    ratio = f"{values['build s'] / octomap['build s']:.2f}"
+                    rows.append(cells + build + [ratio, ""])
                     continue
                 cells += [f"{values['build s']:.2f}", f"{values['query s']:.3f}"]
                 cells += [f"{values['memory MB']:.2f}", f"{values['held-out F1']:.3f}"]
