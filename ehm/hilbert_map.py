@@ -43,7 +43,7 @@ from ehm.grid.bounds import DEFAULT_MAX_BYTES, support_bounds
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.grid.planner_support import PlannerSupport
 from ehm.io.map_file import read_map, write_map
-from ehm.map_queries import MapQueries
+from ehm.map_queries import DistanceQuery, MapQueries, RayQuery
 
 # Side of the cells that tell rays where the occupancy may rise above the level, in cluster
 # radii (ehm.core.queries.raycast.CandidateCells).
@@ -218,29 +218,21 @@ class HilbertMap(MapQueries):
     def _gradient(self, points: np.ndarray, mode: str) -> np.ndarray:
         return self._learned("query it").gradients(self._local(points), mode)
 
-    def _cast(
-        self,
-        origins: np.ndarray,
-        directions: np.ndarray,
-        max_range: np.ndarray,
-        threshold: float,
-        mode: str,
-        stop_at_unknown: bool,
-    ) -> np.ndarray:
+    def _cast(self, rays: RayQuery) -> np.ndarray:
         """Rays guided by the planner support's grid and cells, read in wider query cells."""
         model, cell = self._learned("query it"), RAY_QUERY_CELLS * self.config.query_cell
-        take = self._local_snapshot
+        take, mode, stop = self._local_snapshot, rays.mode, rays.stop_at_unknown
         return cast_rays(
             lambda points: model.sums(points, False, mode, cell).scores,
-            self._local(origins),
-            directions,
-            max_range,
-            threshold,
+            self._local(rays.origins),
+            rays.directions,
+            rays.max_range,
+            rays.threshold,
             self.config.cluster_radius,
             self._planner.grid(take),
-            self._planner.cells(take, threshold),
-            partial(self._known_local, mode=mode) if stop_at_unknown else None,
-            self._planner.known_cells(take) if stop_at_unknown else None,
+            self._planner.cells(take, rays.threshold),
+            partial(self._known_local, mode=mode) if stop else None,
+            self._planner.known_cells(take) if stop else None,
         )
 
     def _known_at(self, points: np.ndarray, mode: str) -> np.ndarray:
@@ -258,24 +250,19 @@ class HilbertMap(MapQueries):
         known[ask] = sums.variance_sums[:, 1] > 0.0
         return known
 
-    def _distances(
-        self,
-        points: np.ndarray,
-        threshold: float,
-        unknown_is_occupied: bool,
-        with_gradient: bool,
-        unknown_box: np.ndarray | None,
-        obstacle_box: np.ndarray | None,
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def _distances(self, points: np.ndarray, query: DistanceQuery) -> tuple[np.ndarray, np.ndarray]:
         """From the planner support's field for the level and boxes, in the map's own frame."""
+        boxes = [
+            None if box is None else self._local(box)
+            for box in (query.unknown_box, query.obstacle_box)
+        ]
         return self._planner.distances(
             self._local_snapshot,
             self._local(points),
-            threshold,
-            unknown_is_occupied,
-            with_gradient,
-            None if unknown_box is None else self._local(unknown_box),
-            None if obstacle_box is None else self._local(obstacle_box),
+            query.threshold,
+            query.unknown_is_occupied,
+            query.with_gradient,
+            *boxes,
         )
 
     def _point_log_odds(self, points: np.ndarray) -> np.ndarray:

@@ -4,6 +4,7 @@ probabilities, log-odds, their uncertainty, and rays and segments for planners."
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -18,6 +19,33 @@ from ehm.core.queries.raycast import (
 )
 from ehm.core.weights.uncertainty import occupancy_std
 from ehm.errors import InputError
+
+
+@dataclass(frozen=True)
+class RayQuery:
+    """Checked rays, world frame: origins (n, d) and directions (n, d, unit), max_range (n,)
+    metres; threshold, the log-odds they stop at; mode, the query mode; stop_at_unknown: they
+    stop at unknown space too."""
+
+    origins: np.ndarray
+    directions: np.ndarray
+    max_range: np.ndarray
+    threshold: float
+    mode: str
+    stop_at_unknown: bool
+
+
+@dataclass(frozen=True)
+class DistanceQuery:
+    """A distance query's terms: threshold, the log-odds of obstacles; unknown_is_occupied;
+    with_gradient; unknown_box and obstacle_box, (2, d) metres, world frame, or None (see
+    MapQueries.distance)."""
+
+    threshold: float
+    unknown_is_occupied: bool
+    with_gradient: bool
+    unknown_box: np.ndarray | None
+    obstacle_box: np.ndarray | None
 
 
 class MapQueries(ABC):
@@ -47,30 +75,13 @@ class MapQueries(ABC):
         """`known` at (n, d) checked points, metres, world frame."""
 
     @abstractmethod
-    def _distances(
-        self,
-        points: np.ndarray,
-        threshold: float,
-        unknown_is_occupied: bool,
-        with_gradient: bool,
-        unknown_box: np.ndarray | None,
-        obstacle_box: np.ndarray | None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """`distance` at (n, d) finite points, metres, world frame, to log-odds `threshold`:
-        (n,) distances and with_gradient their (n, d) gradients (else (0, d)); boxes checked,
-        world frame."""
+    def _distances(self, points: np.ndarray, query: DistanceQuery) -> tuple[np.ndarray, np.ndarray]:
+        """`distance` at (n, d) finite points, metres, world frame: (n,) distances and with
+        query.with_gradient their (n, d) gradients (else (0, d))."""
 
     @abstractmethod
-    def _cast(
-        self,
-        origins: np.ndarray,
-        directions: np.ndarray,
-        max_range: np.ndarray,
-        threshold: float,
-        mode: str,
-        stop_at_unknown: bool,
-    ) -> np.ndarray:
-        """`raycast` of checked rays, world frame, to log-odds `threshold`."""
+    def _cast(self, rays: RayQuery) -> np.ndarray:
+        """`raycast` of checked rays."""
 
     def occupancy(
         self, points: np.ndarray, mode: str | None = None, return_std: bool = False
@@ -166,11 +177,13 @@ class MapQueries(ABC):
         finite, query = finite_rows(points)
         found, gradient = self._distances(
             query,
-            log_odds_level(level),
-            unknown_is_obstacle(unknown),
-            return_gradient,
-            checked_box("unknown_box", unknown_box, points.shape[1]),
-            checked_box("obstacle_box", obstacle_box, points.shape[1]),
+            DistanceQuery(
+                log_odds_level(level),
+                unknown_is_obstacle(unknown),
+                return_gradient,
+                checked_box("unknown_box", unknown_box, points.shape[1]),
+                checked_box("obstacle_box", obstacle_box, points.shape[1]),
+            ),
         )
         distance = np.full(len(points), np.nan)
         distance[finite] = found
@@ -203,7 +216,9 @@ class MapQueries(ABC):
         stop = unknown_is_obstacle(unknown)
         origins, directions, max_range = checked_rays(origins, directions, max_range, dim)
         threshold = log_odds_level(level)
-        return self._cast(origins, directions, max_range, threshold, self._mode(mode), stop)
+        return self._cast(
+            RayQuery(origins, directions, max_range, threshold, self._mode(mode), stop)
+        )
 
     def segment_free(
         self,

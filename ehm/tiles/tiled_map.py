@@ -34,7 +34,7 @@ from ehm.grid.bounds import DEFAULT_MAX_BYTES, aligned_bounds, bytes_per_voxel, 
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap
 from ehm.io.map_file import map_bytes, map_state_of_bytes
-from ehm.map_queries import MapQueries
+from ehm.map_queries import DistanceQuery, MapQueries, RayQuery
 from ehm.tiles.build import (
     BuildObserver,
     BuildReport,
@@ -396,26 +396,18 @@ class TiledMap(MapQueries):
             out[chosen] += tile_map.decision_function(at, mode)[:, None] * slope
         return out
 
-    def _cast(
-        self,
-        origins: np.ndarray,
-        directions: np.ndarray,
-        max_range: np.ndarray,
-        threshold: float,
-        mode: str,
-        stop_at_unknown: bool,
-    ) -> np.ndarray:
+    def _cast(self, rays: RayQuery) -> np.ndarray:
         """Rays march the blended log-odds all the way (a single map's grid and candidate
         cells are not kept across tiles); with stop_at_unknown they stop where no tile knows
         (`known`)."""
         return cast_rays(
-            partial(self.decision_function, mode=mode),
-            origins,
-            directions,
-            max_range,
-            threshold,
+            partial(self.decision_function, mode=rays.mode),
+            rays.origins,
+            rays.directions,
+            rays.max_range,
+            rays.threshold,
             self.config.cluster_radius,
-            known=partial(self._known_at, mode=mode) if stop_at_unknown else None,
+            known=partial(self._known_at, mode=rays.mode) if rays.stop_at_unknown else None,
         )
 
     def _known_at(self, points: np.ndarray, mode: str) -> np.ndarray:
@@ -429,15 +421,7 @@ class TiledMap(MapQueries):
                 found[chosen] |= tile_map.known(points[chosen], mode)
         return found
 
-    def _distances(
-        self,
-        points: np.ndarray,
-        threshold: float,
-        unknown_is_occupied: bool,
-        with_gradient: bool,
-        unknown_box: np.ndarray | None,
-        obstacle_box: np.ndarray | None,
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def _distances(self, points: np.ndarray, query: DistanceQuery) -> tuple[np.ndarray, np.ndarray]:
         """Each tile tells of the obstacles in its core (where it weighs most in the blend)
         within obstacle_box; points in the core of a tile that learned nothing read -reach
         when unknown space is an obstacle there. Each tile keeps its field as it learns."""
@@ -448,7 +432,7 @@ class TiledMap(MapQueries):
         box = np.stack([points.min(axis=0) - reach, points.max(axis=0) + reach])
         meeting = set(self.tiling.keys_meeting(box))
         for key in (key for key in self.tile_keys if key in meeting):
-            core = _overlap(self.tiling.core_box(key), obstacle_box)
+            core = _overlap(self.tiling.core_box(key), query.obstacle_box)
             if core is None:  # no obstacle of this tile counts
                 continue
             near = np.all((points > core[0] - reach) & (points < core[1] + reach), axis=1)
@@ -456,17 +440,16 @@ class TiledMap(MapQueries):
             tile_map = self._answering(key) if len(near) else None
             if tile_map is None:
                 continue
-            found, slope = tile_map._distances(
-                points[near], threshold, unknown_is_occupied, True, unknown_box, core
-            )
+            tile_query = replace(query, with_gradient=True, obstacle_box=core)
+            found, slope = tile_map._distances(points[near], tile_query)
             wins = _nearer(found, distance[near])
             distance[near[wins]], gradient[near[wins]] = found[wins], slope[wins]
-        if unknown_is_occupied:
+        if query.unknown_is_occupied:
             keys = np.floor(points / self.tiling.size + 0.5).astype(np.int64)
             for key, entries in _by_tile(np.arange(len(points)), keys):
                 if self._answering(key) is None:
-                    inside = _inside(points[entries], unknown_box)
-                    inside &= _inside(points[entries], obstacle_box)
+                    inside = _inside(points[entries], query.unknown_box)
+                    inside &= _inside(points[entries], query.obstacle_box)
                     distance[entries[inside]], gradient[entries[inside]] = -reach, 0.0
         return distance, gradient
 

@@ -139,8 +139,12 @@ def query_groups(points: np.ndarray, mode: str, cell: float) -> PointGroups:
     return PointGroups.singletons(points)
 
 
-def _inverse_precision(clusters: ClusterSet, with_variance: bool) -> np.ndarray:
-    return 1.0 / clusters.precision if with_variance else np.zeros(0)
+def _summed_arrays(clusters: ClusterSet, intercept: float, with_variance: bool) -> tuple:
+    """What the compiled sums read of the clusters, in their order: means, transforms, planar
+    kernel, weights, the intercept, 1 / precision (empty without variance), with_variance."""
+    inverse_precision = 1.0 / clusters.precision if with_variance else np.zeros(0)
+    kernels = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    return (*kernels, clusters.weights, intercept, inverse_precision, with_variance)
 
 
 class SupportSearch(KernelSearch):
@@ -192,17 +196,8 @@ class SupportSearch(KernelSearch):
         mode: str,
         cell: float,
     ) -> KernelSums:
-        scores, variance_sums = self._hash.decision_values(
-            points,
-            clusters.means,
-            clusters.transforms,
-            clusters.planar_kernel,
-            clusters.weights,
-            intercept,
-            _inverse_precision(clusters, with_variance),
-            with_variance,
-        )
-        return KernelSums(scores, variance_sums)
+        arrays = _summed_arrays(clusters, intercept, with_variance)
+        return KernelSums(*self._hash.decision_values(points, *arrays))
 
     def near_reader(
         self, places: np.ndarray, spread: float, clusters: ClusterSet, intercept: float
@@ -294,19 +289,8 @@ class NearestSearch(KernelSearch):
         intercept: float,
         with_variance: bool,
     ) -> KernelSums:
-        scores, variance_sums = decision_values(
-            points,
-            group_of_point,
-            neighbours,
-            clusters.means,
-            clusters.transforms,
-            clusters.planar_kernel,
-            clusters.weights,
-            intercept,
-            _inverse_precision(clusters, with_variance),
-            with_variance,
-        )
-        return KernelSums(scores, variance_sums)
+        arrays = _summed_arrays(clusters, intercept, with_variance)
+        return KernelSums(*decision_values(points, group_of_point, neighbours, *arrays))
 
     def near_reader(
         self, places: np.ndarray, spread: float, clusters: ClusterSet, intercept: float
