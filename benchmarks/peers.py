@@ -1,4 +1,4 @@
-"""OctoMap, wavemap and EHM side by side on every data set, in one process.
+"""OctoMap, wavemap, DUFOMap and EHM side by side on every data set, in one process.
 
     python benchmarks/peers.py [--seeds 0] [--fractions 0.8] [--datasets street,...]
                                [--set features=support ...]

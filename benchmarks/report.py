@@ -23,7 +23,7 @@ OUTPUT = BENCHMARKS.parent / "BENCHMARKS.md"
 # The sections, most read first: against the peers, then accuracy, speed, queries, outputs,
 # robustness, start-up.
 SECTIONS = {
-    "peers": "Against OctoMap and wavemap",
+    "peers": "Against OctoMap, wavemap and DUFOMap",
     "nav2_maps": "2D maps for nav2",
     "changing_scene": "Changing scenes",
     "paper_evaluation": "The paper's evaluation (Sec. 4)",
@@ -50,12 +50,11 @@ SECTIONS = {
 }
 INTRODUCTION = """# Benchmarks
 
-Made by `python benchmarks/report.py` from `benchmarks/results/`, the last run of each script
-in `benchmarks/`: what it measures, its command, date and machine, and what it printed. Run a
-script again to bring its section up to date. Speed is compared with OctoMap and wavemap as
-ratios measured in one process on the same data, each at the same resolution, compiled code
-warmed; absolute times drift from run to run on a shared machine, the ratios less. Why the
-defaults are what they are: docs/reference/defaults.md.
+Made by `python benchmarks/report.py` from `benchmarks/results/`: the last run of each script
+in `benchmarks/`, what it measures, its command, date and machine. Speed is compared with the
+peers as ratios measured in one process on the same data at the same resolution, compiled code
+warmed: absolute times drift on a shared machine, the ratios less. Why the defaults are what
+they are: docs/reference/defaults.md.
 """
 
 

@@ -128,6 +128,7 @@ def print_first_runs() -> None:
         for index, run in enumerate(("cold", "warm", "warm")):
             seconds, compiled = timed_map(ehm_command, scan, Path(tmp) / f"{run}{index}.ehm")
             print(f"| {run} | {seconds:.1f} | {compiled} |")
+    print()
 
 
 def print_first_calls_after_warm() -> None:
