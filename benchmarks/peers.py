@@ -3,19 +3,20 @@
     python benchmarks/peers.py [--seeds 0] [--fractions 0.8] [--datasets street,...]
                                [--set features=support ...]
 
-For each data set and split (held-out rays, DESIGN.md), every method maps the training scans
-at the data set's resolution (OctoMap's and wavemap's smallest cell; EHM through
-`MapConfig.for_resolution`, scan by scan) and answers the test points. Build seconds hold
-everything a map learns before it can answer: EHM's last batch of scans, wavemap's threshold
-and prune. Query seconds are for every test point at once; memory is each method's own count
-of what it keeps. Held-out F1 of the occupied class at 0.5; on the simulated scenes also F1
-against the exact occupancy at points within 0.3 m of training hits, where a training ray
+For each data set and split (held-out rays, DESIGN.md), every method maps the training scans at
+the data set's resolution (OctoMap's and wavemap's smallest cell; EHM through
+`MapConfig.for_resolution`, scan by scan, `ehm-realtime` with its real-time profile) and answers
+the test points; three tables: held-out F1, build seconds, memory and query seconds. Build
+seconds hold everything a map learns before it can answer: EHM's last batch of scans, wavemap's
+threshold and prune. Query seconds are for every test point at once; memory is each method's own
+count of what it keeps. Held-out F1 of the occupied class at 0.5; on the simulated scenes also
+F1 against the exact occupancy at points within 0.3 m of training hits, where a training ray
 reached (benchmarks/online_mapping.py). Each method maps a small scan first, untimed, so
-compilation is not timed. wavemap (../shared/peers/wavemap, built by its build.sh) is left
-out, with a message, where it is not built and on 2D data. DUFOMap (`pip install dufomap`,
-UFOMap's ray casting in C++; it keeps no occupancy to ask, so only its build is timed, the
-fastest CPU mapper to compare with) is left out likewise. `--set` changes EHM's settings over
-the resolution's defaults.
+compilation is not timed. wavemap (../shared/peers/wavemap, built by its build.sh) is left out,
+with a message, where it is not built and on 2D data. DUFOMap (`pip install dufomap`, UFOMap's
+ray casting in C++; it keeps no occupancy to ask, so only its build is timed, the fastest CPU
+mapper to compare with) is left out likewise. `--set` changes EHM's settings over the
+resolution's defaults.
 """
 
 from __future__ import annotations
@@ -50,7 +51,9 @@ DATASETS = (
     "intel_lab",
     *SIMULATED,
 )
-METHODS = ("octomap", "wavemap", "dufomap", "ehm")
+METHODS = ("octomap", "wavemap", "dufomap", "ehm", "ehm-realtime")
+# Methods timed building only: they answer no occupancy query.
+BUILD_ONLY = ("dufomap",)
 # Peers that map 3D scans only.
 THREE_D_ONLY = ("wavemap", "dufomap")
 PEERS = Path(__file__).resolve().parents[2] / "shared" / "peers" / "wavemap"
@@ -105,7 +108,8 @@ def mapper_of(method: str, resolution: float, seed: int, settings: dict | None =
         except ImportError:
             return "not installed: pip install dufomap"
     if method != "wavemap":
-        return make_mapper(method, resolution, seed, settings if method == "ehm" else None)
+        ehm_settings = settings if method.startswith("ehm") else None
+        return make_mapper(method, resolution, seed, ehm_settings)
     try:
         return WavemapMapper(resolution)
     except ImportError:
@@ -125,7 +129,7 @@ def warm_up(method: str, dim: int, settings: dict) -> None:
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     origins = (np.zeros(dim), np.full(dim, 0.5))
     mapper.build([Scan(2.0 * directions + origin, origin) for origin in origins])
-    if hasattr(mapper, "occupancy"):
+    if method not in BUILD_ONLY:
         mapper.occupancy(directions)
 
 
@@ -152,7 +156,7 @@ def measure(
         start = time.perf_counter()
         mapper.build(split.train)
         built = time.perf_counter()
-        if not hasattr(mapper, "occupancy"):
+        if method in BUILD_ONLY:
             found[method] = {"build s": built - start}
             continue
         probability = mapper.occupancy(split.points)
@@ -168,6 +172,29 @@ def measure(
     return found
 
 
+def f1_cell(values: dict | str) -> str:
+    """Held-out F1, and near F1 against the exact occupancy in brackets where measured."""
+    if isinstance(values, str):
+        return values
+    near = values.get("near F1 (exact)")
+    return f"{values['held-out F1']:.3f}" + ("" if near is None else f" ({near:.3f})")
+
+
+def build_cell(values: dict | str, octomap: dict) -> str:
+    """Build seconds and their ratio to OctoMap's."""
+    if isinstance(values, str):
+        return values
+    return f"{values['build s']:.2f} ({values['build s'] / octomap['build s']:.2f}x)"
+
+
+def memory_cell(values: dict | str, octomap: dict) -> str:
+    """Memory MB with its ratio to OctoMap's, and the query seconds of every test point."""
+    if isinstance(values, str):
+        return values
+    ratio = values["memory MB"] / octomap["memory MB"]
+    return f"{values['memory MB']:.2f} ({ratio:.3f}x), {values['query s']:.3f} s"
+
+
 def main() -> None:
     sweep = sweep_arguments(__doc__.splitlines()[0], DATASETS, with_settings=True)
     detail = f"seeds {sweep.seeds}, train fractions {sweep.fractions}"
@@ -175,9 +202,8 @@ def main() -> None:
     for method in METHODS:
         for dim in (2, 3):
             warm_up(method, dim, sweep.settings)
-    header = ["data set", "train", "method", "build s", "query s", "memory MB"]
-    header += ["held-out F1", "near F1 (exact)", "build / OctoMap's", "memory / OctoMap's"]
-    rows = []
+    answering = [method for method in METHODS if method not in BUILD_ONLY]
+    f1_rows, build_rows, memory_rows = [], [], []
     for name in sweep.datasets:
         loaded = scans_and_scene(name)
         if loaded is None:
@@ -194,25 +220,16 @@ def main() -> None:
                     continue
                 keys = runs[0][method]
                 means[method] = {k: statistics.fmean(r[method][k] for r in runs) for k in keys}
-            octomap = means["octomap"]
-            for method, values in means.items():
-                cells = [name, f"{fraction:.0%}", method]
-                if isinstance(values, str):
-                    rows.append(cells + [values] + [""] * (len(header) - 4))
-                    continue
-                if "query s" not in values:  # a build timed alone
-                    build = [f"{values['build s']:.2f}", "", "", "", ""]
-                    ratio = f"{values['build s'] / octomap['build s']:.2f}"
-                    rows.append(cells + build + [ratio, ""])
-                    continue
-                cells += [f"{values['build s']:.2f}", f"{values['query s']:.3f}"]
-                cells += [f"{values['memory MB']:.2f}", f"{values['held-out F1']:.3f}"]
-                near = values.get("near F1 (exact)")
-                cells.append("" if near is None else f"{near:.3f}")
-                cells.append(f"{values['build s'] / octomap['build s']:.2f}")
-                cells.append(f"{values['memory MB'] / octomap['memory MB']:.3f}")
-                rows.append(cells)
-    print(markdown_table(header, rows, text_columns=3))
+            octomap, key = means["octomap"], [name, f"{fraction:.0%}"]
+            f1_rows.append(key + [f1_cell(means[method]) for method in answering])
+            build_rows.append(key + [build_cell(means[method], octomap) for method in METHODS])
+            memory_rows.append(key + [memory_cell(means[method], octomap) for method in answering])
+    print("### Held-out F1 (near F1 against the exact occupancy)\n")
+    print(markdown_table(["data set", "train", *answering], f1_rows, text_columns=2))
+    print("### Build seconds (x OctoMap's)\n")
+    print(markdown_table(["data set", "train", *METHODS], build_rows, text_columns=2))
+    print("### Memory MB (x OctoMap's), query seconds\n")
+    print(markdown_table(["data set", "train", *answering], memory_rows, text_columns=2))
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ MergeRule = Literal["pooled", "average"]
 QueryMode = Literal["batch", "exact"]
 TrainSearch = Literal["group", "point"]
 UpdateRule = Literal["sgd", "posterior"]
+Profile = Literal["default", "realtime"]
 
 
 # The map detail the defaults are set for, metres (MapConfig.for_resolution scales the settings
@@ -26,6 +27,10 @@ DEFAULT_RESOLUTION = 0.05
 # overflow in double precision.
 SMALLEST_LENGTH = 1e-6
 # The sections of the settings, in the order settings files and `ehm info` give them.
+# The real-time profile (MapConfig.for_resolution): settings over the default's, and how much
+# wider its occupied clusters are.
+REALTIME = {"epochs": 1, "surface_pooling": 2, "free_thinning": 2}
+REALTIME_CLUSTER_SCALE = 1.5
 SECTIONS = ("sampling", "clustering", "kernels", "search", "learning", "memory", "queries")
 
 
@@ -267,6 +272,12 @@ class MapConfig:
     'exact', once per point. With 'support' both are the same."""
     query_cell: float = setting(0.1, "queries", unit="m", low=0.0, low_open=True, length=True)
     """Side of the cubic cells that group query points for one neighbour search, metres."""
+    voxel_size: float | None = setting(
+        None, "queries", unit="m", low=0.0, low_open=True, length=True
+    )
+    """Side of the voxels grids, meshes and exports default to, metres (`resolution`); None:
+    the resolution the cluster radius stands for (cluster_radius x 0.05 / 0.12). The
+    real-time profile's clusters are wider than its resolution, which it keeps here."""
     distance_reach: float = setting(2.0, "queries", unit="m", low=0.0, low_open=True, length=True)
     """Farthest distance `HilbertMap.distance` tells, metres: points farther from every
     obstacle read distance_reach (inside one, -distance_reach). The field it keeps reaches this
@@ -309,39 +320,61 @@ class MapConfig:
         object.__setattr__(self, "learn_box", box)
 
     @classmethod
-    def for_resolution(cls, resolution: float, **overrides: Any) -> MapConfig:
-        """The default settings for a map of `resolution` metres of detail, as an OctoMap of
-        that voxel size: every length setting (LENGTH_SETTINGS: sample spacing and depths,
-        cluster radii, the kernels' smallest spread, query cells) scaled by resolution /
+    def for_resolution(
+        cls, resolution: float, profile: Profile = "default", **overrides: Any
+    ) -> MapConfig:
+        """The settings for a map of `resolution` metres of detail, as an OctoMap of that
+        voxel size: every length setting (LENGTH_SETTINGS: sample spacing and depths, cluster
+        radii, the kernels' smallest spread, query cells) scaled by resolution /
         DEFAULT_RESOLUTION, then `overrides`. Long-range outdoor LiDAR, whose hits lie tens of
-        centimetres apart, wants about 0.2."""
+        centimetres apart, wants about 0.2.
+
+        profile: 'default', the most accurate; 'realtime', learning in about half the time
+        (REALTIME: one SGD epoch, crowded hits pooled, free samples far from hits thinned,
+        occupied clusters REALTIME_CLUSTER_SCALE times as wide, the resolution kept for
+        outputs in voxel_size). Wider clusters read a little more of the space in front of a
+        surface occupied: lower near-surface precision, higher recall (BENCHMARKS.md, "The
+        real-time profile")."""
         if not isinstance(resolution, int | float) or not 0.0 < resolution < float("inf"):
             raise SettingsError(
                 f"map resolution must be a positive number of metres, got {resolution!r}"
             )
+        if profile not in typing.get_args(Profile):
+            raise SettingsError(f"profile must be 'default' or 'realtime', got {profile!r}")
         defaults = cls()
         scale = resolution / DEFAULT_RESOLUTION
-        scaled = {name: getattr(defaults, name) * scale for name in LENGTH_SETTINGS}
+        scaled = {
+            name: getattr(defaults, name) * scale
+            for name in LENGTH_SETTINGS
+            if getattr(defaults, name) is not None
+        }
+        if profile == "realtime":
+            scaled.update(REALTIME, voxel_size=resolution)
+            scaled["cluster_radius"] *= REALTIME_CLUSTER_SCALE
         return defaults.replace(**{**scaled, **overrides})
 
     @classmethod
     def of(cls, config: MapConfig | None = None, **overrides: Any) -> MapConfig:
         """The settings a map is made with: `config` (None: the defaults) with keyword
-        `overrides`; resolution=r among them, in place of a config, starts from
-        for_resolution(r)."""
-        if "resolution" in overrides:
+        `overrides`; resolution=r and profile=p among them, in place of a config, start from
+        for_resolution(r, p)."""
+        if "resolution" in overrides or "profile" in overrides:
             if config is not None:
                 raise InputError(
                     "give a resolution or a config, not both: the config holds its resolution"
                 )
-            config = cls.for_resolution(overrides.pop("resolution"))
+            resolution = overrides.pop("resolution", DEFAULT_RESOLUTION)
+            config = cls.for_resolution(resolution, overrides.pop("profile", "default"))
         base = config if config is not None else cls()
         return base.replace(**overrides) if overrides else base
 
     @property
     def resolution(self) -> float:
         """The map's detail, metres: the resolution `for_resolution` was given, read back from
-        the cluster radius it scaled. Grids, meshes, exports and distance fields default to it."""
+        the cluster radius it scaled, or voxel_size where that is set. Grids, meshes and exports
+        default to it."""
+        if self.voxel_size is not None:
+            return self.voxel_size
         return DEFAULT_RESOLUTION * self.cluster_radius / _DEFAULT_CLUSTER_RADIUS
 
     def replace(self, **overrides: Any) -> MapConfig:

@@ -1,7 +1,13 @@
 import pytest
 
 from ehm import HilbertMap, MapConfig, SettingsError
-from ehm.config import DEFAULT_RESOLUTION, LENGTH_SETTINGS, SECTIONS
+from ehm.config import (
+    DEFAULT_RESOLUTION,
+    LENGTH_SETTINGS,
+    REALTIME,
+    REALTIME_CLUSTER_SCALE,
+    SECTIONS,
+)
 
 
 def test_overrides_and_validation():
@@ -76,6 +82,9 @@ def test_settings_for_another_resolution_scale_every_length():
     assert MapConfig.for_resolution(DEFAULT_RESOLUTION) == default
     coarse = MapConfig.for_resolution(0.2, neighbours=6, cluster_radius=0.3)
     for name in LENGTH_SETTINGS:
+        if getattr(default, name) is None:  # off stays off
+            assert getattr(coarse, name) is None, name
+            continue
         expected = 0.3 if name == "cluster_radius" else 4.0 * getattr(default, name)
         assert getattr(coarse, name) == pytest.approx(expected), name
     assert coarse.neighbours == 6 and coarse.length_scale == default.length_scale
@@ -88,6 +97,23 @@ def test_a_configuration_knows_the_resolution_it_was_made_for():
     assert MapConfig().resolution == DEFAULT_RESOLUTION
     assert MapConfig.for_resolution(0.2).resolution == pytest.approx(0.2)
     assert MapConfig.for_resolution(0.1, max_range=30.0).resolution == pytest.approx(0.1)
+
+
+def test_the_real_time_profile_learns_less_and_keeps_its_resolution():
+    default = MapConfig.for_resolution(0.1)
+    realtime = MapConfig.for_resolution(0.1, "realtime", max_range=40.0)
+    assert realtime.resolution == 0.1 and realtime.voxel_size == 0.1
+    assert realtime.cluster_radius == pytest.approx(REALTIME_CLUSTER_SCALE * default.cluster_radius)
+    assert {name: getattr(realtime, name) for name in REALTIME} == REALTIME
+    assert realtime.max_range == 40.0 and realtime.neighbours == default.neighbours
+    assert MapConfig.for_resolution(0.1, "default") == default
+    # A settings file keeps the profile's settings, and rescales its resolution with them.
+    assert MapConfig.from_toml(realtime.to_toml()) == realtime
+    rescaled = MapConfig.from_toml(realtime.to_toml(), resolution=0.2)
+    assert rescaled == MapConfig.for_resolution(0.2, "realtime", max_range=40.0)
+    assert MapConfig.of(resolution=0.1, profile="realtime", max_range=40.0) == realtime
+    with pytest.raises(SettingsError, match="profile must be 'default' or 'realtime', got 'fast'"):
+        MapConfig.for_resolution(0.1, "fast")
 
 
 def test_settings_files_round_trip_in_sections():

@@ -27,7 +27,7 @@ def eval_command(
         str,
         typer.Option(
             help="Comma-separated: octomap hm (= hm-fourier hm-nystrom hm-grid) "
-            "lls-hm gpom ehm ehm-alone ehm-batch, or all."
+            "lls-hm gpom ehm ehm-alone ehm-realtime ehm-batch, or all."
         ),
     ] = "all",
     datasets: Annotated[

@@ -76,6 +76,7 @@ METHODS: dict[str, Callable[[float, int], Mapper]] = {
     "gpom": _gpom,
     "ehm": _localized("ehm"),
     "ehm-alone": _localized("ehm-alone"),
+    "ehm-realtime": _localized("ehm-realtime"),
     "ehm-batch": _localized("ehm-batch"),
 }
 """Every method by name, as a factory (resolution in metres, seed) -> Mapper."""
@@ -101,7 +102,7 @@ def make_mapper(
     name: str, resolution: float, seed: int, settings: dict[str, Any] | None = None
 ) -> Mapper:
     """A fresh, empty mapper of method `name` (see METHODS); `settings`, MapConfig overrides,
-    for an EHM method (ehm, ehm-alone, ehm-batch, lls-hm) only."""
+    for an EHM method (ehm, ehm-alone, ehm-realtime, ehm-batch, lls-hm) only."""
     methods = method_names([name])
     if len(methods) != 1:
         raise InputError(f"{name!r} stands for {', '.join(methods)}: give one method")

@@ -12,7 +12,7 @@ from ehm.core.sensor.scan import Scan
 from ehm.hilbert_map import HilbertMap
 from ehm.pipeline import MappingPipeline
 
-SCAN_BY_SCAN = ("ehm", "ehm-alone")
+SCAN_BY_SCAN = ("ehm", "ehm-alone", "ehm-realtime")
 KINDS = {
     "ehm": (
         "EHM, incremental: one integrate per scan (Alg. 2, 3), small scans gathered into "
@@ -22,6 +22,10 @@ KINDS = {
     "ehm-alone": (
         "EHM, incremental, each scan learned from its own samples alone (Alg. 2 as published)",
         {"keep_evidence": False, "batch_rays": 0},
+    ),
+    "ehm-realtime": (
+        "EHM, incremental, the real-time profile: one epoch, wider clusters, fewer samples",
+        {"profile": "realtime"},
     ),
     "ehm-batch": ("EHM, single batch: every scan in one fit (Alg. 2, 3)", {}),
     "lls-hm": (
@@ -33,9 +37,9 @@ KINDS = {
 
 
 class LocalizedMapper:
-    """A HilbertMap with the default settings for `resolution` metres of detail (see
-    MapConfig.for_resolution) and `settings` (MapConfig overrides) over them, learned as
-    `kind` (see KINDS) says."""
+    """A HilbertMap with the settings for `resolution` metres of detail (see
+    MapConfig.for_resolution, and its profile where the kind names one) and `settings`
+    (MapConfig overrides) over them, learned as `kind` (see KINDS) says."""
 
     def __init__(
         self,

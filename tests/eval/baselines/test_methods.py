@@ -17,6 +17,7 @@ DESCRIBED_BY = {
     "gpom": "2,000",
     "ehm": "EHM, incremental",
     "ehm-alone": "own samples alone",
+    "ehm-realtime": "real-time profile",
     "ehm-batch": "EHM, single batch",
 }
 
