@@ -1,17 +1,17 @@
-"""A changing scene: EHM and OctoMap scan by scan on the same scans of a room where a cart
-leaves, a crate arrives and a person walks across (ehm.eval.datasets.changing), measured in
-0.05 m voxels after every scan (ehm.eval.change_scores).
+"""A changing scene: EHM and OctoMap scan by scan on a room where a cart leaves, a crate
+arrives and a person walks across, measured in 0.05 m voxels after every scan.
 
     python benchmarks/changing_scene.py [--seeds 0,1,2] [--set front_reach=2 ...]
 
-Methods: EHM with the defaults (it takes back the evidence rays pass through,
-`pass_retraction` 0.5), EHM keeping all evidence (`pass_retraction` 0: it never forgets) and
-OctoMap. Prints, per method: the share of the cart's seen surface still read occupied by the
-number of scans that have passed through it since it left (ghosts), the share of the crate's
-seen surface read occupied by the number of scans that saw it, the share of the person's trail
-read occupied at the end, and near-surface precision, recall and F1 on the static parts at the
-end; then build seconds. `--set name=value` overrides a MapConfig setting of both EHM maps
-(as often as wanted; `pass_retraction` stays each one's).
+The scene: ehm.eval.datasets.changing; the scores: ehm.eval.change_scores. Methods: EHM with the
+defaults (it takes back the evidence rays pass through, `pass_retraction` 0.5), EHM keeping all
+evidence (`pass_retraction` 0: it never forgets) and OctoMap. Prints, per method: the share of
+the cart's seen surface still read occupied by the number of scans that have passed through it
+since it left (ghosts), the share of the crate's seen surface read occupied by the number of
+scans that saw it, the share of the person's trail read occupied at the end, and near-surface
+precision, recall and F1 on the static parts at the end; then build seconds. `--set name=value`
+overrides a MapConfig setting of both EHM maps (as often as wanted; `pass_retraction` stays each
+one's).
 """
 
 from __future__ import annotations

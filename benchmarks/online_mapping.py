@@ -1,6 +1,5 @@
-"""Online mapping: EHM scan by scan (`ehm`; `ehm-alone` without the sample memory) against EHM
-in one batch (`ehm-batch`) and OctoMap, on every data set with several scans, and near surfaces
-against the exact occupancy.
+"""Online mapping: EHM scan by scan (`ehm`; `ehm-alone` without the sample memory), in one batch
+(`ehm-batch`) and OctoMap on every data set, near surfaces against the exact occupancy.
 
     python benchmarks/online_mapping.py [--seeds 0,1,2] [--fractions 0.8,0.4]
                                         [--datasets warehouse,street,...] [--methods ehm,...]

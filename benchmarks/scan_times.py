@@ -1,13 +1,13 @@
-"""Time per scan against the number of scans already in the map: EHM scan by scan (each batch
-of `MapConfig.batch_rays` rays shared by its scans) and OctoMap's insertPointCloud, in one
-process on the same scans.
+"""Time per scan against the number of scans already in the map: EHM scan by scan and
+OctoMap's insertPointCloud, in one process on the same scans.
 
     python benchmarks/scan_times.py [--datasets corridor_2d,intel_lab,...] [--set name=value]
 
 corridor_2d is a generated 100 m office floor scanned 2,000 times by a 2D laser of 180 rays
 as a robot drives along it: a map that keeps growing. warehouse_drive is 200 LiDAR scans of
 16 x 512 rays on two laps round the warehouse's shelving: a map whose places are passed
-again. Prints a markdown table and draws benchmarks/figures/scan_times.png (with --set, not
+again. EHM learns each batch of `MapConfig.batch_rays` rays as one, shared by its scans.
+Prints a markdown table and draws benchmarks/figures/scan_times.png (with --set, not
 drawn).
 """
 

@@ -333,8 +333,8 @@ class MapConfig:
         (REALTIME: one SGD epoch, crowded hits pooled, free samples far from hits thinned,
         occupied clusters REALTIME_CLUSTER_SCALE times as wide, the resolution kept for
         outputs in voxel_size). Wider clusters read a little more of the space in front of a
-        surface occupied: lower near-surface precision, higher recall (BENCHMARKS.md, "The
-        real-time profile")."""
+        surface occupied: lower near-surface precision, higher recall (measured in the
+        documentation's Resolution page)."""
         if not isinstance(resolution, int | float) or not 0.0 < resolution < float("inf"):
             raise SettingsError(
                 f"map resolution must be a positive number of metres, got {resolution!r}"

@@ -377,6 +377,20 @@ def test_a_map_of_a_resolution_takes_that_resolution_s_settings():
         ehm.MapConfig().replace(resolution=0.2)
 
 
+def test_a_real_time_map_learns_wider_clusters_and_answers_at_its_resolution(room, room_map):
+    """The room in the real-time profile: fewer, wider clusters, the hits still occupied and
+    the space before them free, grids at the resolution asked for."""
+    realtime = ehm.HilbertMap(resolution=0.05, profile="realtime").fit(room.scans)
+    assert realtime.config == ehm.MapConfig.for_resolution(0.05, "realtime")
+    assert realtime.n_clusters < 0.7 * room_map.n_clusters
+    scan = room.scans[0]
+    hits = scan.points_world[scan.hit_mask]
+    before = scan.origin + 0.8 * (hits - scan.origin)
+    assert np.mean(realtime.occupancy(hits) > 0.5) > 0.9
+    assert np.mean(realtime.occupancy(before) < 0.5) > 0.95
+    assert realtime.grid(bounds=[[0, 0, 0], [1, 1, 1]]).resolution == 0.05
+
+
 def test_the_class_docstring_example_runs(tmp_path, monkeypatch):
     import inspect
     import re
