@@ -36,5 +36,6 @@ def test_lls_hm_searches_per_point():
     mapper = LocalizedMapper("lls-hm")
     assert mapper.map.config.train_search == "point"
     assert mapper.map.config.query_mode == "exact"
-    with pytest.raises(ValueError, match="kind must be one of ehm, ehm-alone, ehm-batch, lls-hm"):
+    kinds = "ehm, ehm-alone, ehm-realtime, ehm-batch, lls-hm"
+    with pytest.raises(ValueError, match=f"kind must be one of {kinds}"):
         LocalizedMapper("ehm-fast")
