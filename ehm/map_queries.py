@@ -1,5 +1,6 @@
 """The queries every map answers from its log-odds, written once for HilbertMap and TiledMap:
-probabilities, log-odds, their uncertainty, and rays and segments for planners."""
+probabilities, log-odds and their uncertainty, gradients, and for planners rays, segments,
+known space and distances."""
 
 from __future__ import annotations
 

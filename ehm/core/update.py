@@ -121,7 +121,7 @@ def training_groups(
     """The groups of the shuffled training samples that share one search: the quick-means
     groups of the `n_new` new samples, and the replayed samples grouped alike."""
     new_groups = PointGroups(grouped.groups.group_of_point[:n_new], grouped.groups.centres)
-    # Quick-means groups beat one group per memory cell on held-out F1.
+    # Replayed samples share searches in quick-means groups, as the new ones do.
     groups = new_groups + group_samples(replayed, model.config, model.rng).groups
     return PointGroups(groups.group_of_point[shuffle], groups.centres)
 
