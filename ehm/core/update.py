@@ -12,12 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ehm.config import MapConfig
 from ehm.core.clustering.coplanar import merge_coplanar
 from ehm.core.clustering.grouping import SampleGroups, group_samples
 from ehm.core.clustering.merging import absorb_clusters
 from ehm.core.learned_model import LearnedModel
-from ehm.core.model.features import PointGroups, group_by_cell
+from ehm.core.model.features import PointGroups
 from ehm.core.observations.memory import Visit
 from ehm.core.observations.passes import PASS_REACH_CELLS, hit_again, occupied_passes
 from ehm.core.observations.samples import ScanRays, TrainingSamples
@@ -112,12 +111,6 @@ def update(
     return report
 
 
-# Replayed samples share a search in cells this many cluster radii wide (free samples along
-# rays: free cluster radii), groups about as large as quick-means makes of new samples; a
-# second quick-means took two thirds of the replay stage on long drives.
-REPLAY_CELL_RADII = 1.5
-
-
 def training_groups(
     model: LearnedModel,
     grouped: SampleGroups,
@@ -126,26 +119,11 @@ def training_groups(
     shuffle: np.ndarray,
 ) -> PointGroups:
     """The groups of the shuffled training samples that share one search: the quick-means
-    groups of the `n_new` new samples, then the replayed samples grouped by cells."""
+    groups of the `n_new` new samples, and the replayed samples grouped alike."""
     new_groups = PointGroups(grouped.groups.group_of_point[:n_new], grouped.groups.centres)
-    groups = new_groups + replay_groups(replayed, model.config)
+    # Replayed samples share searches in quick-means groups, as the new ones do.
+    groups = new_groups + group_samples(replayed, model.config, model.rng).groups
     return PointGroups(groups.group_of_point[shuffle], groups.centres)
-
-
-def replay_groups(replayed: TrainingSamples, config: MapConfig) -> PointGroups:
-    """Groups of replayed samples: those around hits in cells REPLAY_CELL_RADII cluster radii
-    wide, those along rays in cells as many free cluster radii wide."""
-    along_rays = ~replayed.occupied & ~replayed.at_surface
-    group_of_point = np.empty(len(replayed), dtype=np.int64)
-    centres = [np.zeros((0, replayed.points.shape[1]))]
-    for rows, radius in (
-        (np.flatnonzero(~along_rays), config.cluster_radius),
-        (np.flatnonzero(along_rays), config.free_cluster_radius),
-    ):
-        cells = group_by_cell(replayed.points[rows], REPLAY_CELL_RADII * radius)
-        group_of_point[rows] = cells.group_of_point + sum(len(c) for c in centres)
-        centres.append(cells.centres)
-    return PointGroups(group_of_point, np.concatenate(centres))
 
 
 def fade_unseen(model: LearnedModel, time: float | None) -> int:

@@ -5,9 +5,9 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.learned_model import LearnedModel
 from ehm.core.observations.evidence import gather_evidence
-from ehm.core.observations.samples import TrainingSamples, scan_rays
+from ehm.core.observations.samples import scan_rays
 from ehm.core.timing import StageTimer
-from ehm.core.update import REPLAY_CELL_RADII, replay_groups, update
+from ehm.core.update import update
 
 STAGES = [
     "memory_lookup",
@@ -76,22 +76,3 @@ def test_time_stamps_keep_the_latest(room):
     assert model.time == 5.0 and np.all(model.clusters.seen == 5.0)
     report, _, _ = _learn(model, second, time=3.0)
     assert model.time == 5.0 and report["faded_clusters"] == 0
-
-
-def test_replayed_samples_share_searches_in_cells_by_kind(rng):
-    config = MapConfig()
-    kinds = rng.integers(0, 3, 3000)  # occupied, free around hits, free along rays
-    # Around hits within 0.6 m, along rays within 6 m: a few samples to each cell.
-    points = rng.uniform(0.0, 1.0, (3000, 3)) * np.where(kinds == 2, 6.0, 0.6)[:, None]
-    replayed = TrainingSamples(points, kinds == 0, kinds < 2)
-    groups = replay_groups(replayed, config)
-    along_rays = kinds == 2
-    for group in range(len(groups.centres)):
-        members = groups.group_of_point == group
-        assert len(set(along_rays[members])) == 1  # one kind of search per group
-        radius = config.free_cluster_radius if along_rays[members][0] else config.cluster_radius
-        cell = REPLAY_CELL_RADII * radius
-        assert np.ptp(points[members], axis=0).max() < cell
-        np.testing.assert_allclose(groups.centres[group], points[members].mean(axis=0))
-    assert len(groups.centres) < 0.2 * len(points)
-    assert len(replay_groups(replayed.subset(np.zeros(0, dtype=int)), config).centres) == 0
