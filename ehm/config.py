@@ -26,11 +26,11 @@ DEFAULT_RESOLUTION = 0.05
 # The shortest length a setting may take, metres: below it, kernels of that spread
 # overflow in double precision.
 SMALLEST_LENGTH = 1e-6
-# The sections of the settings, in the order settings files and `ehm info` give them.
 # The real-time profile (MapConfig.for_resolution): settings over the default's, and how much
 # wider its occupied clusters are.
 REALTIME = {"epochs": 1, "surface_pooling": 2, "free_thinning": 2}
 REALTIME_CLUSTER_SCALE = 1.5
+# The sections of the settings, in the order settings files and `ehm info` give them.
 SECTIONS = ("sampling", "clustering", "kernels", "search", "learning", "memory", "queries")
 
 
@@ -329,12 +329,12 @@ class MapConfig:
         DEFAULT_RESOLUTION, then `overrides`. Long-range outdoor LiDAR, whose hits lie tens of
         centimetres apart, wants about 0.2.
 
-        profile: 'default', the most accurate; 'realtime', learning in about half the time
-        (REALTIME: one SGD epoch, crowded hits pooled, free samples far from hits thinned,
-        occupied clusters REALTIME_CLUSTER_SCALE times as wide, the resolution kept for
-        outputs in voxel_size). Wider clusters read a little more of the space in front of a
-        surface occupied: lower near-surface precision, higher recall (measured in the
-        documentation's Resolution page)."""
+        profile: 'default', the most accurate; 'realtime', learning faster (REALTIME: one SGD
+        epoch, crowded hits pooled, free samples far from hits thinned, occupied clusters
+        REALTIME_CLUSTER_SCALE times as wide, the resolution kept for outputs in voxel_size).
+        Wider clusters read a little more of the space in front of a surface occupied: lower
+        near-surface precision, higher recall (measured in the documentation's Resolution
+        page)."""
         if not isinstance(resolution, int | float) or not 0.0 < resolution < float("inf"):
             raise SettingsError(
                 f"map resolution must be a positive number of metres, got {resolution!r}"

@@ -75,7 +75,7 @@ class HilbertMap(MapQueries):
     config: a MapConfig; keyword overrides replace single settings, for example
     HilbertMap(cluster_radius=0.2); resolution=r and profile=p, in place of a config, start
     from MapConfig.for_resolution(r, p) (HilbertMap(resolution=0.2, max_range=80.0);
-    HilbertMap(resolution=0.1, profile="realtime") learns in about half the time). Learned state
+    HilbertMap(resolution=0.1, profile="realtime") learns faster). Learned state
     ends in an underscore: model_ (a LearnedModel: clusters, memory, anchors, bias, search;
     None before the first scan is learned), clusters_ and bias_ (its), local_origin_ (the
     world point, metres, the model is kept relative to, ehm.core.sensor.local_frame),

@@ -205,8 +205,9 @@ def map_command(
     profile: Annotated[
         str | None,
         typer.Option(
-            help="'realtime' learns in about half the time, with wider clusters and one epoch "
-            "(MapConfig.for_resolution); 'default' is the most accurate.  \\[default: default]"
+            help="'realtime' learns faster, with wider clusters and one epoch, a little less "
+            "precisely near surfaces (MapConfig.for_resolution); 'default' is the most "
+            "accurate.  \\[default: default]"
         ),
     ] = None,
     config_file: Annotated[
