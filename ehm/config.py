@@ -361,7 +361,8 @@ class MapConfig:
         if "resolution" in overrides or "profile" in overrides:
             if config is not None:
                 raise InputError(
-                    "give a resolution or a config, not both: the config holds its resolution"
+                    "give a resolution (and profile) or a config, not both: the config holds "
+                    "its resolution and profile's settings"
                 )
             resolution = overrides.pop("resolution", DEFAULT_RESOLUTION)
             config = cls.for_resolution(resolution, overrides.pop("profile", "default"))

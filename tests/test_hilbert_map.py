@@ -371,7 +371,9 @@ def test_a_georeferenced_map_answers_as_the_same_map_near_the_origin(room, tmp_p
 def test_a_map_of_a_resolution_takes_that_resolution_s_settings():
     at_once = ehm.HilbertMap(resolution=0.2, max_range=80.0).config
     assert at_once == ehm.MapConfig.for_resolution(0.2, max_range=80.0)
-    with pytest.raises(ehm.InputError, match="give a resolution or a config, not both"):
+    with pytest.raises(
+        ehm.InputError, match=r"give a resolution \(and profile\) or a config, not both"
+    ):
         ehm.HilbertMap(ehm.MapConfig(), resolution=0.2)
     with pytest.raises(ehm.SettingsError, match=r"resolution: .* MapConfig\.for_resolution"):
         ehm.MapConfig().replace(resolution=0.2)

@@ -28,6 +28,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.queries.raycast import cast_rays
 from ehm.core.sensor.scan import Scan
+from ehm.core.sensor.waiting_scans import check_scan
 from ehm.core.weights.uncertainty import logit_variance
 from ehm.errors import EmptyMapError, InputError, SettingsError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, aligned_bounds, bytes_per_voxel, grid_shape
@@ -221,8 +222,8 @@ class TiledMap(MapQueries):
 
     def integrate_scan(self, scan: Scan) -> TiledMap:
         """Learn one Scan in this process, into the tiles its rays cross; returns self."""
-        if not isinstance(scan, Scan):
-            raise InputError(f"expected ehm.Scan, got {type(scan).__name__}")
+        # Checked before any tile learns, so a bad scan leaves every tile as it was.
+        check_scan(scan, "scan", self._dim, "the map", self.config.forget_after)
         self._take_dim(scan.dim)
         keys = self.tiling.keys_meeting(scan_box(scan))
         self._changed.update(learn_into_tiles(scan, self.tiling, keys, self._learning_tile))

@@ -174,6 +174,11 @@ def test_bad_input_is_refused(room):
         tiled.integrate(np.zeros((3, 2)) + 1.0, np.zeros(2))
     with pytest.raises(InputError, match=r"expected ehm\.Scan"):
         tiled.integrate_scan("scan")
+    # A map that forgets refuses a scan without time before any tile learns from it.
+    fading = TiledMap(3.0, 1.0, forget_after=5.0)
+    with pytest.raises(InputError, match="has no time stamp"):
+        fading.integrate_scan(room.scans[0].subset(np.arange(100)))
+    assert fading.n_tiles == 0 and fading.dim is None
     with pytest.raises(InputError, match="no tile"):
         tiled.tile((99, 99, 99))
 
