@@ -13,7 +13,7 @@ from ehm.eval.change_scores import (
     shell_voxels,
     voxel_centres,
 )
-from ehm.eval.datasets.changing import changing_room
+from ehm.eval.datasets.changing import changing_room, sensor_path
 
 
 def test_the_scene_at_each_scan_holds_the_movers_there():
@@ -35,6 +35,25 @@ def test_the_scene_at_each_scan_holds_the_movers_there():
     )
     np.testing.assert_array_equal(room.times, np.arange(6.0))
     assert len(room.scans) == 6 and all(len(s) == 256 for s in room.scans)
+
+
+def test_a_sparse_lidar_on_a_loop_goes_once_round_clear_of_every_solid():
+    room = changing_room(n_scans=12, rings=16, azimuths=64, elevations=(-15.0, 15.0),
+                         height=1.0, path="loop")  # fmt: skip
+    origins = np.array([scan.origin for scan in room.scans])
+    np.testing.assert_allclose(origins, sensor_path("loop", 12, 1.0))
+    np.testing.assert_allclose(origins[:, 2], 1.0)
+    # Once round the room's centre, a twelfth of a turn a scan.
+    turns = np.unwrap(np.arctan2(origins[:, 1] / 0.5, origins[:, 0] / 2.6))
+    np.testing.assert_allclose(np.diff(turns), 2 * np.pi / 12)
+    for i in range(12):
+        assert not room.scene_at(i).occupied(origins).any()
+    # Rings 2 degrees apart from -15 to +15.
+    directions = (room.scans[0].points_world - origins[0])[: 64 * 16]
+    elevations = np.degrees(np.arcsin(directions[:, 2] / np.linalg.norm(directions, axis=1)))
+    np.testing.assert_allclose(np.unique(elevations.round(6)), np.linspace(-15, 15, 16))
+    with pytest.raises(ValueError, match="path must be"):
+        sensor_path("spiral", 3, 1.0)
 
 
 def test_shell_voxels_lie_inside_within_one_voxel_of_the_surface():

@@ -4,7 +4,10 @@ memory (ehm.core.observations.memory) holds occupied.
 A ray passes an occupied entry when, along the free part of the ray (ScanRays.free_start to
 free_end: up to `surface_margin` before its hit) and short of its hit by more than the band a
 surface is taken to be solid, it goes through the entry's region and comes within `reach`
-metres of the entry's mean: noise and rays that end on the surface they graze do not pass it.
+metres of the entry's mean, widened where the rays of its scan lie farther apart than that
+(ehm.core.sensor.ray_spacing, `pass_reach`): noise and rays that end on the surface they graze
+do not pass it, and the rings of a sparse LiDAR, whose gaps grow with range, pass the old faces
+that lie between them.
 The band is `occupied_depth` deep and grows with the square of the ray's length, as a depth
 camera's range noise does (BAND_GROWTH). Within that band, a ray whose hit lies on a plane of
 the batch's own hits (the floor behind a cart that left) passes the entries that lie off the
@@ -43,6 +46,14 @@ from ehm.core.search.index import PARALLEL_SEARCH_POINTS
 # How close a ray must come to an entry's mean to pass it, in fine evidence cells (3 cm at 5 cm
 # of detail).
 PASS_REACH_CELLS = 1.0
+# Where its scan's rays lie farther apart than `reach` at an entry's distance along a ray,
+# the ray reaches this many times that gap: about the gap between the rings of a spinning
+# LiDAR, whose ray spacing (the geometric mean of its gaps) is 0.9 degrees on 16 beams with
+# rings 2 apart. With a cell's reach alone, a third to two thirds of a departed cart's old
+# faces, between the rings of 16- and 32-beam LiDARs, still read occupied six scans after it
+# left. Rays closer than `reach`, a depth camera's (0.2 degrees apart), keep it: widened there
+# too, passes by rays beside surfaces still there took their evidence back.
+PASS_REACH_WIDENING = 2.0
 # Within the band behind which a hit's surface is taken to be solid, a ray passes the entries
 # farther than this from the plane of its batch's hits around its hit, in fine evidence cells:
 # a departed object's old faces then fade, where the band would shield them.
@@ -227,6 +238,13 @@ def _off_plane(position, point, normal, gap):  # pragma: no cover - compiled
     return abs(distance) > gap
 
 
+def pass_reach(reach: float, gap: np.ndarray | float) -> np.ndarray | float:
+    """How close, metres, a ray must come to an entry to pass it: `reach`, or
+    PASS_REACH_WIDENING times the `gap` to the next ray of its scan at the entry's distance
+    (metres) where that is wider."""
+    return np.where(gap > reach, PASS_REACH_WIDENING * gap, reach)
+
+
 def _solid_band(rays: ScanRays, depth: float) -> tuple[np.ndarray, np.ndarray]:
     """Where each ray's solid band starts (n,) (its free end for rays without a hit) and its
     hit (n, d)."""
@@ -256,6 +274,8 @@ def pass_kernel(
     grazing_cos,
     fine_side,
     reach,
+    ray_spacing,
+    widening,
     bits,
     bitmap,
     wanted,
@@ -267,13 +287,16 @@ def pass_kernel(
     metres, ScanRays) through the memory's entries: table_keys, table_rows from
     EvidenceMemory.region_table; occupied_starts, occupied_entries and positions from
     `occupied_layout`; normals (R, d) from `region_normals`, and rays whose direction meets a
-    region's at a cosine below `grazing_cos` pass none of its entries; `bits` an axis of a
-    region key; bitmap: occupied_bitmap's (low, extent, words), the regions to look up. From
-    solid_start (n,) on, a ray passes only entries farther than `plane_gap` metres from the
-    plane through its hit, hit_points (n, d), of normal hit_normals (n, d) (NaN: none, and it
-    passes none there). Stops before a ray that might overfill `found`; returns (the next ray,
-    entries found). With `wanted` (R,) bool, not (0,), only marks in it the rows of the
-    regions holding occupied entries that the rays cross, and finds nothing (normals unread)."""
+    region's at a cosine below `grazing_cos` pass none of its entries; ray r passes the
+    entries within `pass_reach` of it (reach and widening as there, its gap ray_spacing[r]
+    (n,) radians times their distance along it);
+    `bits` an axis of a region key; bitmap: occupied_bitmap's (low, extent, words), the
+    regions to look up. From solid_start (n,) on, a ray passes only entries farther than
+    `plane_gap` metres from the plane through its hit, hit_points (n, d), of normal
+    hit_normals (n, d) (NaN: none, and it passes none there). Stops before a ray that might
+    overfill `found`; returns (the next ray, entries found). With `wanted` (R,) bool, not
+    (0,), only marks in it the rows of the regions holding occupied entries that the rays
+    cross, and finds nothing (normals unread)."""
     d = origins.shape[1]
     bitmap_low, bitmap_extent, bitmap_words = bitmap
     side = fine_side * FINE_CELLS_PER_RADIUS
@@ -319,7 +342,9 @@ def pass_kernel(
                     for a in range(d):
                         gap = position[a] - origins[r, a] - along * directions[r, a]
                         off += gap * gap
-                    if off < reach * reach:
+                    gap = ray_spacing[r] * along
+                    limit = widening * gap if gap > reach else reach
+                    if off < limit * limit:
                         found[used] = occupied_entries[k]
                         used += 1
             t = walk_step(region, step, t_next, t_delta)
@@ -428,9 +453,9 @@ def occupied_passes(
     memory: EvidenceMemory, rays: ScanRays, reach: float, depth: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The memory's occupied entries that `rays` pass (see the module's docstring), within
-    `reach` metres, a ray with a hit only where it goes on for `depth` metres more (the band a
-    surface is taken to be solid, `occupied_depth`): (entries (k,) int64 sorted, passes (k,)
-    int64 rays through each).
+    `reach` metres (widened by `pass_reach` between sparse rays), a ray with a hit only
+    where it goes on for `depth` metres more (the band a surface is taken to be solid,
+    `occupied_depth`): (entries (k,) int64 sorted, passes (k,) int64 rays through each).
 
     The rays read the normals of the regions they cross alone. Where the regions holding
     occupied entries outnumber the rays MARKED_REGIONS_PER_RAY times (a long drive's memory,
@@ -460,6 +485,8 @@ def occupied_passes(
         np.cos(np.radians(GRAZING_DEGREES)),
         fine_side,
         reach,
+        rays.ray_spacing,
+        PASS_REACH_WIDENING,
         region_bits(memory.dim),
         occupied_bitmap(memory.regions, layout[0], region_bits(memory.dim), memory.dim),
     )
@@ -544,7 +571,7 @@ def occupied_passes_reference(
             (enter < leave)
             & (along > start)
             & (along < end)
-            & (off < reach)
+            & (off < pass_reach(reach, rays.ray_spacing[r] * along))
             & crosses
             & (~solid | off_plane)
         )

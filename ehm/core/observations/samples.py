@@ -11,6 +11,7 @@ import numpy as np
 from ehm.config import MapConfig
 from ehm.core.observations.planes import hit_plane_normals
 from ehm.core.sensor.boxes import points_in_box, ray_box_intervals
+from ehm.core.sensor.ray_spacing import angular_spacing
 from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 
@@ -101,8 +102,9 @@ class ScanRays:
     origins: (n, d) each ray's start. directions: (n, d) unit vectors. lengths: (n,) distance
     to each ray's end (its hit, or where it stops without one). hits: (n,) bool.
     free_start, free_end: (n,) the part of each ray that gives free samples (start > end where
-    it gives none). spacing: (n,) distance between its free samples. plane_side: the side of
-    the cells whose hits `hit_normals` fits planes to (`cluster_radius`).
+    it gives none). spacing: (n,) distance between its free samples. ray_spacing: (n,)
+    radians, how far apart the rays of its scan are (ehm.core.sensor.ray_spacing). plane_side:
+    the side of the cells whose hits `hit_normals` fits planes to (`cluster_radius`).
     """
 
     origins: np.ndarray
@@ -112,6 +114,7 @@ class ScanRays:
     free_start: np.ndarray
     free_end: np.ndarray
     spacing: np.ndarray
+    ray_spacing: np.ndarray
     plane_side: float
 
     def __len__(self) -> int:
@@ -150,10 +153,13 @@ def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
     hits = np.concatenate([scan.hit_mask for scan in scans])
     counts = [len(scan) for scan in scans]
     origins = np.repeat(np.stack([scan.origin for scan in scans]), counts, axis=0)
+    scan_of = np.repeat(np.arange(len(scans)), counts)
     offsets = points - origins
     lengths = np.linalg.norm(offsets, axis=1)
     usable = (lengths > 0) & (lengths >= config.min_range)
-    offsets, lengths, hits, origins = (a[usable] for a in (offsets, lengths, hits, origins))
+    offsets, lengths, hits, origins, scan_of = (
+        a[usable] for a in (offsets, lengths, hits, origins, scan_of)
+    )
     if config.max_range > 0:
         hits = hits & (lengths <= config.max_range)
         scale = np.minimum(config.max_range / lengths, 1.0)
@@ -173,6 +179,7 @@ def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
         free_start,
         free_end,
         spacing,
+        angular_spacing(directions, scan_of),
         plane_side=config.cluster_radius,
     )
 

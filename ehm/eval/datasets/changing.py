@@ -96,20 +96,38 @@ def _boxes_where(
     return boxes
 
 
+def sensor_path(path: str, n_scans: int, height: float) -> np.ndarray:
+    """(n_scans, 3) sensor positions, metres, of the changing room's `path` ('line' or
+    'loop', see changing_room) at `height`."""
+    if path == "line":
+        x, y = np.linspace(-2.5, 2.5, n_scans), np.zeros(n_scans)
+    elif path == "loop":
+        turn = np.linspace(0.0, 2.0 * np.pi, n_scans, endpoint=False)
+        x, y = 2.6 * np.cos(turn), 0.5 * np.sin(turn)
+    else:
+        raise ValueError(f"path must be 'line' or 'loop', got {path!r}")
+    return np.column_stack([x, y, np.full(n_scans, height)])
+
+
 def changing_room(
     seed: int = 0,
     n_scans: int = 14,
     rings: int = 64,
     azimuths: int = 1024,
+    elevations: tuple[float, float] = (-45.0, 45.0),
+    height: float = 1.2,
+    path: str = "line",
     noise_std: float = 0.01,
     departs_at: int = 5,
     arrives_at: int = 8,
     walk: tuple[int, int] = (2, 10),
     scan_period: float = 1.0,
 ) -> ChangingDataset:
-    """`n_scans` scans of a 3D LiDAR (rings x azimuths rays, elevations -45 to +45 degrees,
-    20 m range) 1.2 m up, moving along the room's x axis from -2.5 to 2.5 m, one every
-    `scan_period` seconds, while:
+    """`n_scans` scans of a 3D LiDAR (rings x azimuths rays, rings evenly spaced between
+    `elevations` (low, high) degrees, 20 m range) `height` metres up, one every `scan_period`
+    seconds, moving along `path`: 'line', the room's x axis from -2.5 to 2.5 m; 'loop', once
+    round an ellipse of half-axes 2.6 m (x) and 0.5 m (y) about the room's centre, as a robot
+    patrols. Meanwhile:
 
     - a cart (0.8 x 0.6 x 0.9 m, south of the path) stands there until scan `departs_at`, from
       which on it is gone;
@@ -135,13 +153,11 @@ def changing_room(
         Mover("person", "walks", walker),
     )
     static = changing_room_scene()
-    directions = lidar_directions(rings, azimuths, 45.0)
+    directions = lidar_directions(rings, azimuths, elevations[1], elevations[0])
     rng = np.random.default_rng(seed)
     scans = [
-        simulate_scan(
-            scene_at(static, movers, i), np.array([x, 0.0, 1.2]), directions, 20.0, noise_std, rng
-        )
-        for i, x in enumerate(np.linspace(-2.5, 2.5, n_scans))
+        simulate_scan(scene_at(static, movers, i), origin, directions, 20.0, noise_std, rng)
+        for i, origin in enumerate(sensor_path(path, n_scans, height))
     ]
     times = scan_period * scans_index.astype(np.float64)
     return ChangingDataset("changing_room", scans, static, movers, times)

@@ -22,7 +22,15 @@ def memory_of(points: np.ndarray, kinds: np.ndarray) -> EvidenceMemory:
     return memory
 
 
-def rays_of(origins: np.ndarray, ends: np.ndarray, hits: np.ndarray, margin: float) -> ScanRays:
+def rays_of(
+    origins: np.ndarray,
+    ends: np.ndarray,
+    hits: np.ndarray,
+    margin: float,
+    ray_spacing: float | np.ndarray = 0.0,
+) -> ScanRays:
+    """Rays from `origins` to `ends` whose free part stops `margin` before each hit, their
+    scans' rays `ray_spacing` radians apart (one for all, or (n,))."""
     offsets = ends - origins
     lengths = np.linalg.norm(offsets, axis=1)
     free_end = np.where(hits, lengths - margin, lengths)
@@ -35,6 +43,7 @@ def rays_of(origins: np.ndarray, ends: np.ndarray, hits: np.ndarray, margin: flo
         np.zeros(len(lengths)),
         free_end,
         spacing,
+        np.broadcast_to(np.asarray(ray_spacing, dtype=np.float64), lengths.shape).copy(),
         plane_side=0.2,  # the memory's regions
     )
 
@@ -62,7 +71,9 @@ def test_passes_agree_with_their_numpy_twin(rng, monkeypatch, dim, parallel, mar
     memory = memory_of(points, kinds)
     origins = rng.uniform(-3.0, 3.0, (300, dim))
     ends = rng.uniform(-3.0, 3.0, (300, dim))
-    assert_passes_agree(memory, rays_of(origins, ends, rng.random(300) < 0.7, 0.05), 50)
+    spacing = rng.uniform(0.0, 0.03, 300)  # from a depth camera's rays to a 2D laser's
+    rays = rays_of(origins, ends, rng.random(300) < 0.7, 0.05, spacing)
+    assert_passes_agree(memory, rays, 50)
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -143,6 +154,27 @@ def test_a_pass_needs_the_ray_to_go_on_beyond_the_entry():
     entries, counts = occupied_passes(memory, rays, 0.03, 0.15)
     np.testing.assert_array_equal(entries, [0])
     np.testing.assert_array_equal(counts, [3])
+
+
+@pytest.mark.parametrize("distance, passed", [(1.0, False), (4.0, True)])
+def test_a_pass_reaches_wider_with_range_between_sparse_rays(distance, passed):
+    """A ray of a scan whose rays are 0.9 degrees apart (a 16-beam LiDAR's) goes by an entry
+    `distance` metres away 8 cm to its side and on 4 m beyond: with a reach of 1.5 cm it
+    passes it 4 m away, where its rays are 6.3 cm apart (its reach there: 11 cm), not 1 m
+    away (1.6 cm apart), nor anywhere where its scan's rays lie close."""
+    # Entry and ray within one region of the memory (20 cm), which the ray crosses.
+    origin = np.array([[0.0, 0.0, 0.1]])
+    memory = memory_of(np.array([[distance, 0.05, 0.1]]), np.array([OCCUPIED]))
+    direction = np.array([distance, 0.13, 0.0]) / np.hypot(distance, 0.13)
+    end = origin + (distance + 4.0) * direction
+    spacing = np.radians(0.9)
+    for ray_spacing, passing in ((spacing, passed), (0.0, False)):
+        rays = rays_of(origin, end, np.ones(1, bool), 0.05, ray_spacing)
+        entries, counts = occupied_passes(memory, rays, 0.015, 0.15)
+        np.testing.assert_array_equal(counts, [1] if passing else [])
+        want, want_counts = occupied_passes_reference(memory, rays, 0.015, 0.15)
+        np.testing.assert_array_equal(entries, want)
+        np.testing.assert_array_equal(counts, want_counts)
 
 
 def test_free_evidence_is_never_passed():

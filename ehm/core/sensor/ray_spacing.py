@@ -1,0 +1,42 @@
+"""How far apart a scan's rays are, as an angle: the square root of the solid angle its rays
+cover over their number in 3D (the geometric mean of the gaps between rings and between the
+rays along a ring of a spinning LiDAR), the angle they cover over their number in 2D.
+
+The covered angle is counted in cells of SPACING_CELL_DEGREES on the sphere (equal-area:
+azimuth and the sine of elevation) or the circle, so a field of view with gaps, a LiDAR's
+blind cone or a depth camera's frustum, counts what its rays reach only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+SPACING_CELL_DEGREES = 4.0
+"""Side of the cells that count the angle a scan's rays cover: wider than the rings of sparse
+LiDARs (2 degrees apart on 16 beams), so cells between rings are not left out."""
+
+
+def angular_spacing(directions: np.ndarray, scan_of: np.ndarray) -> np.ndarray:
+    """(n,) float64 radians: the spacing of the rays of each ray's scan. directions: (n, d)
+    unit vectors, d 2 or 3; scan_of: (n,) int64 >= 0, the scan of each ray."""
+    n, dim = directions.shape
+    if n == 0:
+        return np.zeros(0)
+    cell = np.radians(SPACING_CELL_DEGREES)
+    azimuths = int(np.ceil(2.0 * np.pi / cell))
+    turn = np.arctan2(directions[:, 1], directions[:, 0]) + np.pi
+    column = np.minimum((turn / (2.0 * np.pi) * azimuths).astype(np.int64), azimuths - 1)
+    if dim == 2:
+        cells, cell_angle = column, 2.0 * np.pi / azimuths
+    else:
+        heights = int(np.ceil(2.0 / cell))  # sine of elevation, -1 to 1, in steps of a cell
+        sine = np.clip(directions[:, 2], -1.0, 1.0)
+        row = np.minimum(((sine + 1.0) / 2.0 * heights).astype(np.int64), heights - 1)
+        cells, cell_angle = row * azimuths + column, (2.0 * np.pi / azimuths) * (2.0 / heights)
+    n_cells = azimuths * (1 if dim == 2 else int(np.ceil(2.0 / cell)))
+    scans, scan_row = np.unique(scan_of, return_inverse=True)
+    covered = np.unique(scan_row * n_cells + cells)
+    covered_angle = np.bincount(covered // n_cells, minlength=len(scans)) * cell_angle
+    rays = np.bincount(scan_row, minlength=len(scans))
+    spacing = covered_angle / rays if dim == 2 else np.sqrt(covered_angle / rays)
+    return spacing[scan_row]
