@@ -1,5 +1,4 @@
-"""Users' own recordings: a corpus of real recordings from public repositories, each mapped
-through the command line and checked against its own geometry.
+"""Users' own recordings: real recordings from public repositories, checked on their own geometry.
 
     python benchmarks/corpus.py fetch --to CORPUS [--mirrors DIR]
     python benchmarks/corpus.py run --corpus CORPUS

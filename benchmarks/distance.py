@@ -1,5 +1,4 @@
-"""Distances to obstacles: `HilbertMap.distance` against the exact scene, what keeping the
-field costs each update, and how fast it answers.
+"""Distances to obstacles against the exact scene, the field's cost per update, and its speed.
 
     python benchmarks/distance.py [--points 200000]
 

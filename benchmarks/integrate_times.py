@@ -1,5 +1,4 @@
-"""Time of one integrate, stage by stage, in both profiles, on the scans the real-time targets
-name; OctoMap's insertPointCloud of the same scans alongside.
+"""One integrate, stage by stage, in both profiles, beside OctoMap's insertPointCloud.
 
     python benchmarks/integrate_times.py [--repeats 5] [--set features=support ...]
 

@@ -1,5 +1,4 @@
-"""Time per scan against the number of scans already in the map: EHM scan by scan and
-OctoMap's insertPointCloud, in one process on the same scans.
+"""Time per scan as the map grows: EHM scan by scan and OctoMap's insertPointCloud, same scans.
 
     python benchmarks/scan_times.py [--datasets corridor_2d,intel_lab,...] [--set name=value]
 

@@ -1,5 +1,4 @@
-"""Start-up time: `ehm --help`, `import ehm`, the first `ehm map` after `pip install`, and the
-first queries of a new process after `ehm warm`.
+"""Start-up: `ehm --help`, `import ehm`, the first `ehm map` and first queries after `ehm warm`.
 
     python benchmarks/startup.py [--repeats 7] [--no-install]
 

@@ -1,5 +1,4 @@
-"""The browser viewer's costs: opening a map, re-meshing at a new level, and mapping with the
-live view open.
+"""The browser viewer's costs: opening a map, re-meshing, and mapping with the live view open.
 
     python benchmarks/viewer.py
 
