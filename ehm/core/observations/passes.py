@@ -15,7 +15,10 @@ plane: the cart's lowest centimetres, which rays to the floor behind it reach on
 band. Nor does a ray that runs along the surface: where a region's occupied entries lie on a
 plane, a ray at more than GRAZING_DEGREES to its normal passes none of them (on TUM's depth
 frames, the rays that passed walls still there met them at 75-84 degrees, and ended 3-7 cm
-beyond). An entry the batch hits again stays: one in whose cell a new hit lands, or near whose
+beyond), unless it goes through that plane near them before its solid band: a LiDAR a little
+above a cart's top meets it at a grazing angle, and once the cart has gone its rays go through
+where the top stood, while rays along a surface still there meet its plane only where they
+end. An entry the batch hits again stays: one in whose cell a new hit lands, or near whose
 mean one does (`hit_again`), within the lateral shift a small error in the sensor's
 orientation gives at its range (REGISTRATION_SLACK): a surface seen from a pose a degree off
 stands beside where it stood, and the rays past its edge go through its old place.
@@ -227,6 +230,29 @@ def _crosses(normal, direction, grazing_cos):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
+def _goes_through(origin, direction, start, end, centre, normal, side):  # pragma: no cover
+    """Whether a ray from `origin` along unit `direction` (d,) crosses the plane through
+    `centre` (d,) of unit `normal` (d,) (NaN: none, and it does not) between `start` and `end`
+    metres along it, within `side` metres of the centre."""
+    if normal[0] != normal[0]:
+        return False
+    facing, height = 0.0, 0.0
+    for a in range(len(normal)):
+        facing += normal[a] * direction[a]
+        height += normal[a] * (centre[a] - origin[a])
+    if facing == 0.0:
+        return False
+    t = height / facing
+    if t <= start or t >= end:
+        return False
+    gap = 0.0
+    for a in range(len(normal)):
+        offset = origin[a] + t * direction[a] - centre[a]
+        gap += offset * offset
+    return gap < side * side
+
+
+@numba.njit(cache=True, inline="always")
 def _off_plane(position, point, normal, gap):  # pragma: no cover - compiled
     """Whether `position` (d,) lies farther than `gap` metres from the plane through `point`
     (d,) of unit `normal` (d,) (NaN: no plane, and it does not)."""
@@ -271,6 +297,7 @@ def pass_kernel(
     occupied_entries,
     positions,
     normals,
+    centres,
     grazing_cos,
     fine_side,
     reach,
@@ -286,8 +313,10 @@ def pass_kernel(
     rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
     metres, ScanRays) through the memory's entries: table_keys, table_rows from
     EvidenceMemory.region_table; occupied_starts, occupied_entries and positions from
-    `occupied_layout`; normals (R, d) from `region_normals`, and rays whose direction meets a
-    region's at a cosine below `grazing_cos` pass none of its entries; ray r passes the
+    `occupied_layout`; normals and centres (R, d) from `region_planes`, and rays whose
+    direction meets a region's plane at a cosine below `grazing_cos` pass none of its entries
+    unless they go through that plane within a region's side of its centre before solid_start;
+    ray r passes the
     entries within `pass_reach` of it (reach and widening as there, its gap ray_spacing[r]
     (n,) radians times their distance along it);
     `bits` an axis of a region key; bitmap: occupied_bitmap's (low, extent, words), the
@@ -326,7 +355,18 @@ def pass_kernel(
             if marking:
                 if row >= 0:
                     wanted[row] = True
-            elif row >= 0 and _crosses(normals[row], directions[r], grazing_cos):
+            elif row >= 0 and (
+                _crosses(normals[row], directions[r], grazing_cos)
+                or _goes_through(
+                    origins[r],
+                    directions[r],
+                    free_start[r],
+                    solid_start[r],
+                    centres[row],
+                    normals[row],
+                    side,
+                )
+            ):
                 for k in range(occupied_starts[row], occupied_starts[row + 1]):
                     position = positions[k]
                     along = 0.0
@@ -351,29 +391,31 @@ def pass_kernel(
     return last_ray, used
 
 
-def region_normals(
+def region_planes(
     memory: EvidenceMemory, layout: OccupiedLayout | None = None, wanted: np.ndarray | None = None
-) -> np.ndarray:
-    """(R, d) float64: the unit normal of the plane the occupied entries of each of the
-    memory's regions around hits lie on (at least d of them, weighted by their weights; see
-    PLANAR_SPREAD), NaN where they lie on none (and for regions along rays). layout: the
-    memory's `occupied_layout`, when it is known; wanted: (R,) bool, the regions whose normals
-    are needed (None: all), NaN for the others."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """The plane the occupied entries of each of the memory's regions around hits lie on (at
+    least d of them, weighted by their weights; see PLANAR_SPREAD): (R, d) float64 unit
+    normals and (R, d) float64 centres (the entries' weighted mean, metres), NaN where they
+    lie on none (and for regions along rays). layout: the memory's `occupied_layout`, when it
+    is known; wanted: (R,) bool, the regions whose planes are needed (None: all), NaN for the
+    others."""
     starts, entries, positions = occupied_layout(memory) if layout is None else layout
     wanted = np.ones(len(starts) - 1, dtype=bool) if wanted is None else wanted
-    return _normals_kernel(
+    return _planes_kernel(
         starts, entries, positions, memory.weight, PLANAR_SPREAD, LINEAR_SPREAD, wanted
     )
 
 
 @numba.njit(cache=True, parallel=True)
-def _normals_kernel(starts, entries, positions, weight, planar, linear, wanted):  # pragma: no cover
-    """region_normals from the memory's occupied layout (starts, entries, positions) and
+def _planes_kernel(starts, entries, positions, weight, planar, linear, wanted):  # pragma: no cover
+    """region_planes from the memory's occupied layout (starts, entries, positions) and
     weights (m,), planar and linear PLANAR_SPREAD and LINEAR_SPREAD, of the `wanted` (R,)
     regions."""
     d = positions.shape[1]
     n_regions = len(starts) - 1
     normals = np.full((n_regions, d), np.nan)
+    centres = np.full((n_regions, d), np.nan)
     for chunk in numba.prange((n_regions + CHUNK - 1) // CHUNK):
         mean, spread = np.empty(d), np.empty(d)
         scatter, axes = np.empty((d, d)), np.empty((d, d))
@@ -407,23 +449,28 @@ def _normals_kernel(starts, entries, positions, weight, planar, linear, wanted):
             if spread[0] <= planar * spread[1] and spread[1] > linear * spread[d - 1]:
                 for a in range(d):
                     normals[r, a] = axes[a, 0]
-    return normals
+                    centres[r, a] = mean[a]
+    return normals, centres
 
 
-def region_normals_reference(memory: EvidenceMemory) -> np.ndarray:
-    """Plain NumPy twin of `region_normals`."""
+def region_planes_reference(memory: EvidenceMemory) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of `region_planes`."""
     normals = np.full((len(memory.regions), memory.dim), np.nan)
+    centres = normals.copy()
     region = np.repeat(np.arange(len(memory.regions)), memory.region_sizes)
     occupied = np.flatnonzero((memory.cells >> SUB_BITS == OCCUPIED) & (memory.weight > 0))
     counts = np.bincount(region[occupied], minlength=len(memory.regions))
     rows = np.flatnonzero(counts >= memory.dim)
     if len(rows) == 0:
-        return normals
+        return normals, centres
     occupied = occupied[np.isin(region[occupied], rows)]
     slot = np.searchsorted(rows, region[occupied])
     points, weight = memory.points_at(occupied), memory.weight[occupied].astype(np.float64)
     normals[rows] = plane_normals(*group_spreads(points, slot, weight), PLANAR_SPREAD)
-    return normals
+    means = np.stack([np.bincount(slot, weight * p) for p in points.T], axis=1)
+    means /= np.bincount(slot, weight)[:, None]
+    centres[rows] = np.where(np.isnan(normals[rows]), np.nan, means)
+    return normals, centres
 
 
 def _passes_of_part(arguments: tuple, first: int, last: int) -> np.ndarray:
@@ -495,9 +542,9 @@ def occupied_passes(
     if np.count_nonzero(np.diff(starts)) > MARKED_REGIONS_PER_RAY * len(rays):
         wanted = np.zeros(len(starts) - 1, dtype=bool)
         unread = np.zeros((0, memory.dim))
-        _in_parts((*walk, unread, *tests, wanted), len(rays))
-    normals = region_normals(memory, layout, wanted)
-    found = _in_parts((*walk, normals, *tests, np.zeros(0, dtype=bool)), len(rays))
+        _in_parts((*walk, unread, unread, *tests, wanted), len(rays))
+    planes = region_planes(memory, layout, wanted)
+    found = _in_parts((*walk, *planes, *tests, np.zeros(0, dtype=bool)), len(rays))
     # Counted by entry rather than sorted (np.unique), which is several times faster.
     passes = np.bincount(found)
     entries = np.flatnonzero(passes)
@@ -536,14 +583,16 @@ def occupied_passes_reference(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plain NumPy twin of `occupied_passes`: every ray against every occupied entry, the
     ray's free part clipped to the entry's region by the slab test, the entries of a region
-    whose plane it meets at more than GRAZING_DEGREES left out, and in the solid band only
-    those off the plane of the batch's hits."""
+    whose plane it meets at more than GRAZING_DEGREES left out unless it goes through that
+    plane near the region before its solid band, and in the solid band only those off the
+    plane of the batch's hits."""
     samples = memory.samples()
     entries = np.flatnonzero(samples.occupied)
     points = samples.points[entries]
     regions = np.searchsorted(memory.region_first(), entries, side="right") - 1
-    normals = region_normals_reference(memory)[regions]
+    normals, centres = (plane[regions] for plane in region_planes_reference(memory))
     planar = ~np.isnan(normals[:, 0])
+    plane_gap = OFF_PLANE_CELLS * memory.sides[0]
     grazing_cos = np.cos(np.radians(GRAZING_DEGREES))
     side = memory.sides[0] * FINE_CELLS_PER_RADIUS
     # The entry's region, which its mean may lie on the far edge of.
@@ -556,16 +605,22 @@ def occupied_passes_reference(
         o, u = rays.origins[r], rays.directions[r]
         start, end = rays.free_start[r], rays.free_end[r]
         with np.errstate(invalid="ignore"):
-            off_plane = np.abs((points - hit_points[r]) @ hit_normals[r]) > (
-                OFF_PLANE_CELLS * memory.sides[0]
-            )
+            off_plane = np.abs((points - hit_points[r]) @ hit_normals[r]) > plane_gap
         with np.errstate(divide="ignore", invalid="ignore"):
             t0, t1 = (low - o) / u, (low + side - o) / u
         enter = np.maximum(np.nanmax(np.minimum(t0, t1), axis=1), start)
         leave = np.minimum(np.nanmin(np.maximum(t0, t1), axis=1), end)
         along = (points - o) @ u
         off = np.linalg.norm(points - o - along[:, None] * u, axis=1)
-        crosses = ~planar | (np.abs(np.nan_to_num(normals) @ u) >= grazing_cos)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            through = ((centres - o) * normals).sum(axis=1) / (normals @ u)
+            crossing = o + through[:, None] * u - centres
+            goes_through = (
+                (through > start)
+                & (through < solid_start[r])
+                & (np.linalg.norm(crossing, axis=1) < side)
+            )
+        crosses = ~planar | (np.abs(np.nan_to_num(normals) @ u) >= grazing_cos) | goes_through
         solid = along >= solid_start[r]
         passes += (
             (enter < leave)

@@ -197,29 +197,40 @@ def wall_memory() -> EvidenceMemory:
     return memory_of(points, np.full(16, OCCUPIED))
 
 
-def test_a_region_of_entries_on_a_plane_has_its_normal():
-    normals = passes_module.region_normals(wall_memory())
+def test_a_region_of_entries_on_a_plane_has_its_normal_and_centre():
+    normals, centres = passes_module.region_planes(wall_memory())
     np.testing.assert_allclose(np.abs(normals), [[1.0, 0.0, 0.0]], atol=1e-9)
+    np.testing.assert_allclose(centres, [[1.1, 0.1, 0.1]], atol=1e-9)
     # Entries on a line, or too few to span a plane, have none.
     line = memory_of(
         np.array([[1.1, 0.025, 0.025], [1.1, 0.075, 0.075], [1.1, 0.125, 0.125]]),
         np.full(3, OCCUPIED),
     )
-    assert np.isnan(passes_module.region_normals(line)).all()
+    assert all(np.isnan(plane).all() for plane in passes_module.region_planes(line))
 
 
-@pytest.mark.parametrize("degrees, passed", [(0.0, True), (60.0, True), (80.0, False)])
-def test_rays_along_a_surface_do_not_pass_it(degrees, passed):
-    """Rays through the middle of the wall's patch, at `degrees` to its normal, hitting 2 m
-    beyond: one that runs along it (more than GRAZING_DEGREES) passes none of its entries."""
+@pytest.mark.parametrize(
+    "degrees, in_front, passed",
+    [(0.0, 0.0, True), (60.0, 0.0, True), (87.0, 0.0, True), (87.0, 0.02, False)],
+)
+def test_rays_along_a_surface_pass_it_only_going_through_it(monkeypatch, degrees, in_front, passed):
+    """Rays at `degrees` to the wall patch's normal, `in_front` metres in front of its
+    middle, hitting 2 m beyond it: one that runs along it (more than GRAZING_DEGREES) passes
+    its entries only where it goes through its plane near them, as rays where a cart's top
+    stood do; skimming 2 cm in front (within reach of entries 2.5 cm to its side) it meets
+    the plane 38 cm on, outside the patch's region, and passes none, as rays along a
+    surface still there do."""
     angle = np.radians(degrees)
     direction = np.array([[np.cos(angle), np.sin(angle), 0.0]])
-    through = np.array([[1.1, 0.1, 0.1]])
-    rays = rays_of(through - 2.0 * direction, through + 2.0 * direction, np.array([True]), 0.05)
+    through = np.array([[1.1 - in_front, 0.1, 0.1]])
+    rays = rays_of(through - 0.5 * direction, through + 2.0 * direction, np.array([True]), 0.05)
     entries, _ = occupied_passes(wall_memory(), rays, 0.04, 0.15)
     assert (len(entries) > 0) == passed
     want, _ = occupied_passes_reference(wall_memory(), rays, 0.04, 0.15)
     np.testing.assert_array_equal(entries, want)
+    # Were any angle not grazing, every one of these rays would pass entries.
+    monkeypatch.setattr(passes_module, "GRAZING_DEGREES", 90.0)
+    assert len(occupied_passes(wall_memory(), rays, 0.04, 0.15)[0]) > 0
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -228,18 +239,19 @@ def test_region_normals_agree_with_their_numpy_twin(rng, dim):
     points = planar_patches(rng, dim, 60, 40, 0.1, 0.003)
     points = np.concatenate([points, rng.uniform(-2.0, 2.0, (500, dim))])
     memory = memory_of(points, np.full(len(points), OCCUPIED))
-    compiled = passes_module.region_normals(memory)
-    reference = passes_module.region_normals_reference(memory)
+    compiled, centres = passes_module.region_planes(memory)
+    reference, reference_centres = passes_module.region_planes_reference(memory)
     planar = assert_same_normals(compiled, reference)
     assert planar.sum() > 40
+    np.testing.assert_allclose(centres, reference_centres, atol=1e-12)
 
 
 def test_only_the_normals_of_wanted_regions_are_found(rng):
     points = planar_patches(rng, 3, 30, 40, 0.1, 0.003)
     memory = memory_of(points, np.full(len(points), OCCUPIED))
-    every = passes_module.region_normals(memory)
+    every = passes_module.region_planes(memory)[0]
     wanted = rng.random(len(every)) < 0.5
-    some = passes_module.region_normals(memory, wanted=wanted)
+    some = passes_module.region_planes(memory, wanted=wanted)[0]
     np.testing.assert_array_equal(some[wanted], every[wanted])
     assert np.isnan(some[~wanted]).all() and not np.isnan(every[~wanted]).all()
 
