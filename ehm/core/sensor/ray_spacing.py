@@ -26,14 +26,14 @@ def angular_spacing(directions: np.ndarray, scan_of: np.ndarray) -> np.ndarray:
     azimuths = int(np.ceil(2.0 * np.pi / cell))
     turn = np.arctan2(directions[:, 1], directions[:, 0]) + np.pi
     column = np.minimum((turn / (2.0 * np.pi) * azimuths).astype(np.int64), azimuths - 1)
-    if dim == 2:
-        cells, cell_angle = column, 2.0 * np.pi / azimuths
-    else:
-        heights = int(np.ceil(2.0 / cell))  # sine of elevation, -1 to 1, in steps of a cell
+    # Rows of cells by the sine of elevation, -1 to 1, in steps of a cell; one row in 2D.
+    heights = 1 if dim == 2 else int(np.ceil(2.0 / cell))
+    row = np.zeros(n, dtype=np.int64)
+    if dim == 3:
         sine = np.clip(directions[:, 2], -1.0, 1.0)
         row = np.minimum(((sine + 1.0) / 2.0 * heights).astype(np.int64), heights - 1)
-        cells, cell_angle = row * azimuths + column, (2.0 * np.pi / azimuths) * (2.0 / heights)
-    n_cells = azimuths * (1 if dim == 2 else int(np.ceil(2.0 / cell)))
+    cells, n_cells = row * azimuths + column, heights * azimuths
+    cell_angle = 2.0 * np.pi / azimuths * (1.0 if dim == 2 else 2.0 / heights)
     scans, scan_row = np.unique(scan_of, return_inverse=True)
     covered = np.unique(scan_row * n_cells + cells)
     covered_angle = np.bincount(covered // n_cells, minlength=len(scans)) * cell_angle
