@@ -18,7 +18,8 @@ LiDARs (2 degrees apart on 16 beams), so cells between rings are not left out.""
 
 def angular_spacing(directions: np.ndarray, scan_of: np.ndarray) -> np.ndarray:
     """(n,) float64 radians: the spacing of the rays of each ray's scan. directions: (n, d)
-    unit vectors, d 2 or 3; scan_of: (n,) int64 >= 0, the scan of each ray."""
+    unit vectors, d 2 or 3; scan_of: (n,) int64, the scan of each ray, 0 to the number of
+    scans - 1."""
     n, dim = directions.shape
     if n == 0:
         return np.zeros(0)
@@ -34,9 +35,10 @@ def angular_spacing(directions: np.ndarray, scan_of: np.ndarray) -> np.ndarray:
         row = np.minimum(((sine + 1.0) / 2.0 * heights).astype(np.int64), heights - 1)
     cells, n_cells = row * azimuths + column, heights * azimuths
     cell_angle = 2.0 * np.pi / azimuths * (1.0 if dim == 2 else 2.0 / heights)
-    scans, scan_row = np.unique(scan_of, return_inverse=True)
-    covered = np.unique(scan_row * n_cells + cells)
-    covered_angle = np.bincount(covered // n_cells, minlength=len(scans)) * cell_angle
-    rays = np.bincount(scan_row, minlength=len(scans))
+    # Counted, not sorted: a batch's rays meet a few thousand cells of each of its scans.
+    n_scans = int(scan_of.max()) + 1
+    met = np.bincount(scan_of * n_cells + cells, minlength=n_scans * n_cells)
+    covered_angle = np.count_nonzero(met.reshape(n_scans, n_cells), axis=1) * cell_angle
+    rays = np.maximum(np.bincount(scan_of, minlength=n_scans), 1)
     spacing = covered_angle / rays if dim == 2 else np.sqrt(covered_angle / rays)
-    return spacing[scan_row]
+    return spacing[scan_of]

@@ -94,6 +94,28 @@ def test_passes_of_sparse_evidence_agree_with_their_numpy_twin(rng, monkeypatch,
 
 
 @pytest.mark.parametrize("dim", [2, 3])
+def test_passes_of_planar_evidence_agree_with_their_numpy_twin(rng, dim):
+    """Entries on patches of planes, and rays along the patches' planes (15 degrees off at
+    most, all grazing) from beside them through or past them: which of them go through a
+    plane near its entries, and so pass them, is the NumPy twin's."""
+    points = planar_patches(rng, dim, 30, 40, 0.1, 0.003)
+    memory = memory_of(points, np.full(len(points), OCCUPIED))
+    normals, centres = passes_module.region_planes(memory)
+    planar = np.flatnonzero(~np.isnan(normals[:, 0]))
+    pick = planar[rng.integers(0, len(planar), 400)]
+    along = rng.normal(size=(400, dim))
+    along -= np.sum(along * normals[pick], axis=1, keepdims=True) * normals[pick]
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    tilt = np.radians(rng.uniform(-15.0, 15.0, 400))[:, None]
+    directions = np.cos(tilt) * along + np.sin(tilt) * normals[pick]
+    start = centres[pick] - rng.uniform(0.5, 1.5, (400, 1)) * directions
+    start += rng.uniform(-0.05, 0.05, (400, 1)) * normals[pick]
+    ends = start + rng.uniform(0.6, 3.0, (400, 1)) * directions
+    rays = rays_of(start, ends, rng.random(400) < 0.7, 0.05)
+    assert_passes_agree(memory, rays, 20)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
 def test_occupied_layout_holds_each_regions_occupied_entries_in_order(rng, dim):
     points = rng.uniform(-2.0, 2.0, (800, dim))
     kinds = rng.choice([OCCUPIED, FREE_AT_SURFACE], 800, p=[0.6, 0.4])
