@@ -12,16 +12,11 @@ The band is `occupied_depth` deep and grows with the square of the ray's length,
 camera's range noise does (BAND_GROWTH). Within that band, a ray whose hit lies on a plane of
 the batch's own hits (the floor behind a cart that left) passes the entries that lie off the
 plane: the cart's lowest centimetres, which rays to the floor behind it reach only within the
-band. Nor does a ray that runs along the surface: where a region's occupied entries lie on a
-plane, a ray at more than GRAZING_DEGREES to its normal passes none of them (on TUM's depth
-frames, the rays that passed walls still there met them at 75-84 degrees, and ended 3-7 cm
-beyond), unless it goes through that plane near them before its solid band: a LiDAR a little
-above a cart's top meets it at a grazing angle, and once the cart has gone its rays go through
-where the top stood, while rays along a surface still there meet its plane only where they
-end. An entry the batch hits again stays: one in whose cell a new hit lands, or near whose
+band. An entry the batch hits again stays: one in whose cell a new hit lands, or near whose
 mean one does (`hit_again`), within the lateral shift a small error in the sensor's
 orientation gives at its range (REGISTRATION_SLACK): a surface seen from a pose a degree off
-stands beside where it stood, and the rays past its edge go through its old place.
+stands beside where it stood, and the rays past its edge go through its old place; rays
+that run along a surface still there, whose hits land on it, pass it no more than that.
 Each ray walks the regions it crosses (a 3D DDA on the grid of regions,
 ehm.core.primitives.grid_walk), tests each in a bitmap of the regions that hold occupied entries,
 and looks up only those in the table of the memory's regions.
@@ -39,9 +34,7 @@ from scipy.spatial import cKDTree
 from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
 from ehm.core.observations.memory_keys import SUB_BITS, region_bits
-from ehm.core.observations.planes import LINEAR_SPREAD, group_spreads, plane_normals
 from ehm.core.observations.samples import ScanRays
-from ehm.core.primitives.eigen import eigen_in_place
 from ehm.core.primitives.grid_walk import walk_setup, walk_step
 from ehm.core.primitives.hashing import row_of
 from ehm.core.search.index import PARALLEL_SEARCH_POINTS
@@ -61,14 +54,6 @@ PASS_REACH_WIDENING = 2.0
 # farther than this from the plane of its batch's hits around its hit, in fine evidence cells:
 # a departed object's old faces then fade, where the band would shield them.
 OFF_PLANE_CELLS = 1.5
-# Rays at more than this angle to the normal of the plane a region's occupied entries lie on
-# pass none of them, degrees.
-GRAZING_DEGREES = 70.0
-# A region's occupied entries lie on a plane when their least spread (the smallest eigenvalue
-# of their scatter) is at most PLANAR_SPREAD of the next, and not on a line (LINEAR_SPREAD,
-# ehm.core.observations.planes). A depth camera's noise makes the median TUM region a third as
-# thick as it is wide: at 0.1, three in four regions with passes had no plane.
-PLANAR_SPREAD = 0.35
 # The solid band in front of a hit grows by this many metres per square metre of the ray's
 # length: at 2 m it is `occupied_depth` and 16 cm deep, at 5 m a metre more. Depth cameras'
 # range noise grows with the square of range, and far walls seen by one frame would otherwise
@@ -86,13 +71,7 @@ PASS_PARTS = 8
 # tests each region it walks in the bitmap and looks up only those it holds (a small share of
 # its steps). A box of more regions goes without, and every step is looked up.
 BITMAP_REGIONS = 1 << 28
-# Regions holding occupied entries, per ray of a batch, beyond which the rays first mark the
-# regions they cross and only those regions' normals are found: worth it only where a drive
-# passes its places again and the memory holds many regions per ray (the maps are the same
-# either way).
-MARKED_REGIONS_PER_RAY = 4.0
-# Regions one thread lays out or fits a plane to at a time, with one set of scratch arrays
-# (made per region, they would slow the layout).
+# Regions one thread lays out at a time.
 CHUNK = 1024
 
 
@@ -218,41 +197,6 @@ def _layout_kernel(
 
 
 @numba.njit(cache=True, inline="always")
-def _crosses(normal, direction, grazing_cos):  # pragma: no cover - compiled
-    """Whether a ray along unit `direction` (d,) crosses a region whose occupied entries lie
-    on the plane of unit `normal` (d,) (NaN: on none) at a cosine of at least grazing_cos."""
-    if normal[0] != normal[0]:
-        return True
-    cosine = 0.0
-    for a in range(len(normal)):
-        cosine += normal[a] * direction[a]
-    return abs(cosine) >= grazing_cos
-
-
-@numba.njit(cache=True, inline="always")
-def _goes_through(origin, direction, start, end, centre, normal, side):  # pragma: no cover
-    """Whether a ray from `origin` along unit `direction` (d,) crosses the plane through
-    `centre` (d,) of unit `normal` (d,) (NaN: none, and it does not) between `start` and `end`
-    metres along it, within `side` metres of the centre."""
-    if normal[0] != normal[0]:
-        return False
-    facing, height = 0.0, 0.0
-    for a in range(len(normal)):
-        facing += normal[a] * direction[a]
-        height += normal[a] * (centre[a] - origin[a])
-    if facing == 0.0:
-        return False
-    t = height / facing
-    if t <= start or t >= end:
-        return False
-    gap = 0.0
-    for a in range(len(normal)):
-        offset = origin[a] + t * direction[a] - centre[a]
-        gap += offset * offset
-    return gap < side * side
-
-
-@numba.njit(cache=True, inline="always")
 def _off_plane(position, point, normal, gap):  # pragma: no cover - compiled
     """Whether `position` (d,) lies farther than `gap` metres from the plane through `point`
     (d,) of unit `normal` (d,) (NaN: no plane, and it does not)."""
@@ -296,16 +240,12 @@ def pass_kernel(
     occupied_starts,
     occupied_entries,
     positions,
-    normals,
-    centres,
-    grazing_cos,
     fine_side,
     reach,
     ray_spacing,
     widening,
     bits,
     bitmap,
-    wanted,
     found,
     used,
 ):  # pragma: no cover - compiled
@@ -313,19 +253,13 @@ def pass_kernel(
     rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
     metres, ScanRays) through the memory's entries: table_keys, table_rows from
     EvidenceMemory.region_table; occupied_starts, occupied_entries and positions from
-    `occupied_layout`; normals and centres (R, d) from `region_planes`, and rays whose
-    direction meets a region's plane at a cosine below `grazing_cos` pass none of its entries
-    unless they go through that plane within a region's side of its centre before solid_start;
-    ray r passes the
-    entries within `pass_reach` of it (reach and widening as there, its gap ray_spacing[r]
-    (n,) radians times their distance along it);
+    `occupied_layout`; ray r passes the entries within `pass_reach` of it (reach and
+    widening as there, its gap ray_spacing[r] (n,) radians times their distance along it);
     `bits` an axis of a region key; bitmap: occupied_bitmap's (low, extent, words), the
     regions to look up. From solid_start (n,) on, a ray passes only entries farther than
     `plane_gap` metres from the plane through its hit, hit_points (n, d), of normal
     hit_normals (n, d) (NaN: none, and it passes none there). Stops before a ray that might
-    overfill `found`; returns (the next ray, entries found). With `wanted` (R,) bool, not
-    (0,), only marks in it the rows of the regions holding occupied entries that the rays
-    cross, and finds nothing (normals unread)."""
+    overfill `found`; returns (the next ray, entries found)."""
     d = origins.shape[1]
     bitmap_low, bitmap_extent, bitmap_words = bitmap
     side = fine_side * FINE_CELLS_PER_RADIUS
@@ -334,7 +268,6 @@ def pass_kernel(
     step = np.empty(d, dtype=np.int64)
     t_next = np.empty(d)
     t_delta = np.empty(d)
-    marking = len(wanted) > 0
     for r in range(first_ray, last_ray):
         t, t_end = free_start[r], free_end[r]
         if t_end <= t:
@@ -352,21 +285,7 @@ def pass_kernel(
             for a in range(d):
                 key = (key << bits) | (region[a] + half)
             row = row_of(table_keys, table_rows, key << 1)  # the region around hits
-            if marking:
-                if row >= 0:
-                    wanted[row] = True
-            elif row >= 0 and (
-                _crosses(normals[row], directions[r], grazing_cos)
-                or _goes_through(
-                    origins[r],
-                    directions[r],
-                    free_start[r],
-                    solid_start[r],
-                    centres[row],
-                    normals[row],
-                    side,
-                )
-            ):
+            if row >= 0:
                 for k in range(occupied_starts[row], occupied_starts[row + 1]):
                     position = positions[k]
                     along = 0.0
@@ -391,91 +310,9 @@ def pass_kernel(
     return last_ray, used
 
 
-def region_planes(
-    memory: EvidenceMemory, layout: OccupiedLayout | None = None, wanted: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """The plane the occupied entries of each of the memory's regions around hits lie on (at
-    least d of them, weighted by their weights; see PLANAR_SPREAD): (R, d) float64 unit
-    normals and (R, d) float64 centres (the entries' weighted mean, metres), NaN where they
-    lie on none (and for regions along rays). layout: the memory's `occupied_layout`, when it
-    is known; wanted: (R,) bool, the regions whose planes are needed (None: all), NaN for the
-    others."""
-    starts, entries, positions = occupied_layout(memory) if layout is None else layout
-    wanted = np.ones(len(starts) - 1, dtype=bool) if wanted is None else wanted
-    return _planes_kernel(
-        starts, entries, positions, memory.weight, PLANAR_SPREAD, LINEAR_SPREAD, wanted
-    )
-
-
-@numba.njit(cache=True, parallel=True)
-def _planes_kernel(starts, entries, positions, weight, planar, linear, wanted):  # pragma: no cover
-    """region_planes from the memory's occupied layout (starts, entries, positions) and
-    weights (m,), planar and linear PLANAR_SPREAD and LINEAR_SPREAD, of the `wanted` (R,)
-    regions."""
-    d = positions.shape[1]
-    n_regions = len(starts) - 1
-    normals = np.full((n_regions, d), np.nan)
-    centres = np.full((n_regions, d), np.nan)
-    for chunk in numba.prange((n_regions + CHUNK - 1) // CHUNK):
-        mean, spread = np.empty(d), np.empty(d)
-        scatter, axes = np.empty((d, d)), np.empty((d, d))
-        for r in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_regions)):
-            if not wanted[r]:
-                continue
-            mean[:] = 0.0
-            total, count = 0.0, 0
-            for k in range(starts[r], starts[r + 1]):
-                w = weight[entries[k]]
-                if w > 0:
-                    for a in range(d):
-                        mean[a] += w * positions[k, a]
-                    total += w
-                    count += 1
-            if count < d:
-                continue
-            mean /= total
-            scatter[:] = 0.0
-            for k in range(starts[r], starts[r + 1]):
-                w = weight[entries[k]]
-                if w > 0:
-                    for a in range(d):
-                        for b in range(d):
-                            scatter[a, b] += (
-                                w * (positions[k, a] - mean[a]) * (positions[k, b] - mean[b])
-                            )
-            axes[:] = 0.0
-            eigen_in_place(scatter, spread, axes)
-            # Spread least across a plane, and along it in every direction (not a line).
-            if spread[0] <= planar * spread[1] and spread[1] > linear * spread[d - 1]:
-                for a in range(d):
-                    normals[r, a] = axes[a, 0]
-                    centres[r, a] = mean[a]
-    return normals, centres
-
-
-def region_planes_reference(memory: EvidenceMemory) -> tuple[np.ndarray, np.ndarray]:
-    """Plain NumPy twin of `region_planes`."""
-    normals = np.full((len(memory.regions), memory.dim), np.nan)
-    centres = normals.copy()
-    region = np.repeat(np.arange(len(memory.regions)), memory.region_sizes)
-    occupied = np.flatnonzero((memory.cells >> SUB_BITS == OCCUPIED) & (memory.weight > 0))
-    counts = np.bincount(region[occupied], minlength=len(memory.regions))
-    rows = np.flatnonzero(counts >= memory.dim)
-    if len(rows) == 0:
-        return normals, centres
-    occupied = occupied[np.isin(region[occupied], rows)]
-    slot = np.searchsorted(rows, region[occupied])
-    points, weight = memory.points_at(occupied), memory.weight[occupied].astype(np.float64)
-    normals[rows] = plane_normals(*group_spreads(points, slot, weight), PLANAR_SPREAD)
-    means = np.stack([np.bincount(slot, weight * p) for p in points.T], axis=1)
-    means /= np.bincount(slot, weight)[:, None]
-    centres[rows] = np.where(np.isnan(normals[rows]), np.nan, means)
-    return normals, centres
-
-
 def _passes_of_part(arguments: tuple, first: int, last: int) -> np.ndarray:
     """Occupied entries passed by rays first .. last - 1 (`arguments`: pass_kernel's from
-    `origins` to `wanted`), one row per pass."""
+    `origins` to `bitmap`), one row per pass."""
     found = np.empty(max(1024, 64 * (last - first)), dtype=np.int64)
     used, ray = 0, first
     while ray < last:
@@ -502,12 +339,7 @@ def occupied_passes(
     """The memory's occupied entries that `rays` pass (see the module's docstring), within
     `reach` metres (widened by `pass_reach` between sparse rays), a ray with a hit only
     where it goes on for `depth` metres more (the band a surface is taken to be solid,
-    `occupied_depth`): (entries (k,) int64 sorted, passes (k,) int64 rays through each).
-
-    The rays read the normals of the regions they cross alone. Where the regions holding
-    occupied entries outnumber the rays MARKED_REGIONS_PER_RAY times (a long drive's memory,
-    of which a batch crosses a part), the rays first walk to mark those regions, and only
-    their normals are found; else every region's are."""
+    `occupied_depth`): (entries (k,) int64 sorted, passes (k,) int64 rays through each)."""
     none = np.zeros(0, dtype=np.int64)
     if len(memory) == 0 or len(rays) == 0:
         return none, none
@@ -515,7 +347,7 @@ def occupied_passes(
     layout = occupied_layout(memory)
     fine_side = memory.sides[0]
     solid_start, hit_points = _solid_band(rays, depth)
-    walk = (
+    arguments = (
         np.ascontiguousarray(rays.origins),
         rays.directions,
         rays.free_start,
@@ -527,9 +359,6 @@ def occupied_passes(
         keys,
         rows,
         *layout,
-    )
-    tests = (
-        np.cos(np.radians(GRAZING_DEGREES)),
         fine_side,
         reach,
         rays.ray_spacing,
@@ -537,14 +366,7 @@ def occupied_passes(
         region_bits(memory.dim),
         occupied_bitmap(memory.regions, layout[0], region_bits(memory.dim), memory.dim),
     )
-    starts = layout[0]
-    wanted = None
-    if np.count_nonzero(np.diff(starts)) > MARKED_REGIONS_PER_RAY * len(rays):
-        wanted = np.zeros(len(starts) - 1, dtype=bool)
-        unread = np.zeros((0, memory.dim))
-        _in_parts((*walk, unread, unread, *tests, wanted), len(rays))
-    planes = region_planes(memory, layout, wanted)
-    found = _in_parts((*walk, *planes, *tests, np.zeros(0, dtype=bool)), len(rays))
+    found = _in_parts(arguments, len(rays))
     # Counted by entry rather than sorted (np.unique), which is several times faster.
     passes = np.bincount(found)
     entries = np.flatnonzero(passes)
@@ -582,18 +404,12 @@ def occupied_passes_reference(
     memory: EvidenceMemory, rays: ScanRays, reach: float, depth: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plain NumPy twin of `occupied_passes`: every ray against every occupied entry, the
-    ray's free part clipped to the entry's region by the slab test, the entries of a region
-    whose plane it meets at more than GRAZING_DEGREES left out unless it goes through that
-    plane near the region before its solid band, and in the solid band only those off the
-    plane of the batch's hits."""
+    ray's free part clipped to the entry's region by the slab test, and in the solid band
+    only the entries off the plane of the batch's hits."""
     samples = memory.samples()
     entries = np.flatnonzero(samples.occupied)
     points = samples.points[entries]
-    regions = np.searchsorted(memory.region_first(), entries, side="right") - 1
-    normals, centres = (plane[regions] for plane in region_planes_reference(memory))
-    planar = ~np.isnan(normals[:, 0])
     plane_gap = OFF_PLANE_CELLS * memory.sides[0]
-    grazing_cos = np.cos(np.radians(GRAZING_DEGREES))
     side = memory.sides[0] * FINE_CELLS_PER_RADIUS
     # The entry's region, which its mean may lie on the far edge of.
     cell_centres = memory.corners_at(entries) + memory.sides[0] / 2
@@ -612,22 +428,12 @@ def occupied_passes_reference(
         leave = np.minimum(np.nanmin(np.maximum(t0, t1), axis=1), end)
         along = (points - o) @ u
         off = np.linalg.norm(points - o - along[:, None] * u, axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            through = ((centres - o) * normals).sum(axis=1) / (normals @ u)
-            crossing = o + through[:, None] * u - centres
-            goes_through = (
-                (through > start)
-                & (through < solid_start[r])
-                & (np.linalg.norm(crossing, axis=1) < side)
-            )
-        crosses = ~planar | (np.abs(np.nan_to_num(normals) @ u) >= grazing_cos) | goes_through
         solid = along >= solid_start[r]
         passes += (
             (enter < leave)
             & (along > start)
             & (along < end)
             & (off < pass_reach(reach, rays.ray_spacing[r] * along))
-            & crosses
             & (~solid | off_plane)
         )
     passed = passes > 0
