@@ -6,15 +6,18 @@ leaves, a crate arrives and a person walks across, measured in 0.05 m voxels aft
 The scenes: ehm.eval.datasets.changing, 14 scans each, by a 64-beam LiDAR (+-45 degrees) 1.2 m
 up driving along the room, and by 32-beam (-25 to +15 degrees, 1.2 and 1.9 m up) and 16-beam
 (+-15 degrees, 1.0 m up) LiDARs on a loop, whose rings are 1.3 and 2 degrees apart: old faces
-lie between their beams and are met at grazing angles. The scores: ehm.eval.change_scores.
+lie between their beams and are met at grazing angles; then, on the loop, a 0.3 m box in the
+cart's place (32 beams), a 1.5 m one (16 beams), and the cart coming back at scan 11 (32
+beams). The scores: ehm.eval.change_scores.
 Methods: EHM with the defaults (it takes back the evidence rays pass through,
 `pass_retraction` 0.5), OctoMap and, on the first scene, EHM keeping all evidence
 (`pass_retraction` 0: it never forgets). Prints, per scene and method: the share of the cart's
 seen surface still read occupied by the number of scans that have passed through it since it
 left (ghosts), the share of the crate's seen surface read occupied by the number of scans that
-saw it, the share of the person's trail read occupied at the end, and near-surface precision,
-recall and F1 on the static parts at the end; then build seconds. `--set name=value` overrides
-a MapConfig setting of both EHM maps (as often as wanted; `pass_retraction` stays each one's).
+saw it (and of the cart's, once back), the share of the person's trail read occupied at the
+end, and near-surface precision, recall and F1 on the static parts at the end; then build
+seconds. `--set name=value` overrides a MapConfig setting of both EHM maps (as often as
+wanted; `pass_retraction` stays each one's).
 """
 
 from __future__ import annotations
@@ -44,16 +47,17 @@ EHM_SETTINGS = {"ehm": {}, "ehm, pass_retraction 0": {"pass_retraction": 0.0}}
 METHODS = (*EHM_SETTINGS, "octomap")
 SCANS_THROUGH = (1, 3, 6, 8)
 SCANS_SEEN = (1, 3)
+LOOP_32 = {"rings": 32, "elevations": (-25.0, 15.0), "path": "loop"}
+LOOP_16 = {"rings": 16, "elevations": (-15.0, 15.0), "height": 1.0, "path": "loop"}
 SCENES = {
     "64 beams, 1.2 m, line": {},
-    "32 beams, 1.2 m, loop": {"rings": 32, "elevations": (-25.0, 15.0), "path": "loop"},
-    "32 beams, 1.9 m, loop": {
-        "rings": 32, "elevations": (-25.0, 15.0), "height": 1.9, "path": "loop",
-    },
-    "16 beams, 1.0 m, loop": {
-        "rings": 16, "elevations": (-15.0, 15.0), "height": 1.0, "path": "loop",
-    },
-}  # fmt: skip
+    "32 beams, 1.2 m, loop": LOOP_32,
+    "32 beams, 1.9 m, loop": {**LOOP_32, "height": 1.9},
+    "16 beams, 1.0 m, loop": LOOP_16,
+    "32 beams, 1.2 m, loop, 0.3 m box": {**LOOP_32, "cart": (0.3, 0.3, 0.3)},
+    "16 beams, 1.0 m, loop, 1.5 m box": {**LOOP_16, "cart": (1.5, 1.0, 1.5)},
+    "32 beams, 1.2 m, loop, cart back": {**LOOP_32, "returns_at": 11},
+}
 
 
 def _labels_of(octomap: OctoMapMapper):
@@ -111,6 +115,7 @@ def main() -> None:
         ["scene", "method"]
         + [f"ghosts after {k}" for k in SCANS_THROUGH]
         + [f"crate after {k}" for k in SCANS_SEEN]
+        + [f"back after {k}" for k in SCANS_SEEN]
         + ["trail", "near precision", "near recall", "near F1", "build s"]
     )
     rows = []
@@ -122,21 +127,35 @@ def main() -> None:
 
 def scores(runs: list[dict[str, dict]], method: str) -> list[str]:
     """The row of `method`'s measures, each the mean over `runs` (see `run`)."""
-    ghosts = [
-        np.nanmean([r[method]["probe"].ghost_tally.share(k) for r in runs]) for k in SCANS_THROUGH
-    ]
-    crate = [
-        np.nanmean([r[method]["probe"].arrival_tally.share(k) for r in runs]) for k in SCANS_SEEN
+    probes = [r[method]["probe"] for r in runs]
+    shares = [
+        _mean_share([p.ghost_tally for p in probes], SCANS_THROUGH),
+        _mean_share([p.arrival_tally for p in probes], SCANS_SEEN),
+        _mean_share([p.return_tally for p in probes], SCANS_SEEN),
     ]
     last = {key: np.mean([r[method]["last"][key] for r in runs]) for key in runs[0][method]["last"]}
     seconds = np.mean([r[method]["seconds"] for r in runs])
     return (
         [method]
-        + [f"{g:.3f}" for g in ghosts]
-        + [f"{c:.3f}" for c in crate]
+        + [_share_text(share) for tally in shares for share in tally]
         + [f"{last[k]:.3f}" for k in ("trail", "near precision", "near recall", "near F1")]
         + [f"{seconds:.2f}"]
     )
+
+
+def _mean_share(tallies: list, counts: tuple[int, ...]) -> list[float]:
+    """The mean over `tallies` (ehm.eval.change_scores.Tally) of the share read occupied after
+    each of `counts` scans, over the runs where it was read (NaN where in none)."""
+    means = []
+    for k in counts:
+        read = [share for tally in tallies if np.isfinite(share := tally.share(k))]
+        means.append(float(np.mean(read)) if read else float("nan"))
+    return means
+
+
+def _share_text(share: float) -> str:
+    """A share with three decimals; blank where there is none (NaN)."""
+    return f"{share:.3f}" if np.isfinite(share) else ""
 
 
 if __name__ == "__main__":

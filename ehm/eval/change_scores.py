@@ -3,9 +3,10 @@ resolution on OctoMap's grid (voxel k spans [k, k + 1) times the resolution, rea
 centre):
 
 - ghosts: voxels of a departed object's surface that rays have passed through since it left,
-  still read occupied; counted by how many scans have passed through each (1 = the first);
+  still read occupied; counted by how many scans have passed through each (1 = the first),
+  until it comes back, if it does;
 - arrivals: voxels of an arrived object's surface that a scan hit, read occupied; counted by
-  how many scans have seen each;
+  how many scans have seen each; alike for a departed object that came back (returns);
 - trail: voxels a walker's surface stood in (a scan hit it there), that it has left and that
   rays have passed through since, read occupied;
 - static: points near the surfaces that never move, against their exact occupancy.
@@ -132,10 +133,17 @@ class ChangeProbe:
         self, dataset: ChangingDataset, resolution: float, rng: np.random.Generator
     ) -> None:
         self.dataset, self.resolution = dataset, resolution
+        n = len(dataset.scans)
         self.ghosts = _departures(dataset.mover("departs"), dataset.scans, resolution)
         self.arrivals = _arrivals(dataset.mover("arrives"), dataset.scans, resolution)
+        nothing = np.zeros((0, dataset.scans[0].dim), dtype=np.int64)
+        self.returns = _Tracked(nothing, np.zeros(0, dtype=np.int64))
+        self.ghosts_until = n
+        if dataset.has("returns"):
+            self.returns = _arrivals(dataset.mover("returns"), dataset.scans, resolution)
+            self.ghosts_until = _first_present(dataset.mover("returns"), n)
         self.trail = _trail(dataset.mover("walks"), dataset.scans, resolution)
-        self.ghost_tally, self.arrival_tally = Tally(), Tally()
+        self.ghost_tally, self.arrival_tally, self.return_tally = Tally(), Tally(), Tally()
         self.near = _static_near_points(dataset, rng)
         self.near_occupied = dataset.static.occupied(self.near)
 
@@ -144,11 +152,12 @@ class ChangeProbe:
         share of the trail read occupied and near-surface precision, recall and F1 on the
         static parts."""
         res = self.resolution
-        for tracked, tally in (
-            (self.ghosts, self.ghost_tally),
-            (self.arrivals, self.arrival_tally),
+        for tracked, tally, until in (
+            (self.ghosts, self.ghost_tally, self.ghosts_until),
+            (self.arrivals, self.arrival_tally, len(self.dataset.scans)),
+            (self.returns, self.return_tally, len(self.dataset.scans)),
         ):
-            counted = tracked.since <= scan
+            counted = (tracked.since <= scan) & (scan < until)
             if counted.any():
                 occupied = occupancy(voxel_centres(tracked.keys[counted], res)) > 0.5
                 tally.add(scan - tracked.since[counted] + 1, occupied)
@@ -179,6 +188,11 @@ def _departures(mover: Mover, scans: list[Scan], resolution: float) -> _Tracked:
         passed = contains(keys, passed_voxels(scans[i], box, resolution))
         since = np.where(passed & (since == len(scans)), i, since)
     return _Tracked(keys, since)
+
+
+def _first_present(mover: Mover, n_scans: int) -> int:
+    """The first scan `mover` is present in (n_scans: none)."""
+    return next((i for i in range(n_scans) if mover.present(i)), n_scans)
 
 
 def _arrivals(mover: Mover, scans: list[Scan], resolution: float) -> _Tracked:

@@ -37,6 +37,35 @@ def test_the_scene_at_each_scan_holds_the_movers_there():
     assert len(room.scans) == 6 and all(len(s) == 256 for s in room.scans)
 
 
+def test_a_cart_of_any_size_leaves_and_comes_back_where_it_stood():
+    room = changing_room(n_scans=8, rings=8, azimuths=64, cart=(0.3, 0.3, 0.3), departs_at=2,
+                         returns_at=5, arrives_at=6, walk=(1, 3))  # fmt: skip
+    np.testing.assert_allclose(
+        room.mover("departs").boxes[0], [[0.85, -1.1, 0.0], [1.15, -0.8, 0.3]]
+    )
+    back = room.mover("returns")
+    np.testing.assert_array_equal(room.mover("departs").boxes[1], back.boxes[5])
+    middle = back.boxes[5].mean(axis=0)[None]
+    there = [bool(room.scene_at(i).occupied(middle)[0]) for i in range(8)]
+    assert there == [True, True, False, False, False, True, True, True]
+    assert room.has("returns") and not changing_room(n_scans=3, rings=4, azimuths=8).has("returns")
+    with pytest.raises(ValueError, match="returns after it departs"):
+        changing_room(n_scans=8, rings=4, azimuths=8, departs_at=4, returns_at=3)
+
+
+def test_ghosts_are_counted_until_the_cart_comes_back_and_then_it_is_found():
+    """A map that reads everything occupied: every ghost read (1) only between the cart's
+    departure and its return, and the cart back read (1) from the scan that sees it again."""
+    room = changing_room(n_scans=10, rings=32, azimuths=256, departs_at=3, returns_at=7,
+                         arrives_at=8, walk=(1, 5))  # fmt: skip
+    probe = ChangeProbe(room, 0.05, np.random.default_rng(0))
+    for i in range(10):
+        probe.measure(i, lambda points: np.ones(len(points)))
+    assert probe.ghosts_until == 7
+    assert max(probe.ghost_tally.read) <= 4 and probe.ghost_tally.share(1) == 1.0
+    assert probe.return_tally.read[1] > 20 and probe.return_tally.share(1) == 1.0
+
+
 def test_a_sparse_lidar_on_a_loop_goes_once_round_clear_of_every_solid():
     room = changing_room(n_scans=12, rings=16, azimuths=64, elevations=(-15.0, 15.0),
                          height=1.0, path="loop")  # fmt: skip

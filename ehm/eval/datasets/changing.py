@@ -18,8 +18,9 @@ from ehm.eval.datasets.simulated import lidar_directions, simulate_scan
 class Mover:
     """A solid box that is somewhere in some scans: boxes (n_scans, 2, d) float64, metres,
     world frame, its low and high corner at each scan, NaN where it is not in the scene.
-    role: 'departs' (there at first, gone later), 'arrives' (absent at first, there later) or
-    'walks' (there in some scans, somewhere else in each)."""
+    role: 'departs' (there at first, gone later), 'arrives' (absent at first, there later),
+    'returns' (a departed mover back where it stood) or 'walks' (there in some scans, somewhere
+    else in each)."""
 
     name: str
     role: str
@@ -49,6 +50,10 @@ class ChangingDataset:
     def mover(self, role: str) -> Mover:
         """The first mover of `role`."""
         return next(m for m in self.movers if m.role == role)
+
+    def has(self, role: str) -> bool:
+        """Whether a mover of `role` is in the scene."""
+        return any(m.role == role for m in self.movers)
 
 
 def scene_at(static: Scene, movers: tuple[Mover, ...], scan: int) -> Scene:
@@ -117,8 +122,10 @@ def changing_room(
     elevations: tuple[float, float] = (-45.0, 45.0),
     height: float = 1.2,
     path: str = "line",
+    cart: tuple[float, float, float] = (0.8, 0.6, 0.9),
     noise_std: float = 0.01,
     departs_at: int = 5,
+    returns_at: int | None = None,
     arrives_at: int = 8,
     walk: tuple[int, int] = (2, 10),
     scan_period: float = 1.0,
@@ -129,16 +136,18 @@ def changing_room(
     round an ellipse of half-axes 2.6 m (x) and 0.5 m (y) about the room's centre, as a robot
     patrols. Meanwhile:
 
-    - a cart (0.8 x 0.6 x 0.9 m, south of the path) stands there until scan `departs_at`, from
-      which on it is gone;
+    - a cart (`cart`, its size along x, y and z, metres: 0.8 x 0.6 x 0.9 by default; south of
+      the path, centred on x = 1 m, its north face at y = -0.8 m) stands there until scan
+      `departs_at`, from which on it is gone, back where it stood from scan `returns_at` on
+      (None: never; a mover of role 'returns');
     - a crate (0.6 x 0.6 x 0.6 m, north of the path) is there from scan `arrives_at` on;
     - a person (0.4 x 0.3 x 1.75 m) walks west to east along the north wall, 0.6 m a scan,
       in scans walk[0] to walk[1] - 1, and is gone before and after.
     """
     scans_index = np.arange(n_scans)
-    cart = _boxes_where(
-        n_scans, scans_index < departs_at, [0.6, -1.4, 0.0], np.array([0.8, 0.6, 0.9])
-    )
+    cart_size = np.asarray(cart, dtype=np.float64)
+    cart_low = [1.0 - cart_size[0] / 2, -0.8 - cart_size[1], 0.0]
+    cart = _boxes_where(n_scans, scans_index < departs_at, cart_low, cart_size)
     crate = _boxes_where(
         n_scans, scans_index >= arrives_at, [-1.9, 0.8, 0.0], np.array([0.6, 0.6, 0.6])
     )
@@ -152,6 +161,11 @@ def changing_room(
         Mover("crate", "arrives", crate),
         Mover("person", "walks", walker),
     )
+    if returns_at is not None:
+        if not departs_at < returns_at <= n_scans:
+            raise ValueError(f"the cart returns after it departs, got {returns_at}")
+        back = _boxes_where(n_scans, scans_index >= returns_at, cart_low, cart_size)
+        movers += (Mover("cart back", "returns", back),)
     static = changing_room_scene()
     directions = lidar_directions(rings, azimuths, elevations[1], elevations[0])
     rng = np.random.default_rng(seed)
