@@ -13,7 +13,14 @@ from ehm.eval.change_scores import (
     shell_voxels,
     voxel_centres,
 )
-from ehm.eval.datasets.changing import changing_room, sensor_path
+from ehm.eval.datasets.changing import (
+    DEPTH_PIXELS,
+    DEPTH_RANGE,
+    changing_room,
+    cut_at,
+    sensor_path,
+)
+from ehm.eval.datasets.scene import Scene
 
 
 def test_the_scene_at_each_scan_holds_the_movers_there():
@@ -83,6 +90,47 @@ def test_a_sparse_lidar_on_a_loop_goes_once_round_clear_of_every_solid():
     np.testing.assert_allclose(np.unique(elevations.round(6)), np.linspace(-15, 15, 16))
     with pytest.raises(ValueError, match="path must be"):
         sensor_path("spiral", 3, 1.0)
+
+
+def test_a_2d_laser_sees_the_room_its_plane_cuts():
+    room = changing_room(n_scans=4, sensor="laser", azimuths=90, height=0.3, path="loop")
+    assert room.static.dim == 2 and all(scan.dim == 2 for scan in room.scans)
+    np.testing.assert_allclose([s.origin for s in room.scans], sensor_path("loop", 4, 0.3)[:, :2])
+    # A table leg is cut at 0.3 m, its top (0.72-0.77 m) is not; the cart is.
+    leg, top = np.array([[-0.97, -2.87]]), np.array([[-0.2, -2.5]])
+    assert room.static.occupied(leg)[0] and not room.static.occupied(top)[0]
+    np.testing.assert_allclose(room.mover("departs").boxes[0], [[0.6, -1.4], [1.4, -0.8]])
+    # Every hit lies on a solid's face.
+    for i, scan in enumerate(room.scans):
+        hits = scan.points_world[scan.hit_mask]
+        assert np.abs(room.scene_at(i).surface_distance(hits)).max() < 0.06
+
+
+def test_a_plane_cuts_discs_from_balls():
+    scene = Scene(np.zeros((0, 3)), np.zeros((0, 3)), np.array([[0.0, 0.0, 1.0], [3.0, 0.0, 0.2]]),
+                  np.array([0.5, 0.1]))  # fmt: skip
+    disc = cut_at(scene, 1.3)
+    np.testing.assert_allclose(disc.ball_centres, [[0.0, 0.0]])
+    np.testing.assert_allclose(disc.ball_radii, [0.4])
+
+
+def test_a_depth_camera_looks_ahead_along_the_loop():
+    room = changing_room(n_scans=8, sensor="depth", noise_std=0.0, path="loop", laps=2)
+    origins = np.array([scan.origin for scan in room.scans])
+    np.testing.assert_allclose(origins, sensor_path("loop", 8, 1.2, laps=2))
+    np.testing.assert_allclose(origins[:4], origins[4:], atol=1e-12)  # twice round
+    for i, scan in enumerate(room.scans):
+        rays = scan.points_world - scan.origin
+        ranges = np.linalg.norm(rays, axis=1)
+        assert ranges.max() <= DEPTH_RANGE and len(scan) <= DEPTH_PIXELS[0] * DEPTH_PIXELS[1]
+        # Noise-free: every pixel ends on a face; the view's middle looks along the path.
+        assert np.abs(room.scene_at(i).surface_distance(scan.points_world)).max() < 1e-6
+        turn = np.pi * i / 2  # a quarter of the ellipse a frame
+        ahead = np.array([-2.6 * np.sin(turn), 0.5 * np.cos(turn)])
+        middle = np.mean(rays / ranges[:, None], axis=0)[:2]
+        assert middle @ ahead / np.linalg.norm(middle) / np.linalg.norm(ahead) > 0.95
+    with pytest.raises(ValueError, match="sensor must be"):
+        changing_room(n_scans=2, sensor="sonar")
 
 
 def test_shell_voxels_lie_inside_within_one_voxel_of_the_surface():

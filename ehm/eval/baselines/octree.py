@@ -54,5 +54,13 @@ class OctoMapMapper:
             probability[i] = known
         return probability
 
+    def labels(self, points: np.ndarray) -> np.ndarray:
+        """(n,) float64 occupancy of each point's voxel as OctoMap labels it (getLabels,
+        vectorised): 1 occupied, 0 free, 0.5 unknown. points: (n, d), metres."""
+        if self.tree is None:
+            raise RuntimeError("build the map before querying it")
+        labels = self.tree.getLabels(_in_3d(points))
+        return np.where(labels == 1, 1.0, np.where(labels == 0, 0.0, 0.5))
+
     def memory_bytes(self) -> int:
         return 0 if self.tree is None else int(self.tree.memoryUsage())

@@ -1,6 +1,6 @@
 """A scene that changes while it is scanned, with its exact occupancy at every scan: a cart
-that leaves, a crate that arrives and a person who walks across a room, seen by a LiDAR that
-moves through it.
+that leaves, a crate that arrives and a person who walks across a room, seen by a LiDAR or a
+2D laser that moves through it.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ehm.core.sensor.scan import Scan
+from ehm.eval.datasets.depth_camera import camera_directions, rotation_world_camera
 from ehm.eval.datasets.scene import Scene, room_shell
 from ehm.eval.datasets.simulated import lidar_directions, simulate_scan
 
@@ -101,17 +102,76 @@ def _boxes_where(
     return boxes
 
 
-def sensor_path(path: str, n_scans: int, height: float) -> np.ndarray:
+# The depth camera of changing_room: its pixels across and down, field of view across
+# (degrees), tilt below the horizon (degrees) and range (metres), as a RealSense D435's.
+DEPTH_PIXELS = (160, 120)
+DEPTH_FOV = 87.0
+DEPTH_PITCH = 15.0
+DEPTH_RANGE = 6.0
+
+
+def cut_at(scene: Scene, height: float) -> Scene:
+    """The 2D scene a plane `height` metres up cuts from a 3D `scene`: the boxes it crosses,
+    the discs it cuts from the balls."""
+    crossed = (scene.box_min[:, 2] <= height) & (height <= scene.box_max[:, 2])
+    rise = height - scene.ball_centres[:, 2]
+    cut = np.abs(rise) < scene.ball_radii
+    return Scene(
+        scene.box_min[crossed, :2],
+        scene.box_max[crossed, :2],
+        scene.ball_centres[cut, :2],
+        np.sqrt(scene.ball_radii[cut] ** 2 - rise[cut] ** 2),
+    )
+
+
+def _mover_cut_at(mover: Mover, height: float) -> Mover:
+    """The 2D mover a plane `height` metres up cuts from a 3D `mover`: absent (NaN) in the
+    scans where it does not reach the plane."""
+    boxes = mover.boxes[:, :, :2].copy()
+    with np.errstate(invalid="ignore"):
+        crossed = (mover.boxes[:, 0, 2] <= height) & (height <= mover.boxes[:, 1, 2])
+    boxes[~crossed] = np.nan
+    return Mover(mover.name, mover.role, boxes)
+
+
+def sensor_path(path: str, n_scans: int, height: float, laps: int = 1) -> np.ndarray:
     """(n_scans, 3) sensor positions, metres, of the changing room's `path` ('line' or
-    'loop', see changing_room) at `height`."""
+    'loop', `laps` times round; see changing_room) at `height`."""
+    return _path_and_headings(path, n_scans, height, laps)[0]
+
+
+def _path_and_headings(
+    path: str, n_scans: int, height: float, laps: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """sensor_path's positions (n_scans, 3) and the headings along them (n_scans,), radians
+    from +x towards +y."""
     if path == "line":
         x, y = np.linspace(-2.5, 2.5, n_scans), np.zeros(n_scans)
+        headings = np.zeros(n_scans)
     elif path == "loop":
-        turn = np.linspace(0.0, 2.0 * np.pi, n_scans, endpoint=False)
+        turn = np.linspace(0.0, 2.0 * np.pi * laps, n_scans, endpoint=False)
         x, y = 2.6 * np.cos(turn), 0.5 * np.sin(turn)
+        headings = np.arctan2(0.5 * np.cos(turn), -2.6 * np.sin(turn))
     else:
         raise ValueError(f"path must be 'line' or 'loop', got {path!r}")
-    return np.column_stack([x, y, np.full(n_scans, height)])
+    return np.column_stack([x, y, np.full(n_scans, height)]), headings
+
+
+def _depth_frame(
+    scene: Scene,
+    origin: np.ndarray,
+    directions: np.ndarray,
+    noise_std: float,
+    rng: np.random.Generator,
+) -> Scan:
+    """A depth camera's frame from `origin` along its pixels' `directions` (n, 3), world
+    frame: pixels that see nothing within DEPTH_RANGE are left out, the others' ranges get
+    Gaussian noise of `noise_std` times the square of the range (metres)."""
+    ranges = scene.raycast(origin, directions)
+    seen = ranges <= DEPTH_RANGE
+    ranges = ranges[seen]
+    ranges = ranges + rng.normal(0.0, 1.0, len(ranges)) * noise_std * ranges**2
+    return Scan(origin + directions[seen] * ranges[:, None], origin)
 
 
 def changing_room(
@@ -122,6 +182,8 @@ def changing_room(
     elevations: tuple[float, float] = (-45.0, 45.0),
     height: float = 1.2,
     path: str = "line",
+    laps: int = 1,
+    sensor: str = "lidar",
     cart: tuple[float, float, float] = (0.8, 0.6, 0.9),
     noise_std: float = 0.01,
     departs_at: int = 5,
@@ -130,11 +192,15 @@ def changing_room(
     walk: tuple[int, int] = (2, 10),
     scan_period: float = 1.0,
 ) -> ChangingDataset:
-    """`n_scans` scans of a 3D LiDAR (rings x azimuths rays, rings evenly spaced between
-    `elevations` (low, high) degrees, 20 m range) `height` metres up, one every `scan_period`
-    seconds, moving along `path`: 'line', the room's x axis from -2.5 to 2.5 m; 'loop', once
+    """`n_scans` scans of a `sensor` `height` metres up, one every `scan_period` seconds,
+    moving along `path`: 'line', the room's x axis from -2.5 to 2.5 m; 'loop', `laps` times
     round an ellipse of half-axes 2.6 m (x) and 0.5 m (y) about the room's centre, as a robot
-    patrols. Meanwhile:
+    patrols. sensor: 'lidar', a 3D LiDAR of rings x azimuths rays, rings evenly spaced between
+    `elevations` (low, high) degrees, 20 m range; 'laser', a 2D laser of `azimuths` rays
+    round, 20 m range, in the 2D room the plane at its height cuts from the 3D one (cut_at);
+    'depth', a depth camera looking ahead along the path (DEPTH_PIXELS, DEPTH_FOV,
+    DEPTH_PITCH, DEPTH_RANGE), whose range noise is `noise_std` times the square of the range.
+    Meanwhile:
 
     - a cart (`cart`, its size along x, y and z, metres: 0.8 x 0.6 x 0.9 by default; south of
       the path, centred on x = 1 m, its north face at y = -0.8 m) stands there until scan
@@ -167,11 +233,25 @@ def changing_room(
         back = _boxes_where(n_scans, scans_index >= returns_at, cart_low, cart_size)
         movers += (Mover("cart back", "returns", back),)
     static = changing_room_scene()
-    directions = lidar_directions(rings, azimuths, elevations[1], elevations[0])
+    origins, headings = _path_and_headings(path, n_scans, height, laps)
     rng = np.random.default_rng(seed)
-    scans = [
-        simulate_scan(scene_at(static, movers, i), origin, directions, 20.0, noise_std, rng)
-        for i, origin in enumerate(sensor_path(path, n_scans, height))
-    ]
+    if sensor == "laser":
+        static = cut_at(static, height)
+        movers = tuple(_mover_cut_at(mover, height) for mover in movers)
+        angles = np.linspace(0.0, 2.0 * np.pi, azimuths, endpoint=False)
+        directions, origins = np.column_stack([np.cos(angles), np.sin(angles)]), origins[:, :2]
+    elif sensor == "lidar":
+        directions = lidar_directions(rings, azimuths, elevations[1], elevations[0])
+    elif sensor != "depth":
+        raise ValueError(f"sensor must be 'lidar', 'laser' or 'depth', got {sensor!r}")
+    scans = []
+    for i, (origin, heading) in enumerate(zip(origins, headings, strict=True)):
+        scene = scene_at(static, movers, i)
+        if sensor == "depth":
+            pixels = camera_directions(*DEPTH_PIXELS, DEPTH_FOV)
+            directions = pixels @ rotation_world_camera(np.degrees(heading), DEPTH_PITCH).T
+            scans.append(_depth_frame(scene, origin, directions, noise_std, rng))
+        else:
+            scans.append(simulate_scan(scene, origin, directions, 20.0, noise_std, rng))
     times = scan_period * scans_index.astype(np.float64)
     return ChangingDataset("changing_room", scans, static, movers, times)
