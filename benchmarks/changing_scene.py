@@ -1,10 +1,9 @@
-"""Changing scenes: EHM and OctoMap scan by scan on a room seen by LiDARs, a 2D laser and a
-depth camera, where a cart leaves, a crate arrives and a person walks across, measured in
-0.05 m voxels after each scan.
+"""Changing scenes: EHM and OctoMap scan by scan in a room where a cart leaves, a crate arrives.
 
     python benchmarks/changing_scene.py [--seeds 0,1,2] [--set front_reach=2 ...]
 
-The scenes: ehm.eval.datasets.changing, 14 scans each but the last, by a 64-beam LiDAR
+A person walks across too; everything is measured in 0.05 m voxels after each scan. The
+scenes: ehm.eval.datasets.changing, 14 scans each but the last, by a 64-beam LiDAR
 (+-45 degrees) 1.2 m up driving along the room, and by 32-beam (-25 to +15 degrees, 1.2 and
 1.9 m up) and 16-beam (+-15 degrees, 1.0 m up) LiDARs on a loop, whose rings are 1.3 and 2
 degrees apart: old faces lie between their beams and are met at grazing angles; then, on the

@@ -1,5 +1,4 @@
-"""Occupancy grids and meshes (Sec. 3.5): speed against per-voxel queries and OctoMap,
-incremental updates against rebuilds, and mesh quality against exact geometry.
+"""Occupancy grids and meshes (Sec. 3.5): speed, incremental updates and mesh quality.
 
     python benchmarks/grids.py [--repeats 3]
 

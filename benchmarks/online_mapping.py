@@ -1,12 +1,12 @@
-"""Online mapping: EHM scan by scan (`ehm`; `ehm-alone` without the sample memory), in one batch
-(`ehm-batch`) and OctoMap on every data set, near surfaces against the exact occupancy.
+"""Online mapping: EHM scan by scan, without its memory, in one batch, and OctoMap, every data set.
 
     python benchmarks/online_mapping.py [--seeds 0,1,2] [--fractions 0.8,0.4]
                                         [--datasets warehouse,street,...] [--methods ehm,...]
                                         [--set front_reach=2 ...]
 
 For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the four
-methods: held-out F1 of the occupied class at p = 0.5, every method at the data set's
+methods (`ehm` scan by scan, `ehm-alone` without the sample memory, `ehm-batch` in one
+batch, OctoMap): held-out F1 of the occupied class at p = 0.5, every method at the data set's
 resolution (0.05 m; on the street 0.2 m, on the outdoor LiDAR scans and the hillside 0.1 m).
 On the simulated scenes the same maps are also scored against the exact occupancy at points
 near surfaces: uniform in balls of 0.3 m around training hits (both sides of each surface),
@@ -21,6 +21,7 @@ over seeds.
 from __future__ import annotations
 
 import statistics
+import sys
 from collections.abc import Sequence
 from typing import Any
 
@@ -218,19 +219,20 @@ def main() -> None:
     for method in methods:  # compiled code ready before any build is timed
         for dim in (2, 3):
             warm_up(method, dim)
-    results = {}
+    results, sizes = {}, []
     for name in sweep.datasets:
         loaded = scans_and_scene(name)
         if loaded is None:
             continue
         scans, scene = loaded
-        print(f"- {name}: {len(scans)} scans, {sum(len(s) for s in scans):,} rays")
+        sizes.append(f"{name} {len(scans)}, {sum(len(s) for s in scans):,}")
+        print(f"{name}: {sizes[-1]}", file=sys.stderr, flush=True)  # progress
         for fraction in fractions:
             results[(name, fraction)] = [
                 measure(name, scans, scene, fraction, seed, methods, sweep.settings)
                 for seed in seeds
             ]
-    print()
+    print(f"Data sets (scans, rays): {'; '.join(sizes)}.\n")
     print(summary_tables(results, methods))
 
 

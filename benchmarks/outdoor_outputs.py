@@ -1,5 +1,4 @@
-"""Outputs of an outdoor LiDAR map at default settings: `ehm export` to .bt, .ot and a nav2
-.pgm, `ehm mesh`, and `ehm query --distance` near the sensor, each timed with its peak memory.
+"""Outputs of an outdoor LiDAR map (.bt, .ot, nav2 .pgm, mesh, distances): time, peak memory.
 
     python benchmarks/outdoor_outputs.py [--resolutions 0.2,0.1,0.05]
 

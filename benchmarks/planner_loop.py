@@ -1,5 +1,4 @@
-"""A planner in the loop: learn a scan, then cast rays and ask points and their distances, with
-EHM and OctoMap on the same scans and queries, in one process.
+"""A planner in the loop: learn a scan, then cast rays, ask points and distances; EHM, OctoMap.
 
     python benchmarks/planner_loop.py [--rays 5000] [--points 10000] [--features support]
 

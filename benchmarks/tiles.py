@@ -1,5 +1,4 @@
-"""Tiled maps: accuracy and seams against one map, speed-up on Dask, memory per worker, and
-the expected speed-up of a 10 km drive on larger clusters.
+"""Tiled maps: accuracy and seams against one map, Dask speed-up, memory, a 10 km drive.
 
     python benchmarks/tiles.py                       # everything (about 20 minutes)
     python benchmarks/tiles.py --part accuracy       # held-out F1 and seams, every data set

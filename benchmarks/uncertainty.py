@@ -1,5 +1,4 @@
-"""The occupancy's standard deviation (`return_std`) on every data set: is it calibrated, is it
-high where nothing was observed and low at observed surfaces, and what does it cost.
+"""The occupancy's std (`return_std`): calibrated, high where unseen, low at surfaces; its cost.
 
     python benchmarks/uncertainty.py [--seeds 0,1,2] [--fractions 0.8,0.4] [--datasets ...]
 
