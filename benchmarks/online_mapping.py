@@ -226,7 +226,7 @@ def main() -> None:
             continue
         scans, scene = loaded
         sizes.append(f"{name} {len(scans)}, {sum(len(s) for s in scans):,}")
-        print(f"{name}: {sizes[-1]}", file=sys.stderr, flush=True)  # progress
+        print(f"{name}...", file=sys.stderr, flush=True)  # progress
         for fraction in fractions:
             results[(name, fraction)] = [
                 measure(name, scans, scene, fraction, seed, methods, sweep.settings)

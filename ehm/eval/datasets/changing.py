@@ -1,6 +1,6 @@
 """A scene that changes while it is scanned, with its exact occupancy at every scan: a cart
-that leaves, a crate that arrives and a person who walks across a room, seen by a LiDAR or a
-2D laser that moves through it.
+that leaves, a crate that arrives and a person who walks across a room, seen by a LiDAR, a 2D
+laser or a depth camera that moves through it.
 """
 
 from __future__ import annotations
@@ -213,7 +213,7 @@ def changing_room(
     scans_index = np.arange(n_scans)
     cart_size = np.asarray(cart, dtype=np.float64)
     cart_low = [1.0 - cart_size[0] / 2, -0.8 - cart_size[1], 0.0]
-    cart = _boxes_where(n_scans, scans_index < departs_at, cart_low, cart_size)
+    cart_boxes = _boxes_where(n_scans, scans_index < departs_at, cart_low, cart_size)
     crate = _boxes_where(
         n_scans, scans_index >= arrives_at, [-1.9, 0.8, 0.0], np.array([0.6, 0.6, 0.6])
     )
@@ -223,7 +223,7 @@ def changing_room(
     )
     walker = _boxes_where(n_scans, walking, walker_low, np.array([0.4, 0.3, 1.75]))
     movers = (
-        Mover("cart", "departs", cart),
+        Mover("cart", "departs", cart_boxes),
         Mover("crate", "arrives", crate),
         Mover("person", "walks", walker),
     )
@@ -242,13 +242,14 @@ def changing_room(
         directions, origins = np.column_stack([np.cos(angles), np.sin(angles)]), origins[:, :2]
     elif sensor == "lidar":
         directions = lidar_directions(rings, azimuths, elevations[1], elevations[0])
-    elif sensor != "depth":
+    elif sensor == "depth":
+        pixels = camera_directions(*DEPTH_PIXELS, DEPTH_FOV)
+    else:
         raise ValueError(f"sensor must be 'lidar', 'laser' or 'depth', got {sensor!r}")
     scans = []
     for i, (origin, heading) in enumerate(zip(origins, headings, strict=True)):
         scene = scene_at(static, movers, i)
         if sensor == "depth":
-            pixels = camera_directions(*DEPTH_PIXELS, DEPTH_FOV)
             directions = pixels @ rotation_world_camera(np.degrees(heading), DEPTH_PITCH).T
             scans.append(_depth_frame(scene, origin, directions, noise_std, rng))
         else:
