@@ -1,4 +1,4 @@
-"""Changing scenes: EHM and OctoMap scan by scan in a room where a cart leaves, a crate arrives.
+"""Changing scenes: EHM and OctoMap scan by scan in a room where things leave, arrive and walk.
 
     python benchmarks/changing_scene.py [--seeds 0,1,2] [--set front_reach=2 ...]
 
