@@ -30,10 +30,11 @@ def test_the_page_shows_the_map(room_map, tmp_path):
     shot = tmp_path / "viewer.png"
     try:
         # Chromium's virtual time can run out before the map reaches the page over its
-        # websocket when the machine is busy, or catch the mesh while it fades in: the picture
-        # is taken again then, a few seconds apart, up to five times.
-        for attempt in range(5):
-            time.sleep(3.0 * attempt)
+        # websocket when the machine is busy, or catch the mesh while it fades in (a quarter
+        # of the pictures on a quiet machine, more after a long test run): the picture is
+        # taken again then, a few seconds apart, up to eight times.
+        for attempt in range(8):
+            time.sleep(min(3.0 * attempt, 6.0))
             browser_screenshot(viewer.url, shot)
             image = np.asarray(Image.open(shot).convert("RGB")).astype(int)
             colours, coloured_centre = picture_measures(image)
