@@ -90,6 +90,8 @@ def test_a_sparse_lidar_on_a_loop_goes_once_round_clear_of_every_solid():
     np.testing.assert_allclose(np.unique(elevations.round(6)), np.linspace(-15, 15, 16))
     with pytest.raises(ValueError, match="path must be"):
         sensor_path("spiral", 3, 1.0)
+    with pytest.raises(ValueError, match="laps must be"):
+        sensor_path("loop", 3, 1.0, laps=0)
 
 
 def test_a_2d_laser_sees_the_room_its_plane_cuts():

@@ -145,6 +145,8 @@ def _path_and_headings(
 ) -> tuple[np.ndarray, np.ndarray]:
     """sensor_path's positions (n_scans, 3) and the headings along them (n_scans,), radians
     from +x towards +y."""
+    if laps < 1:
+        raise ValueError(f"laps must be a whole number of times round, at least 1, got {laps!r}")
     if path == "line":
         x, y = np.linspace(-2.5, 2.5, n_scans), np.zeros(n_scans)
         headings = np.zeros(n_scans)
