@@ -8,7 +8,7 @@ import platform
 import statistics
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import date
 from pathlib import Path
 from typing import Any
@@ -144,6 +144,8 @@ class Sweep:
     methods: list[str]
     settings: dict[str, Any]
     """MapConfig overrides for the EHM methods, over MapConfig.for_resolution's."""
+    extra: dict[str, str] = field(default_factory=dict)
+    """The values of a script's own options (sweep_arguments' `extra`), as given."""
 
 
 def add_settings_argument(parser: argparse.ArgumentParser) -> None:
@@ -172,18 +174,23 @@ def sweep_arguments(
     datasets: Sequence[str],
     methods: Sequence[str] = (),
     with_settings: bool = False,
+    fractions: str = "0.8,0.4",
+    extra: dict[str, str] | None = None,
 ) -> Sweep:
-    """The sweep asked for on the command line (--seeds 0,1,2 --fractions 0.8,0.4
-    --datasets a,b --methods m,n, and with_settings --set name=value; the defaults: those,
-    `datasets`, `methods` and no overrides)."""
+    """The sweep asked for on the command line (--seeds 0,1,2 --fractions `fractions`
+    --datasets a,b --methods m,n, with_settings --set name=value, and --name value for each of
+    `extra`'s names; the defaults: those, `datasets`, `methods`, no overrides and `extra`'s
+    values)."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--seeds", default="0,1,2")
-    parser.add_argument("--fractions", default="0.8,0.4")
+    parser.add_argument("--fractions", default=fractions)
     parser.add_argument("--datasets", default=",".join(datasets))
     if methods:
         parser.add_argument("--methods", default=",".join(methods))
     if with_settings:
         add_settings_argument(parser)
+    for name, default in (extra or {}).items():
+        parser.add_argument(f"--{name}", default=default)
     args = parser.parse_args()
     return Sweep(
         [int(s) for s in args.seeds.split(",")],
@@ -191,4 +198,5 @@ def sweep_arguments(
         args.datasets.split(","),
         args.methods.split(",") if methods else [],
         settings_of(args) if with_settings else {},
+        {name: getattr(args, name) for name in extra or {}},
     )

@@ -75,13 +75,26 @@ THIN = 0.1
 def near_surface_test_points(scans: Sequence[Scan], n: int, rng: np.random.Generator) -> np.ndarray:
     """(m <= n, d) points uniform in balls of NEAR metres around random hits of `scans`, where
     some ray of `scans` reached."""
+    return near_surface_points_and_ranges(scans, n, rng)[0]
+
+
+def near_surface_points_and_ranges(
+    scans: Sequence[Scan], n: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """near_surface_test_points, and (m,) the range of the hit each was drawn around, metres
+    from its scan's origin."""
     hits = np.concatenate([s.points_world[s.hit_mask] for s in scans])
+    ranges = np.concatenate(
+        [np.linalg.norm(s.points_world[s.hit_mask] - s.origin, axis=1) for s in scans]
+    )
     d = hits.shape[1]
     directions = rng.normal(size=(n, d))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     radii = NEAR * rng.random(n) ** (1.0 / d)
-    points = hits[rng.integers(0, len(hits), n)] + directions * radii[:, None]
-    return points[observed_mask(list(scans), points, 0.05)]
+    drawn = rng.integers(0, len(hits), n)
+    points = hits[drawn] + directions * radii[:, None]
+    reached = observed_mask(list(scans), points, 0.05)
+    return points[reached], ranges[drawn][reached]
 
 
 def thin_solid_test_points(
