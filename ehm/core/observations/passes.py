@@ -19,7 +19,10 @@ stands beside where it stood, and the rays past its edge go through its old plac
 that run along a surface still there, whose hits land on it, pass it no more than that.
 Each ray walks the regions it crosses (a 3D DDA on the grid of regions,
 ehm.core.primitives.grid_walk), tests each in a bitmap of the regions that hold occupied entries,
-and looks up only those in the table of the memory's regions.
+and looks up only those in the table of the memory's regions. Where a scan's rays lie so close
+that dozens pass each entry (a depth camera's a few metres from a wall), only a share of them
+walk, each pass counting for the rays its ray stands for (`walked_rays`): as many passes in
+expectation, found in a fraction of the time.
 """
 
 from __future__ import annotations
@@ -62,10 +65,17 @@ BAND_GROWTH = 0.04
 # A batch's hit within this share of its range of an entry's mean (0.02: the lateral shift of
 # about a degree of orientation error), or within `reach`, keeps the entry from being passed.
 REGISTRATION_SLACK = 0.02
+# Where a dense sensor's rays lie closer together than a pass's reach, an entry they pass lies
+# within reach of many of them (a depth camera's frame: 40 to 110 rays at 2 m); passes are then
+# found along a share of the rays, about WALKED_PER_ENTRY within reach of each entry, each pass
+# counting for the rays its ray stands for. The walked rays follow a low-discrepancy sequence
+# over the rays' order (WALK_SEQUENCE, the golden ratio's fraction), spread evenly over a frame.
+WALKED_PER_ENTRY = 8.0
+WALK_SEQUENCE = (np.sqrt(5.0) - 1.0) / 2.0
 # Rays a batch must have before its passes are found in PASS_PARTS parts of its rays, shared
 # by as many threads as there are. A frame's rows of rays differ in length and in the memory
 # they cross, so more parts than threads share the work more evenly.
-PARALLEL_MIN_RAYS = 20_000
+PARALLEL_MIN_RAYS = 2_000
 PASS_PARTS = 8
 # Regions a bitmap of the regions that hold occupied entries may span (2^28 bits, 32 MB): a ray
 # tests each region it walks in the bitmap and looks up only those it holds (a small share of
@@ -248,10 +258,12 @@ def pass_kernel(
     bitmap,
     found,
     used,
+    ray_passes,
 ):  # pragma: no cover - compiled
     """Append to `found` (capacity,) int64, from `used` on, the occupied entry of every pass of
     rays first_ray .. last_ray - 1 (origins, directions (n, d), free_start, free_end (n,),
-    metres, ScanRays) through the memory's entries: table_keys, table_rows from
+    metres, ScanRays) through the memory's entries, and set ray_passes[r] (n,) int64 to the
+    passes of each ray r: table_keys, table_rows from
     EvidenceMemory.region_table; occupied_starts, occupied_entries and positions from
     `occupied_layout`; ray r passes the entries within `pass_reach` of it (reach and
     widening as there, its gap ray_spacing[r] (n,) radians times their distance along it);
@@ -270,10 +282,12 @@ def pass_kernel(
     t_delta = np.empty(d)
     for r in range(first_ray, last_ray):
         t, t_end = free_start[r], free_end[r]
+        ray_passes[r] = 0
         if t_end <= t:
             continue
         if used + 64 * (4 + int((t_end - t) / side) * d) > len(found):
             return r, used
+        ray_first = used
         for a in range(d):
             region[a] = np.int64(np.floor((origins[r, a] + directions[r, a] * t) / side))
         walk_setup(origins[r], directions[r], side, region, step, t_next, t_delta)
@@ -307,30 +321,50 @@ def pass_kernel(
                         found[used] = occupied_entries[k]
                         used += 1
             t = walk_step(region, step, t_next, t_delta)
+        ray_passes[r] = used - ray_first
     return last_ray, used
 
 
-def _passes_of_part(arguments: tuple, first: int, last: int) -> np.ndarray:
+def _passes_of_part(arguments: tuple, ray_passes: np.ndarray, first: int, last: int) -> np.ndarray:
     """Occupied entries passed by rays first .. last - 1 (`arguments`: pass_kernel's from
-    `origins` to `bitmap`), one row per pass."""
+    `origins` to `bitmap`), one row per pass, ray by ray; sets their `ray_passes`."""
     found = np.empty(max(1024, 64 * (last - first)), dtype=np.int64)
     used, ray = 0, first
     while ray < last:
-        ray, used = pass_kernel(ray, last, *arguments, found, used)
+        ray, used = pass_kernel(ray, last, *arguments, found, used, ray_passes)
         if ray < last:
             found = np.concatenate([found[:used], np.empty(2 * len(found), dtype=np.int64)])
     return found[:used]
 
 
-def _in_parts(arguments: tuple, n: int) -> np.ndarray:
+def _in_parts(arguments: tuple, n: int) -> tuple[np.ndarray, np.ndarray]:
     """pass_kernel over n rays in PASS_PARTS parts on the threads there are (one part for
-    fewer than PARALLEL_MIN_RAYS): the entries passed, one row per pass."""
+    fewer than PARALLEL_MIN_RAYS): the entries passed, one row per pass in the rays' order,
+    and (n,) int64 the passes of each ray."""
     parts = 1 if n < PARALLEL_MIN_RAYS else PASS_PARTS
     bounds = [n * part // parts for part in range(parts + 1)]
+    ray_passes = np.zeros(n, dtype=np.int64)
     with ThreadPoolExecutor(min(parts, numba.get_num_threads())) as pool:
-        return np.concatenate(
-            list(pool.map(_passes_of_part, repeat(arguments), bounds[:-1], bounds[1:]))
+        found = pool.map(
+            _passes_of_part, repeat(arguments), repeat(ray_passes), bounds[:-1], bounds[1:]
         )
+        return np.concatenate(list(found)), ray_passes
+
+
+def walked_rays(rays: ScanRays, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """The rays passes are found along (WALKED_PER_ENTRY): (rows (w,) int64, weight (w,)
+    float64, how many rays each stands for). A ray's share is WALKED_PER_ENTRY over the rays
+    of its scan within `reach` metres of a point at its end, (2 reach / gap)^(d - 1) for the
+    gap (metres) between them there, at most 1 (all rays of sparse scans, and of rays whose
+    gap is unknown)."""
+    gap = rays.ray_spacing * rays.lengths
+    exponent = rays.directions.shape[1] - 1
+    share = np.ones(len(rays))
+    spaced = gap > 0.0
+    share[spaced] = np.minimum(1.0, WALKED_PER_ENTRY * (gap[spaced] / (2.0 * reach)) ** exponent)
+    turn = np.arange(1, len(rays) + 1) * WALK_SEQUENCE % 1.0
+    rows = np.flatnonzero(turn < share)
+    return rows, 1.0 / share[rows]
 
 
 def occupied_passes(
@@ -339,36 +373,37 @@ def occupied_passes(
     """The memory's occupied entries that `rays` pass (see the module's docstring), within
     `reach` metres (widened by `pass_reach` between sparse rays), a ray with a hit only
     where it goes on for `depth` metres more (the band a surface is taken to be solid,
-    `occupied_depth`): (entries (k,) int64 sorted, passes (k,) int64 rays through each)."""
-    none = np.zeros(0, dtype=np.int64)
+    `occupied_depth`), found along the `walked_rays`: (entries (k,) int64 sorted, passes (k,)
+    float64 rays through each, each walked ray's pass counting for the rays it stands for)."""
     if len(memory) == 0 or len(rays) == 0:
-        return none, none
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
     keys, rows = memory.region_table()
     layout = occupied_layout(memory)
     fine_side = memory.sides[0]
+    walked, stands_for = walked_rays(rays, reach)
     solid_start, hit_points = _solid_band(rays, depth)
     arguments = (
-        np.ascontiguousarray(rays.origins),
-        rays.directions,
-        rays.free_start,
-        rays.free_end,
-        solid_start,
-        hit_points,
-        rays.hit_normals,
+        np.ascontiguousarray(rays.origins[walked]),
+        rays.directions[walked],
+        rays.free_start[walked],
+        rays.free_end[walked],
+        solid_start[walked],
+        hit_points[walked],
+        rays.hit_normals[walked],
         OFF_PLANE_CELLS * fine_side,
         keys,
         rows,
         *layout,
         fine_side,
         reach,
-        rays.ray_spacing,
+        rays.ray_spacing[walked],
         PASS_REACH_WIDENING,
         region_bits(memory.dim),
         occupied_bitmap(memory.regions, layout[0], region_bits(memory.dim), memory.dim),
     )
-    found = _in_parts(arguments, len(rays))
+    found, ray_passes = _in_parts(arguments, len(walked))
     # Counted by entry rather than sorted (np.unique), which is several times faster.
-    passes = np.bincount(found)
+    passes = np.bincount(found, np.repeat(stands_for, ray_passes))
     entries = np.flatnonzero(passes)
     return entries, passes[entries]
 
@@ -403,8 +438,8 @@ def hit_again(
 def occupied_passes_reference(
     memory: EvidenceMemory, rays: ScanRays, reach: float, depth: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Plain NumPy twin of `occupied_passes`: every ray against every occupied entry, the
-    ray's free part clipped to the entry's region by the slab test, and in the solid band
+    """Plain NumPy twin of `occupied_passes`: every walked ray against every occupied entry,
+    the ray's free part clipped to the entry's region by the slab test, and in the solid band
     only the entries off the plane of the batch's hits."""
     samples = memory.samples()
     entries = np.flatnonzero(samples.occupied)
@@ -416,8 +451,9 @@ def occupied_passes_reference(
     low = np.floor(cell_centres / side) * side
     solid_start, hit_points = _solid_band(rays, depth)
     hit_normals = rays.hit_normals
-    passes = np.zeros(len(entries), dtype=np.int64)
-    for r in range(len(rays)):
+    passes = np.zeros(len(entries))
+    walked, stands_for = walked_rays(rays, reach)
+    for r, weight in zip(walked, stands_for, strict=True):
         o, u = rays.origins[r], rays.directions[r]
         start, end = rays.free_start[r], rays.free_end[r]
         with np.errstate(invalid="ignore"):
@@ -429,7 +465,7 @@ def occupied_passes_reference(
         along = (points - o) @ u
         off = np.linalg.norm(points - o - along[:, None] * u, axis=1)
         solid = along >= solid_start[r]
-        passes += (
+        passes += weight * (
             (enter < leave)
             & (along > start)
             & (along < end)

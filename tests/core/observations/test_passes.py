@@ -290,3 +290,55 @@ def test_hits_again_match_every_hit_searched_by_brute_force(rng):
     got = passes_module.hit_again(memory, entries, rays, 0.03)
     np.testing.assert_array_equal(got, want)
     assert 0 < got.sum() < len(got)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_dense_rays_are_walked_in_a_share_each_standing_for_the_rest(dim):
+    """Rays whose ends lie 1 mm apart with a reach of 3 cm: about WALKED_PER_ENTRY of the 60
+    (in 2D) or 3,600 (in 3D) within reach of a point are walked, each standing for 1 / share
+    rays; rays 5 cm apart, and rays of unknown spacing, are all walked, each for itself."""
+    n = 20_000
+    rays = rays_of(np.zeros((n, dim)), np.full((n, dim), 2.0), np.ones(n, bool), 0.05)
+    length = rays.lengths[0]
+    for gap, share in ((0.001, passes_module.WALKED_PER_ENTRY * (0.001 / 0.06) ** (dim - 1)),
+                       (0.05, 1.0), (0.0, 1.0)):  # fmt: skip
+        rays.ray_spacing[:] = gap / length
+        rows, stands_for = passes_module.walked_rays(rays, 0.03)
+        assert len(rows) == pytest.approx(share * n, rel=0.01, abs=1)
+        np.testing.assert_allclose(stands_for, 1.0 / share)
+        # Spread over the rays' order: no stretch of a tenth of them holds twice its share.
+        tenths = np.bincount(rows * 10 // n, minlength=10)
+        assert tenths.max() <= 2 * share * n / 10 + 1
+
+
+def test_a_dense_fan_passes_what_all_its_rays_would():
+    """A depth camera's fan of 90 x 90 rays 0.05 degrees apart through a wall patch 2 m away
+    and on 1 m beyond (rays 1.7 mm apart there, 2 cm reach): walking a share of them passes
+    every entry all of them pass, each as many times within a factor of two (hundreds of
+    times: each is taken back whole either way)."""
+    memory = wall_memory()
+    angles = np.radians(np.arange(-45, 45) * 0.05)
+    yaw, pitch = np.meshgrid(angles, angles)
+    directions = np.column_stack([np.ones(yaw.size), np.tan(yaw.ravel()), np.tan(pitch.ravel())])
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    origin = np.array([-0.9, 0.1, 0.1])
+    rays = rays_of(
+        np.tile(origin, (len(directions), 1)),
+        origin + 3.1 * directions,
+        np.ones(len(directions), dtype=bool),
+        0.05,
+        np.radians(0.05),
+    )
+    walked, _ = passes_module.walked_rays(rays, 0.02)
+    assert len(walked) < 0.1 * len(rays)
+    entries, counts = occupied_passes(memory, rays, 0.02, 0.15)
+    every = passes_module.WALKED_PER_ENTRY
+    passes_module.WALKED_PER_ENTRY = np.inf
+    try:
+        all_entries, all_counts = occupied_passes(memory, rays, 0.02, 0.15)
+    finally:
+        passes_module.WALKED_PER_ENTRY = every
+    np.testing.assert_array_equal(entries, all_entries)
+    assert len(entries) == 16
+    assert np.all((counts > all_counts / 2) & (counts < 2 * all_counts))
+    assert counts.min() > 100
