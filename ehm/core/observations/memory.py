@@ -595,10 +595,11 @@ class EvidenceMemory:
         self, entries: np.ndarray, passes: np.ndarray, share: float, protected: np.ndarray
     ) -> Retraction:
         """Take back evidence from `entries` (k,) int64 that rays passed through, `passes` (k,)
-        rays each, except where `protected` (k,) bool (the batch hits the entry again). A first
-        batch of passes only marks an entry PASSED; from a second on, each pass takes `share` of
-        its weight, weight * (1 - share) ** passes, and a weight that falls below MIN_WEIGHT
-        becomes 0 (the entry goes at the next insert)."""
+        float64 rays each (ehm.core.observations.passes.occupied_passes), except where
+        `protected` (k,) bool (the batch hits the entry again). A first batch of passes only
+        marks an entry PASSED; from a second on, each pass takes `share` of its weight,
+        weight * (1 - share) ** passes, and a weight that falls below MIN_WEIGHT becomes 0 (the
+        entry goes at the next insert)."""
         self.flags[entries[protected]] &= ~np.uint8(PASSED)
         entries, passes = entries[~protected], passes[~protected]
         confirmed = self.flags[entries] & PASSED != 0
