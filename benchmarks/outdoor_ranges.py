@@ -9,10 +9,11 @@ profiles, `MapConfig.for_resolution`), OctoMap and wavemap (where built: ../shar
 map the training scans; points uniform in balls of 0.3 m around training hits, where a training
 ray reached (benchmarks/online_mapping.py), are scored against the scene's exact occupancy:
 precision and recall of the occupied class at 0.5, apart for each range bin, the range being
-that of the hit a point was drawn around from its scan's origin. Far hits lie farther apart
-(a LiDAR's rays spread with range) and the ground is met at grazing angles there: a map that
-is right near the sensor and blurred far away shows it here. Prints one markdown table, mean
-over seeds, each cell precision / recall.
+that of the hit a point was drawn around from its scan's origin (points around hits beyond
+the last bin, 40 m, are left out). Far hits lie farther apart (a LiDAR's rays spread with
+range) and the ground is met at grazing angles there: a map that is right near the sensor
+and blurred far away shows it here. Prints one markdown table, mean over seeds, each cell
+precision / recall.
 """
 
 from __future__ import annotations

@@ -311,7 +311,7 @@ def test_dense_rays_are_walked_in_a_share_each_standing_for_the_rest(dim):
         assert tenths.max() <= 2 * share * n / 10 + 1
 
 
-def test_a_dense_fan_passes_what_all_its_rays_would():
+def test_a_dense_fan_passes_what_all_its_rays_would(monkeypatch):
     """A depth camera's fan of 90 x 90 rays 0.05 degrees apart through a wall patch 2 m away
     and on 1 m beyond (rays 1.7 mm apart there, 2 cm reach): walking a share of them passes
     every entry all of them pass, each as many times within a factor of two (hundreds of
@@ -332,12 +332,8 @@ def test_a_dense_fan_passes_what_all_its_rays_would():
     walked, _ = passes_module.walked_rays(rays, 0.02)
     assert len(walked) < 0.1 * len(rays)
     entries, counts = occupied_passes(memory, rays, 0.02, 0.15)
-    every = passes_module.WALKED_PER_ENTRY
-    passes_module.WALKED_PER_ENTRY = np.inf
-    try:
-        all_entries, all_counts = occupied_passes(memory, rays, 0.02, 0.15)
-    finally:
-        passes_module.WALKED_PER_ENTRY = every
+    monkeypatch.setattr(passes_module, "WALKED_PER_ENTRY", np.inf)  # every ray walked
+    all_entries, all_counts = occupied_passes(memory, rays, 0.02, 0.15)
     np.testing.assert_array_equal(entries, all_entries)
     assert len(entries) == 16
     assert np.all((counts > all_counts / 2) & (counts < 2 * all_counts))
