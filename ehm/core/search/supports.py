@@ -29,6 +29,8 @@ the table doubles when half of its slots are taken, so growth costs amortized O(
 
 from __future__ import annotations
 
+import itertools
+
 import numba
 import numpy as np
 
@@ -447,8 +449,8 @@ def _point_codes(
 
 
 # What a pass over the points that share lists of candidates does at each point (_list_pass):
-# count the kernels not zero there, write their rows and codes, or add up the log-odds.
-_COUNT, _WRITE, _SUM = 0, 1, 2
+# write the rows and codes of the kernels not zero there, or add up the log-odds.
+_GATHER, _SUM = 0, 1
 
 
 @numba.njit(cache=True, parallel=True)
@@ -463,7 +465,7 @@ def _list_pass(
     planar,
     mode,
     counts,
-    indptr,
+    slots,
     rows,
     codes,
     learned,
@@ -471,11 +473,11 @@ def _list_pass(
     variance_sums,
 ):  # pragma: no cover - compiled
     """One pass over the points, where the points order[starts[g]:starts[g + 1]] share the
-    candidate kernels lists[list_bound[g]:list_bound[g + 1]], doing at each point i what
-    `mode` says:
-    - _COUNT: counts[i] (n,) int64, the kernels not zero there;
-    - _WRITE: their rows into rows (indptr[n],) int64 and their codes into codes
-      (indptr[n],) float64, from indptr[i] on in the order of the candidates;
+    candidate kernels lists[list_bound[g]:list_bound[g + 1]] (starts[0] = 0), doing at the
+    point i = order[j] what `mode` says:
+    - _GATHER: the rows and codes of the kernels not zero there into rows and codes, from
+      slots[j] on (room for all its candidates) in the order of the candidates, and their
+      number into counts[j] (j over order);
     - _SUM: scores[i] = bias + sum_m w_m phi_m and, with variance, [sum_m phi_m^2 /
       lambda_m, sum_m phi_m] into variance_sums (n, 2), zeros before; learned: (weights (M,),
       bias, inverse_precision (M,), with_variance). The kernels that are zero add zeros, and
@@ -501,18 +503,14 @@ def _list_pass(
                     _list_codes(points, i, last - first, laid_out, scratch)
                 else:
                     _point_codes(points, i, first, last, lists, means, transforms, planar, scratch)
-                if mode == _COUNT:
-                    inside = 0
+                if mode == _GATHER:
+                    # Each candidate written, and kept by moving on or not: no branch.
+                    out = slots[j]
                     for t in range(last - first):
-                        inside += scratch[t] < OUTSIDE
-                    counts[i] = inside
-                elif mode == _WRITE:
-                    out = indptr[i]
-                    for t in range(last - first):
-                        if scratch[t] < OUTSIDE:
-                            rows[out] = lists[first + t]
-                            codes[out] = scratch[t]
-                            out += 1
+                        rows[out] = lists[first + t]
+                        codes[out] = scratch[t]
+                        out += scratch[t] < OUTSIDE
+                    counts[j] = out - slots[j]
                 else:
                     kernels_of_codes_serial(scratch[: last - first])
                     scores[i] = bias
@@ -532,6 +530,59 @@ def _list_pass(
 # Points a query takes at once: where they lie apart, each has a list of candidates of its own
 # (30-45 kernels on a TUM frame's map, 16-24 MB for 65,536 points).
 CHUNK = 65_536
+
+
+# Candidates one chunk of SupportHash.features evaluates at once: the room they are written
+# in (16 MB) serves chunk after chunk.
+_CHUNK_CANDIDATES = 1 << 20
+
+
+def _chunk_bounds(before: np.ndarray, size: int) -> np.ndarray:
+    """(c + 1,) int64 bounds, in lists, of chunks of about `size` candidates (more where one
+    list's points alone have more): before (G + 1,) int64, the candidates of the points of
+    the lists before each list, and of all last."""
+    cuts = np.searchsorted(before, np.arange(size, before[-1], size), side="right") - 1
+    return np.unique(np.concatenate([[0], cuts, [len(before) - 1]]))
+
+
+def _packed(
+    rows: np.ndarray, codes: np.ndarray, slots: np.ndarray, counts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The counts[j] rows and codes written from slots[j] on for each point j, packed one
+    point after the other: (rows (k,) int64, codes (k,) float64, where each point's begin
+    (p,) int64)."""
+    first = np.cumsum(counts) - counts
+    total = int(counts.sum())
+    packed_rows, packed_codes = np.empty(total, dtype=np.int64), np.empty(total)
+    copy_segments(rows, codes, slots, counts, first, packed_rows, packed_codes)
+    return packed_rows, packed_codes, first
+
+
+@numba.njit(cache=True, parallel=True)
+def copy_segments(
+    rows, codes, sources, counts, targets, out_rows, out_codes
+):  # pragma: no cover - compiled
+    """For each k, copy counts[k] entries of rows (int64) and codes (float64) from sources[k]
+    on into out_rows and out_codes from targets[k] on."""
+    for k in numba.prange(len(counts)):
+        for t in range(counts[k]):
+            out_rows[targets[k] + t] = rows[sources[k] + t]
+            out_codes[targets[k] + t] = codes[sources[k] + t]
+
+
+def copy_segments_reference(
+    rows: np.ndarray,
+    codes: np.ndarray,
+    sources: np.ndarray,
+    counts: np.ndarray,
+    targets: np.ndarray,
+    out_rows: np.ndarray,
+    out_codes: np.ndarray,
+) -> None:
+    """Plain NumPy twin of `copy_segments`."""
+    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    source, target = np.repeat(sources, counts) + within, np.repeat(targets, counts) + within
+    out_rows[target], out_codes[target] = rows[source], codes[source]
 
 
 def support_boxes(
@@ -734,20 +785,48 @@ class SupportHash:
     ) -> SparseFeatures:
         """Every kernel not zero at each of (n, d) points, metres, as the points' features.
 
-        Each point projects onto its list's kernels twice, to count those not zero and to
-        write them, and only those are evaluated."""
+        Each point projects once onto its list's kernels. The points are taken list after
+        list in chunks of about _CHUNK_CANDIDATES candidates, whose kernels not zero are
+        packed chunk by chunk and then laid out in the order of the points."""
         points = np.ascontiguousarray(points, dtype=np.float64)
-        n = len(points)
-        kernels = (*self._shared_lists(points), means, transforms, planar)
-        none, nothing = np.zeros(0, dtype=np.int64), np.zeros(0)
-        unsummed = ((nothing, 0.0, nothing, False), nothing, np.zeros((0, 2)))
-        counts = np.zeros(n, dtype=np.int64)
-        _list_pass(points, *kernels, _COUNT, counts, none, none, nothing, *unsummed)
-        indptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(counts, out=indptr[1:])
-        rows = np.empty(indptr[-1], dtype=np.int64)
-        values = np.empty(indptr[-1])
-        _list_pass(points, *kernels, _WRITE, counts, indptr, rows, values, *unsummed)
+        if len(points) == 0:
+            return SparseFeatures(np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        order, starts, list_bound, lists = self._shared_lists(points)
+        kernels = (lists, means, transforms, planar)
+        unsummed = ((np.zeros(0), 0.0, np.zeros(0), False), np.zeros(0), np.zeros((0, 2)))
+        # Candidates of each point in the order of the lists, and where each point's begin.
+        candidates = np.repeat(np.diff(list_bound), np.diff(starts))
+        first_candidate = np.cumsum(candidates) - candidates
+        before_list = np.append(first_candidate, candidates.sum())[starts]
+        chunks = _chunk_bounds(before_list, _CHUNK_CANDIDATES)
+        room = int(np.max(np.diff(before_list[chunks]), initial=0))
+        room_rows, room_codes = np.empty(room, dtype=np.int64), np.empty(room)
+        counts = np.empty(len(points), dtype=np.int64)  # in the order of the lists
+        packed = []
+        for g0, g1 in itertools.pairwise(chunks):
+            chunk = slice(starts[g0], starts[g1])
+            slots = first_candidate[chunk] - first_candidate[chunk.start]
+            _list_pass(
+                points,
+                order[chunk],
+                starts[g0 : g1 + 1] - chunk.start,
+                list_bound[g0 : g1 + 1],
+                *kernels,
+                _GATHER,
+                counts[chunk],
+                slots,
+                room_rows,
+                room_codes,
+                *unsummed,
+            )
+            packed.append((chunk, *_packed(room_rows, room_codes, slots, counts[chunk])))
+        point_counts = np.empty(len(points), dtype=np.int64)
+        point_counts[order] = counts
+        indptr = np.zeros(len(points) + 1, dtype=np.int64)
+        np.cumsum(point_counts, out=indptr[1:])
+        rows, values = np.empty(indptr[-1], dtype=np.int64), np.empty(indptr[-1])
+        for chunk, *chunk_packed in packed:
+            copy_segments(*chunk_packed, counts[chunk], indptr[order[chunk]], rows, values)
         kernels_of_codes(values)
         return SparseFeatures(indptr, rows, values)
 

@@ -73,6 +73,7 @@ def train_weights(
     lines 26-28, see `blocked_order`: the samples must come shuffled), the two sides of space
     on two threads (see `space_sides`); updates the clusters' weights and AdaGrad state and
     bias_state in place. Batches of fewer than TWO_SIDED_MIN_SAMPLES samples run on one.
+    The features' rows are relabelled to the order the clusters learn in, and back after.
     """
     labels = occupied.astype(np.float64)
     rows, weights, grad_sq = features.rows, clusters.weights, clusters.grad_sq
@@ -84,29 +85,45 @@ def train_weights(
         stored = np.argsort(cluster_side, kind="stable")
         place = np.empty_like(stored)  # where each cluster is stored: stored's inverse
         place[stored] = np.arange(len(stored))
-        rows = place[rows]
+        relabel(rows, place)
         weights, grad_sq = weights[stored], grad_sq[stored]
     else:
         sides = np.full(len(labels), BORDER, dtype=np.int64)
-    for _ in range(config.epochs):
-        visits, starts = visiting_plan(blocked_order(len(labels), rng), sides)
-        sgd_rounds(
-            features.indptr,
-            rows,
-            features.values,
-            labels,
-            sample_weights,
-            visits,
-            starts,
-            weights,
-            grad_sq,
-            bias_state,
-            config.learning_rate,
-            config.l2,
-        )
-    if stored is not None:
-        clusters.weights[stored] = weights
-        clusters.grad_sq[stored] = grad_sq
+    try:
+        for _ in range(config.epochs):
+            visits, starts = visiting_plan(blocked_order(len(labels), rng), sides)
+            sgd_rounds(
+                features.indptr,
+                rows,
+                features.values,
+                labels,
+                sample_weights,
+                visits,
+                starts,
+                weights,
+                grad_sq,
+                bias_state,
+                config.learning_rate,
+                config.l2,
+            )
+    finally:
+        if stored is not None:
+            relabel(rows, stored)
+            clusters.weights[stored] = weights
+            clusters.grad_sq[stored] = grad_sq
+
+
+@numba.njit(cache=True, parallel=True)
+def relabel(rows, labels):  # pragma: no cover - compiled
+    """Replace each of rows (n,) int64 by labels[row], in place: a batch's features are
+    relabelled without a second array as large, whose fresh pages cost more than the work."""
+    for e in numba.prange(len(rows)):
+        rows[e] = labels[rows[e]]
+
+
+def relabel_reference(rows: np.ndarray, labels: np.ndarray) -> None:
+    """Plain NumPy twin of `relabel`."""
+    rows[:] = labels[rows]
 
 
 def space_sides(features: SparseFeatures, means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,8 @@ from ehm.core.search.supports import (
     SupportHash,
     _candidate_counts,
     _sub_cell_mask,
+    copy_segments,
+    copy_segments_reference,
     sub_cell_slabs,
     support_boxes,
     support_features_reference,
@@ -51,6 +53,41 @@ def test_features_are_every_kernel_not_zero_at_each_point(rng, random_clusters):
     )
     per_point = np.diff(want.indptr)
     assert per_point.max() >= 3 and np.mean(per_point == 0) < 0.9
+
+
+def test_features_gathered_in_many_chunks_are_those_of_one(rng, random_clusters, monkeypatch):
+    clusters = random_clusters(rng)
+    crowd = rng.uniform(0, 6, (40, 3))[rng.integers(0, 40, 1500)] + rng.normal(0, 0.02, (1500, 3))
+    points = np.vstack([rng.uniform(-0.5, 6.5, (1500, 3)), crowd])
+    table = _listed(clusters)
+    args = (clusters.means, clusters.transforms, clusters.planar_kernel)
+    whole = table.features(points, *args)
+    monkeypatch.setattr("ehm.core.search.supports._CHUNK_CANDIDATES", 97)
+    chunked = table.features(points, *args)
+    for got, want in zip(
+        (chunked.indptr, chunked.rows, chunked.values),
+        (whole.indptr, whole.rows, whole.values),
+        strict=True,
+    ):
+        np.testing.assert_array_equal(got, want)
+    _assert_same_features(chunked, support_features_reference(points, *args))
+    empty = table.features(np.zeros((0, 3)), *args)
+    assert len(empty) == 0 and len(empty.rows) == 0
+
+
+def test_copy_segments_matches_its_reference(rng):
+    counts = rng.integers(0, 6, 300)
+    sources = rng.integers(0, 1000, 300)
+    targets = np.cumsum(counts) - counts
+    rows, codes = rng.integers(0, 50, 1010), rng.random(1010)
+    got = (np.full(counts.sum(), -1), np.zeros(counts.sum()))
+    want = (np.full(counts.sum(), -1), np.zeros(counts.sum()))
+    copy_segments(rows, codes, sources, counts, targets, *got)
+    copy_segments_reference(rows, codes, sources, counts, targets, *want)
+    for compiled, reference in zip(got, want, strict=True):
+        np.testing.assert_array_equal(compiled, reference)
+    np.testing.assert_array_equal(got[0][targets[1] : targets[2]], rows[sources[1] :][: counts[1]])
+    assert np.all(got[0] >= 0)
 
 
 def test_2d_kernels_and_points_far_outside(rng):

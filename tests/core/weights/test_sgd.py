@@ -15,6 +15,8 @@ from ehm.core.weights.sgd import (
     TWO_SIDED_MIN_SAMPLES,
     blocked_order,
     loss_weights,
+    relabel,
+    relabel_reference,
     sample_sides,
     sample_sides_reference,
     sgd_rounds,
@@ -126,6 +128,7 @@ def test_training_with_each_sides_clusters_stored_together_gives_the_same_weight
     first = rng.integers(0, n_clusters - 5, n)
     rows = np.argsort(place)[(first[:, None] + np.arange(5)).ravel()]
     features = SparseFeatures(np.arange(0, 5 * n + 1, 5), rows, rng.uniform(0.1, 1.0, 5 * n))
+    given_rows = rows.copy()
     occupied = rng.random(n) < 0.4
     sample_weights = rng.uniform(0.5, 2.0, n)
     config = MapConfig(epochs=2)
@@ -157,6 +160,18 @@ def test_training_with_each_sides_clusters_stored_together_gives_the_same_weight
     np.testing.assert_array_equal(clusters.grad_sq, grad_sq)
     np.testing.assert_array_equal(bias, want_bias)
     assert not np.allclose(weights, start[0])
+    # The rows were relabelled while they learned, and are the given ones again.
+    np.testing.assert_array_equal(features.rows, given_rows)
+
+
+def test_relabel_matches_its_reference(rng):
+    rows = rng.integers(0, 500, 10_000)
+    labels = rng.permutation(500)
+    compiled, reference = rows.copy(), rows.copy()
+    relabel(compiled, labels)
+    relabel_reference(reference, labels)
+    np.testing.assert_array_equal(compiled, reference)
+    np.testing.assert_array_equal(compiled, labels[rows])
 
 
 def test_sgd_separates_two_classes():
