@@ -134,10 +134,16 @@ def warm_up(method: str, dim: int, settings: dict) -> None:
 
 
 def measure(
-    name: str, scans: list[Scan], scene, fraction: float, seed: int, settings: dict
+    name: str,
+    scans: list[Scan],
+    scene,
+    fraction: float,
+    seed: int,
+    settings: dict,
+    methods: tuple[str, ...] = METHODS,
 ) -> dict:
-    """Per method: build s, query s, memory MB, held-out F1, and near F1 on a scene; or the
-    reason it was left out. settings: MapConfig overrides for EHM."""
+    """Per method of `methods`: build s, query s, memory MB, held-out F1, and near F1 on a
+    scene; or the reason it was left out. settings: MapConfig overrides for EHM."""
     resolution = RESOLUTIONS.get(name, RESOLUTION)
     split = held_out_rays(scans, fraction, resolution, seed)
     near = truth = None
@@ -145,7 +151,7 @@ def measure(
         near = near_surface_test_points(split.train, 100_000, np.random.default_rng(seed))
         truth = scene.occupied(near)
     found = {}
-    for method in METHODS:
+    for method in methods:
         if method in THREE_D_ONLY and scans[0].dim == 2:
             found[method] = "3D only"
             continue

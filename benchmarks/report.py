@@ -33,6 +33,7 @@ SECTIONS = {
     "virtual_room": "The virtual room, against its exact occupancy",
     "uncertainty": "Uncertainty (return_std)",
     "kernel_selection": "Kernel selection and hierarchy (Sec. 3.1, 3.2, 3.4)",
+    "feature_search": "Which kernels make a point's features: 'nearest' and 'support'",
     "scan_times": "Time per scan as the map grows",
     "integrate_times": "One integrate, stage by stage",
     "grids": "Occupancy grids and meshes (Sec. 3.5)",
