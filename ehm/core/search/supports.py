@@ -286,14 +286,14 @@ def _rebuild(
     # times as many slots as there are cells, so it can take as many again before a rebuild.
     listed = (table_keys, counts, pending, sub_lo, sub_hi, divisions, coarse, bits)
     scratch = np.full(new_size, EMPTY_KEY, dtype=np.int64)
-    distinct = _place_cells(scratch, np.zeros(new_size, dtype=np.int64), *listed)
+    distinct = _place_cells(scratch, np.zeros(new_size, dtype=np.int32), *listed)
     new_size = 64
     while new_size < 4 * distinct:
         new_size *= 2
     keys = np.full(new_size, EMPTY_KEY, dtype=np.int64)
     new_starts = np.zeros(new_size, dtype=np.int64)
-    new_counts = np.zeros(new_size, dtype=np.int64)
-    capacities = np.zeros(new_size, dtype=np.int64)
+    new_counts = np.zeros(new_size, dtype=np.int32)
+    capacities = np.zeros(new_size, dtype=np.int32)
     taken = _place_cells(keys, capacities, *listed)
     end = 0
     for t in range(new_size):
@@ -617,7 +617,7 @@ class SupportHash:
         # Each kernel's box in sub-cells, [lo, hi] per axis; its cells are these over divisions.
         self._sub_lo = np.zeros((0, dim), dtype=np.int32)
         self._sub_hi = np.zeros((0, dim), dtype=np.int32)
-        self._coarse = np.zeros(0, dtype=np.int64)
+        self._coarse = np.zeros(0, dtype=bool)
         self._listed = np.zeros(0, dtype=bool)
 
     @classmethod
@@ -629,11 +629,13 @@ class SupportHash:
     @staticmethod
     def _empty_table(size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         keys = np.full(size, EMPTY_KEY, dtype=np.int64)
+        # Keys and starts in the pool, then each block's entries and room (int32: a block
+        # lists the kernels of one cell).
         return (
             keys,
             np.zeros(size, dtype=np.int64),
-            np.zeros(size, dtype=np.int64),
-            np.zeros(size, dtype=np.int64),
+            np.zeros(size, dtype=np.int32),
+            np.zeros(size, dtype=np.int32),
         )
 
     @property
