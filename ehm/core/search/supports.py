@@ -374,13 +374,13 @@ def _candidate_counts(points, table):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, parallel=True)
 def _candidates(points, bound, table):  # pragma: no cover - compiled
-    """(bound[n],) int64 rows of the kernels listed in each point's sub-cells (both scales),
-    point i's from bound[i] on (see _candidate_counts). Written without a branch on the
-    masks: each entry is written and kept by moving on or not (past the point's last one,
-    nothing is written)."""
+    """(bound[n],) int32 rows, as the pool keeps them, of the kernels listed in each point's
+    sub-cells (both scales), point i's from bound[i] on (see _candidate_counts). Written
+    without a branch on the masks: each entry is written and kept by moving on or not (past
+    the point's last one, nothing is written)."""
     pool, masks = table[3], table[4]
     n = points.shape[0]
-    rows = np.empty(bound[n], dtype=np.int64)
+    rows = np.empty(bound[n], dtype=np.int32)
     for i in numba.prange(n):
         out = bound[i]
         for scale in range(2):
