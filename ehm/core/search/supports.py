@@ -339,56 +339,51 @@ def _block(points, i, scale, table):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, parallel=True)
-def _sub_cell_keys(points, table):  # pragma: no cover - compiled
-    """(n,) int64 >= 0, equal for points whose sub-cells list the same kernels at both scales:
-    each scale's table slot and sub-cell index (index 0 where the cell lists none), the fine
-    one's times the number the coarse one's can take."""
+def _scale_keys(points, table):  # pragma: no cover - compiled
+    """(2, n) int64 >= 0, per scale equal for points whose sub-cells list the same kernels: 1
+    + the table slot times the sub-cells of a cell + the sub-cell's index, 0 where the
+    point's cell lists none."""
     n = points.shape[0]
     sub_cells = np.int64(1) << SUBCELL_BITS
-    per_scale = np.int64(len(table[0])) * sub_cells
-    found = np.empty(n, dtype=np.int64)
+    found = np.empty((2, n), dtype=np.int64)
     for i in numba.prange(n):
-        key = np.int64(0)
         for scale in range(2):
             s, listed, index = _slot_of(points, i, scale, table)
-            key = key * per_scale + s * sub_cells + (index if listed else 0)
-        found[i] = key
+            found[scale, i] = 1 + s * sub_cells + index if listed else 0
     return found
 
 
 @numba.njit(cache=True, parallel=True)
-def _candidate_counts(points, table):  # pragma: no cover - compiled
-    """(n,) int64 kernels listed in the sub-cells (both scales) of each point: a bound on its
-    features."""
+def _candidate_counts(points, table, scale):  # pragma: no cover - compiled
+    """(n,) int64 kernels listed in the sub-cell of `scale` (0 fine, 1 coarse) of each point:
+    a bound on its features of that scale."""
     masks = table[4]
     n = points.shape[0]
     found = np.zeros(n, dtype=np.int64)
     for i in numba.prange(n):
-        for scale in range(2):
-            first, end, bit = _block(points, i, scale, table)
-            for j in range(first, end):
-                if masks[j] & bit:
-                    found[i] += 1
+        first, end, bit = _block(points, i, scale, table)
+        for j in range(first, end):
+            if masks[j] & bit:
+                found[i] += 1
     return found
 
 
 @numba.njit(cache=True, parallel=True)
-def _candidates(points, bound, table):  # pragma: no cover - compiled
+def _candidates(points, bound, table, scale):  # pragma: no cover - compiled
     """(bound[n],) int32 rows, as the pool keeps them, of the kernels listed in each point's
-    sub-cells (both scales), point i's from bound[i] on (see _candidate_counts). Written
-    without a branch on the masks: each entry is written and kept by moving on or not (past
-    the point's last one, nothing is written)."""
+    sub-cell of `scale`, point i's from bound[i] on (see _candidate_counts). Written without
+    a branch on the masks: each entry is written and kept by moving on or not (past the
+    point's last one, nothing is written)."""
     pool, masks = table[3], table[4]
     n = points.shape[0]
     rows = np.empty(bound[n], dtype=np.int32)
     for i in numba.prange(n):
         out = bound[i]
-        for scale in range(2):
-            first, end, bit = _block(points, i, scale, table)
-            for j in range(first, end):
-                if out < bound[i + 1]:
-                    rows[out] = pool[j]
-                out += (masks[j] & bit) != 0
+        first, end, bit = _block(points, i, scale, table)
+        for j in range(first, end):
+            if out < bound[i + 1]:
+                rows[out] = pool[j]
+            out += (masks[j] & bit) != 0
     return rows
 
 
@@ -458,7 +453,7 @@ def _list_pass(
     points,
     order,
     starts,
-    list_bound,
+    ranges,
     lists,
     means,
     transforms,
@@ -473,8 +468,8 @@ def _list_pass(
     variance_sums,
 ):  # pragma: no cover - compiled
     """One pass over the points, where the points order[starts[g]:starts[g + 1]] share the
-    candidate kernels lists[list_bound[g]:list_bound[g + 1]] (starts[0] = 0), doing at the
-    point i = order[j] what `mode` says:
+    candidate kernels lists[ranges[g, 0]:ranges[g, 1]] (fine) and lists[ranges[g, 2]:
+    ranges[g, 3]] (coarse) (starts[0] = 0), doing at the point i = order[j] what `mode` says:
     - _GATHER: the rows and codes of the kernels not zero there into rows and codes, from
       slots[j] on (room for all its candidates) in the order of the candidates, and their
       number into counts[j] (j over order);
@@ -489,37 +484,41 @@ def _list_pass(
         group_hi = n_groups * (part + 1) // _LIST_PARTS
         longest = 0
         for g in range(group_lo, group_hi):
-            longest = max(longest, list_bound[g + 1] - list_bound[g])
+            longest = max(longest, ranges[g, 1] - ranges[g, 0] + ranges[g, 3] - ranges[g, 2])
         laid_out = np.empty((13, longest))
         scratch = np.empty(longest)
+        kernels = np.empty(longest, dtype=lists.dtype)
         for g in range(group_lo, group_hi):
-            first, last = list_bound[g], list_bound[g + 1]
+            fine = ranges[g, 1] - ranges[g, 0]
+            n = fine + ranges[g, 3] - ranges[g, 2]
+            kernels[:fine] = lists[ranges[g, 0] : ranges[g, 1]]
+            kernels[fine:n] = lists[ranges[g, 2] : ranges[g, 3]]
             laid = starts[g + 1] - starts[g] >= _LAID_OUT_POINTS
             if laid:
-                _gather_list(first, last, lists, means, transforms, planar, laid_out)
+                _gather_list(0, n, kernels, means, transforms, planar, laid_out)
             for j in range(starts[g], starts[g + 1]):
                 i = order[j]
                 if laid:
-                    _list_codes(points, i, last - first, laid_out, scratch)
+                    _list_codes(points, i, n, laid_out, scratch)
                 else:
-                    _point_codes(points, i, first, last, lists, means, transforms, planar, scratch)
+                    _point_codes(points, i, 0, n, kernels, means, transforms, planar, scratch)
                 if mode == _GATHER:
                     # Each candidate written, and kept by moving on or not: no branch.
                     out = slots[j]
-                    for t in range(last - first):
-                        rows[out] = lists[first + t]
+                    for t in range(n):
+                        rows[out] = kernels[t]
                         codes[out] = scratch[t]
                         out += scratch[t] < OUTSIDE
                     counts[j] = out - slots[j]
                 else:
-                    kernels_of_codes_serial(scratch[: last - first])
+                    kernels_of_codes_serial(scratch[:n])
                     scores[i] = bias
-                    for t in range(last - first):
+                    for t in range(n):
                         add_to_sums(
                             scores,
                             variance_sums,
                             i,
-                            lists[first + t],
+                            kernels[t],
                             scratch[t],
                             weights,
                             inverse_precision,
@@ -773,14 +772,29 @@ class SupportHash:
 
     def _shared_lists(self, points: np.ndarray) -> tuple:
         """(n, d) points grouped by the sub-cells they lie in at both scales, each group with
-        the one list of candidate kernels its points share: (order, starts, list_bound,
-        lists), as _list_pass reads them."""
+        the two lists (fine, coarse) of candidate kernels its points share: (order, starts,
+        ranges (G, 4) int64, lists), as _list_pass reads them. Each scale's list of a
+        sub-cell is made once, for every group that lies in it."""
         table = self._arguments()
-        starts, order = group_rows(_sub_cell_keys(points, table))
-        shared = np.ascontiguousarray(points[order[starts[:-1]]])
-        list_bound = np.zeros(len(starts), dtype=np.int64)
-        np.cumsum(_candidate_counts(shared, table), out=list_bound[1:])
-        return order, starts, list_bound, _candidates(shared, list_bound, table)
+        keys = _scale_keys(points, table)
+        list_of_point = np.empty((2, len(points)), dtype=np.int64)
+        bounds, lists, offset = [], [], 0
+        for scale in range(2):
+            starts, order = group_rows(keys[scale])
+            list_of_point[scale, order] = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
+            shared = np.ascontiguousarray(points[order[starts[:-1]]])
+            bound = np.zeros(len(starts), dtype=np.int64)
+            np.cumsum(_candidate_counts(shared, table, scale), out=bound[1:])
+            lists.append(_candidates(shared, bound, table, scale))
+            bounds.append(bound + offset)
+            offset += bound[-1]
+        n_coarse = len(bounds[1]) - 1
+        starts, order = group_rows(list_of_point[0] * n_coarse + list_of_point[1])
+        fine, coarse = list_of_point[:, order[starts[:-1]]]
+        ranges = np.column_stack(
+            [bounds[0][fine], bounds[0][fine + 1], bounds[1][coarse], bounds[1][coarse + 1]]
+        )
+        return order, starts, ranges, np.concatenate(lists)
 
     def features(
         self, points: np.ndarray, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
@@ -793,11 +807,12 @@ class SupportHash:
         points = np.ascontiguousarray(points, dtype=np.float64)
         if len(points) == 0:
             return SparseFeatures(np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
-        order, starts, list_bound, lists = self._shared_lists(points)
+        order, starts, ranges, lists = self._shared_lists(points)
         kernels = (lists, means, transforms, planar)
         unsummed = ((np.zeros(0), 0.0, np.zeros(0), False), np.zeros(0), np.zeros((0, 2)))
         # Candidates of each point in the order of the lists, and where each point's begin.
-        candidates = np.repeat(np.diff(list_bound), np.diff(starts))
+        listed = ranges[:, 1] - ranges[:, 0] + ranges[:, 3] - ranges[:, 2]
+        candidates = np.repeat(listed, np.diff(starts))
         first_candidate = np.cumsum(candidates) - candidates
         before_list = np.append(first_candidate, candidates.sum())[starts]
         chunks = _chunk_bounds(before_list, _CHUNK_CANDIDATES)
@@ -812,7 +827,7 @@ class SupportHash:
                 points,
                 order[chunk],
                 starts[g0 : g1 + 1] - chunk.start,
-                list_bound[g0 : g1 + 1],
+                ranges[g0:g1],
                 *kernels,
                 _GATHER,
                 counts[chunk],

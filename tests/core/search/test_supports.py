@@ -199,9 +199,10 @@ def test_sub_cell_masks_leave_out_most_kernels_of_a_cell(rng, random_clusters):
     table = _listed(clusters)
     points = rng.uniform(0, 6, (3000, 3))
     arguments = table._arguments()
-    listed = _candidate_counts(points, arguments)
+    listed = sum(_candidate_counts(points, arguments, scale) for scale in (0, 1))
     every_sub_cell = np.full_like(arguments[4], ~np.uint64(0))
-    in_cells = _candidate_counts(points, (*arguments[:4], every_sub_cell, *arguments[5:]))
+    unmasked = (*arguments[:4], every_sub_cell, *arguments[5:])
+    in_cells = sum(_candidate_counts(points, unmasked, scale) for scale in (0, 1))
     nonzero = np.diff(
         support_features_reference(
             points, clusters.means, clusters.transforms, clusters.planar_kernel
