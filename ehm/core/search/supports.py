@@ -17,8 +17,9 @@ scale.
 A cell's block is long where surfaces crowd (146 kernels listed for 11 not zero at a point
 of a TUM sequence's map), so each entry also holds a mask of the sub-cells of its cell that
 the kernel's box overlaps (64 in all): a point evaluates only the kernels whose mask holds its
-own sub-cell (42 of the 146 there). Points whose sub-cells match at both scales share that
-list, made once: a TUM frame's 139,000 training samples fall into 6,800 such groups.
+own sub-cell (42 of the 146 there). Each scale's list of a sub-cell is made once, and points
+whose sub-cells match at both scales share the pair: a TUM frame's 139,000 training samples
+fall into 6,800 such groups.
 
 The table is updated in place, in time proportional to the kernels that change: each cell owns
 a block of a shared pool of kernel rows, sorted, with room to spare; a kernel is removed from
