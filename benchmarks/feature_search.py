@@ -16,7 +16,7 @@ from __future__ import annotations
 import statistics
 
 from common import heading, markdown_table, sweep_arguments
-from online_mapping import scans_and_scene
+from online_mapping import loaded_datasets
 from peers import DATASETS, measure, warm_up
 from results_file import run_recorded
 
@@ -45,11 +45,7 @@ def main() -> None:
             for dim in (2, 3):
                 warm_up(method, dim, {"features": features})
     rows = []
-    for name in sweep.datasets:
-        loaded = scans_and_scene(name)
-        if loaded is None:
-            continue
-        scans, scene = loaded
+    for name, scans, scene in loaded_datasets(sweep.datasets):
         for fraction in sweep.fractions:
             found: dict[str, dict[str, list[dict]]] = {
                 p: {f: [] for f in FEATURES} for p in PROFILES

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import statistics
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -173,6 +173,14 @@ def scans_and_scene(name: str) -> tuple[list[Scan], Scene | None] | None:
         return None
 
 
+def loaded_datasets(names: Sequence[str]) -> Iterator[tuple[str, list[Scan], Scene | None]]:
+    """(name, scans, scene) of each of `names` whose data is here (scans_and_scene)."""
+    for name in names:
+        loaded = scans_and_scene(name)
+        if loaded is not None:
+            yield name, *loaded
+
+
 # The methods whose measures near surfaces the second table shows: the peer comparison.
 NEAR_METHODS = ("ehm", "octomap")
 NEAR_MEASURES = ("near precision", "near recall", "near F1", "thin recall")
@@ -233,11 +241,7 @@ def main() -> None:
         for dim in (2, 3):
             warm_up(method, dim)
     results, sizes = {}, []
-    for name in sweep.datasets:
-        loaded = scans_and_scene(name)
-        if loaded is None:
-            continue
-        scans, scene = loaded
+    for name, scans, scene in loaded_datasets(sweep.datasets):
         sizes.append(f"{name} {len(scans)}, {sum(len(s) for s in scans):,}")
         print(f"{name}...", file=sys.stderr, flush=True)  # progress
         for fraction in fractions:

@@ -35,7 +35,7 @@ from common import (
     settings_text,
     sweep_arguments,
 )
-from online_mapping import SIMULATED, near_surface_test_points, scans_and_scene
+from online_mapping import SIMULATED, loaded_datasets, near_surface_test_points
 from results_file import run_recorded
 
 from ehm.core.sensor.scan import Scan
@@ -210,11 +210,7 @@ def main() -> None:
             warm_up(method, dim, sweep.settings)
     answering = [method for method in METHODS if method not in BUILD_ONLY]
     f1_rows, build_rows, memory_rows = [], [], []
-    for name in sweep.datasets:
-        loaded = scans_and_scene(name)
-        if loaded is None:
-            continue
-        scans, scene = loaded
+    for name, scans, scene in loaded_datasets(sweep.datasets):
         for fraction in sweep.fractions:
             runs = [
                 measure(name, scans, scene, fraction, seed, sweep.settings) for seed in sweep.seeds
