@@ -89,23 +89,12 @@ def train_weights(
         weights, grad_sq = weights[stored], grad_sq[stored]
     else:
         sides = np.full(len(labels), BORDER, dtype=np.int64)
+    samples = (features.indptr, rows, features.values, labels, sample_weights)
+    steps = (config.learning_rate, config.l2)
     try:
         for _ in range(config.epochs):
-            visits, starts = visiting_plan(blocked_order(len(labels), rng), sides)
-            sgd_rounds(
-                features.indptr,
-                rows,
-                features.values,
-                labels,
-                sample_weights,
-                visits,
-                starts,
-                weights,
-                grad_sq,
-                bias_state,
-                config.learning_rate,
-                config.l2,
-            )
+            plan = visiting_plan(blocked_order(len(labels), rng), sides)
+            sgd_rounds(*samples, *plan, weights, grad_sq, bias_state, *steps)
     finally:
         if stored is not None:
             relabel(rows, stored)
