@@ -549,8 +549,8 @@ def _packed(
     rows: np.ndarray, codes: np.ndarray, slots: np.ndarray, counts: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The counts[j] rows and codes written from slots[j] on for each point j, packed one
-    point after the other: (rows (k,) int64, codes (k,) float64, where each point's begin
-    (p,) int64)."""
+    point after the other: (rows (k,) int64, codes (k,) float64, and (p,) int64 where each
+    point's rows begin)."""
     first = np.cumsum(counts) - counts
     total = int(counts.sum())
     packed_rows, packed_codes = np.empty(total, dtype=np.int64), np.empty(total)
@@ -811,7 +811,8 @@ class SupportHash:
         order, starts, ranges, lists = self._shared_lists(points)
         kernels = (lists, means, transforms, planar)
         unsummed = ((np.zeros(0), 0.0, np.zeros(0), False), np.zeros(0), np.zeros((0, 2)))
-        # Candidates of each point in the order of the lists, and where each point's begin.
+        # Candidates of each point, in the order of the lists, and where each point's
+        # candidates would begin in a room for all of them.
         listed = ranges[:, 1] - ranges[:, 0] + ranges[:, 3] - ranges[:, 2]
         candidates = np.repeat(listed, np.diff(starts))
         first_candidate = np.cumsum(candidates) - candidates
