@@ -24,17 +24,13 @@ FEATURES = ("nearest", "support")
 PROFILES = {"default": "ehm", "realtime": "ehm-realtime"}
 
 
-def pair(values: dict[str, dict], key: str, digits: int) -> str:
-    """'nearest / support' of one measure, with the support's ratio for times and sizes."""
+def pair(values: dict[str, dict], key: str, digits: int, ratio: bool = True) -> str:
+    """'nearest / support' of one measure, with the support's ratio where `ratio`."""
     nearest, support = values["nearest"].get(key), values["support"].get(key)
     if nearest is None or support is None:
         return ""
     text = f"{nearest:.{digits}f} / {support:.{digits}f}"
-    return (
-        text
-        if key.endswith("F1") or key.endswith("(exact)")
-        else f"{text} ({support / nearest:.2f}x)"
-    )
+    return f"{text} ({support / nearest:.2f}x)" if ratio else text
 
 
 def main() -> None:
@@ -73,8 +69,8 @@ def main() -> None:
                         name,
                         f"{fraction:.0%}",
                         profile,
-                        pair(means, "held-out F1", 4),
-                        pair(means, "near F1 (exact)", 4),
+                        pair(means, "held-out F1", 4, ratio=False),
+                        pair(means, "near F1 (exact)", 4, ratio=False),
                         pair(means, "build s", 2),
                         pair(means, "memory MB", 2),
                         pair(means, "query s", 3),
