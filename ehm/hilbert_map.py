@@ -214,24 +214,34 @@ class HilbertMap(MapQueries):
     def _log_odds(
         self, points: np.ndarray, mode: str, with_variance: bool
     ) -> tuple[np.ndarray, np.ndarray]:
-        return self._learned("query it").log_odds(self._local(points), mode, with_variance)
+        """The calibrated log-odds, the raw ones times the model's scale, and their variance."""
+        model = self._learned("query it")
+        log_odds, variance = model.log_odds(self._local(points), mode, with_variance)
+        return model.scale * log_odds, model.scale**2 * variance
 
     def _gradient(self, points: np.ndarray, mode: str) -> np.ndarray:
-        return self._learned("query it").gradients(self._local(points), mode)
+        model = self._learned("query it")
+        return model.scale * model.gradients(self._local(points), mode)
+
+    def _raw_threshold(self, threshold: float) -> float:
+        """The raw log-odds (w^T phi + intercept) at which the calibrated ones are
+        `threshold`: planner queries march the raw ones."""
+        return threshold / self._learned("query it").scale
 
     def _cast(self, rays: RayQuery) -> np.ndarray:
         """Rays guided by the planner support's grid and cells, read in wider query cells."""
         model, cell = self._learned("query it"), RAY_QUERY_CELLS * self.config.query_cell
         take, mode, stop = self._local_snapshot, rays.mode, rays.stop_at_unknown
+        threshold = self._raw_threshold(rays.threshold)
         return cast_rays(
             lambda points: model.sums(points, False, mode, cell).scores,
             self._local(rays.origins),
             rays.directions,
             rays.max_range,
-            rays.threshold,
+            threshold,
             self.config.cluster_radius,
             self._planner.grid(take),
-            self._planner.cells(take, rays.threshold),
+            self._planner.cells(take, threshold),
             partial(self._known_local, mode=mode) if stop else None,
             self._planner.known_cells(take) if stop else None,
         )
@@ -260,14 +270,14 @@ class HilbertMap(MapQueries):
         return self._planner.distances(
             self._local_snapshot,
             self._local(points),
-            query.threshold,
+            self._raw_threshold(query.threshold),
             query.unknown_is_occupied,
             query.with_gradient,
             *boxes,
         )
 
     def _point_log_odds(self, points: np.ndarray) -> np.ndarray:
-        """(n,) log-odds at (n, d) points of the map's own frame as `occupancy` reads each
+        """(n,) raw log-odds at (n, d) points of the map's own frame as `occupancy` reads each
         point alone (mode 'exact': a function of the point, whatever else is asked with it)."""
         return self._learned("query it").log_odds(points, "exact", False)[0]
 
@@ -367,6 +377,7 @@ class HilbertMap(MapQueries):
             self.sensor_path,
             model.time,
             self.local_origin_,
+            model.scale,
         )
 
     @classmethod

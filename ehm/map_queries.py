@@ -90,8 +90,9 @@ class MapQueries(ABC):
         """(n,) float64 probability that each point is occupied; with return_std, the pair
         (probability, std): std (n,) float64 is the standard deviation of the occupancy
         probability under the weights' Gaussian posterior (ehm.core.weights.uncertainty),
-        high where nothing was observed (0.21 with prior_precision 1) and shrinking as a
-        place is seen again.
+        high where nothing was observed (0.21 with prior_precision 1 and the log-odds read
+        raw, more with calibrated ones: MapConfig.calibrate) and shrinking as a place is seen
+        again.
 
         points: (n, d) float, metres, world frame. mode: 'batch' (Alg. 3: one neighbour search
         per group of nearby points) or 'exact' (one per point); default config.query_mode.
@@ -121,7 +122,8 @@ class MapQueries(ABC):
         self, points: np.ndarray, mode: str | None = None, return_variance: bool = False
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """(n,) float64 log-odds of occupancy: w^T phi(x), plus the intercept b when
-        config.query_intercept is set (Alg. 3); with return_variance, the pair (log-odds,
+        config.query_intercept is set (Alg. 3), times the map's calibration scale with
+        config.calibrate (ehm.core.weights.calibration); with return_variance, the pair (log-odds,
         variance): (n,) float64 variance of the log-odds under the weights' posterior, from
         which `occupancy`'s std follows (ehm.core.weights.uncertainty.occupancy_std)."""
         checked = self._checked_points(points)

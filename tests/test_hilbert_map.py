@@ -85,7 +85,7 @@ def test_incremental_merges_reobserved_clusters(room):
     assert hilbert_map.n_scans_ == 2
     # The scan's samples, then the update's stages (tests/core/test_update.py), no grid kept.
     stages = list(hilbert_map.timings_)
-    assert stages[0] == "samples" and stages[-1] == "memory_insert" and "grids" not in stages
+    assert stages[0] == "samples" and stages[-1] == "calibration" and "grids" not in stages
 
 
 def test_map_works_in_2d(plan):
@@ -279,10 +279,13 @@ def test_std_is_the_prior_where_nothing_was_observed_and_low_at_surfaces(room, r
     hits = room.scans[0].points_world[room.scans[0].hit_mask]
     never = np.random.default_rng(3).uniform(30.0, 40.0, (500, 3))  # far outside the room
     p_never, std_never = room_map.occupancy(never, return_std=True)
-    prior_std = occupancy_std(np.zeros(1), np.ones(1) / room_map.config.prior_precision)[0]
+    prior_variance = np.ones(1) / room_map.config.prior_precision
+    prior_std = occupancy_std(np.zeros(1), prior_variance)[0]
+    assert prior_std == pytest.approx(0.2083, abs=1e-4)  # read raw
+    # Calibrated log-odds are the raw ones times the map's scale, and so is their spread.
     np.testing.assert_allclose(p_never, 0.5)
-    np.testing.assert_allclose(std_never, prior_std)
-    assert prior_std == pytest.approx(0.2083, abs=1e-4)
+    scale = room_map.model_.scale
+    np.testing.assert_allclose(std_never, occupancy_std(np.zeros(1), scale**2 * prior_variance)[0])
     _, std_hits = room_map.occupancy(hits, return_std=True)
     assert std_never.mean() > 2.5 * std_hits.mean()  # 2.62 when written
 

@@ -26,7 +26,8 @@ class LearnedModel:
     replays; anchors (no layers unless config.anchor_layers > 1); bias_state (2,) float64,
     [bias, its AdaGrad accumulator]; search over the clusters (config.features); rng, the
     generator sampling, clustering and SGD draw from; time, seconds, the latest time stamp
-    learned (None without)."""
+    learned (None without); scale, what queries read the log-odds times (calibrated log-odds,
+    ehm.core.weights.calibration; 1 until the first update with config.calibrate)."""
 
     config: MapConfig
     clusters: ClusterSet
@@ -36,6 +37,7 @@ class LearnedModel:
     anchors: AnchorLayers = field(default_factory=AnchorLayers)
     bias_state: np.ndarray = field(default_factory=lambda: np.zeros(2))
     time: float | None = None
+    scale: float = 1.0
 
     @classmethod
     def empty(cls, config: MapConfig, dim: int) -> LearnedModel:
@@ -63,6 +65,7 @@ class LearnedModel:
             state.anchors,
             np.array(state.bias_state, dtype=np.float64),
             state.time,
+            state.scale,
         )
         if state.rng_state is not None:
             model.rng.bit_generator.state = state.rng_state
@@ -113,8 +116,9 @@ class LearnedModel:
     def log_odds(
         self, points: np.ndarray, mode: str, with_variance: bool
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(n,) log-odds at (n, d) points, metres, and with_variance their (n,) variance under
-        the weights' posterior (else an empty array); NaN rows for points not finite."""
+        """(n,) raw log-odds w^T phi (+ intercept) at (n, d) points, metres, and with_variance
+        their (n,) variance under the weights' posterior (else an empty array); NaN rows for
+        points not finite. Queries read them times `scale`."""
         found = self.sums(points, with_variance, mode, self.config.query_cell)
         if not with_variance:
             return found.scores, np.zeros(0)
@@ -154,6 +158,7 @@ class LearnedModel:
             self.intercept,
             self.config.prior_precision,
             lineage,
+            self.scale,
         )
 
 

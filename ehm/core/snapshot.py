@@ -17,7 +17,9 @@ class MapSnapshot:
     weight's posterior precision, and prior_precision the background feature's (see
     ehm.core.weights.uncertainty). planar_kernel: (M,) bool, the planar-surface kernel. intercept:
     log-odds every query adds. lineage: identifies the map's learning history; it changes when
-    the map is refitted, so a grid can tell a map that grew from one that started over.
+    the map is refitted, so a grid can tell a map that grew from one that started over. scale:
+    what the map's log-odds are read times, w^T phi + intercept to calibrated log-odds
+    (ehm.core.weights.calibration).
     """
 
     means: np.ndarray
@@ -28,6 +30,7 @@ class MapSnapshot:
     intercept: float
     prior_precision: float
     lineage: object
+    scale: float = 1.0
 
     def __post_init__(self) -> None:
         arrays = (self.means, self.transforms, self.weights, self.precision, self.planar_kernel)

@@ -25,7 +25,8 @@ class MapState:
     frame, the origin of every scan given, in order (empty for maps saved before it was kept).
     time: seconds, the latest time stamp of the scans learned (None without). local_origin:
     (d,) float64, metres, world frame, the point clusters and memory are kept relative to
-    (None: the world origin)."""
+    (None: the world origin). scale: what queries read the log-odds times (calibrated
+    log-odds, ehm.core.weights.calibration)."""
 
     config: MapConfig
     clusters: ClusterSet
@@ -38,3 +39,4 @@ class MapState:
     sensor_path: np.ndarray | None = None
     time: float | None = None
     local_origin: np.ndarray | None = None
+    scale: float = 1.0

@@ -22,6 +22,7 @@ from ehm.core.observations.passes import PASS_REACH_CELLS, hit_again, occupied_p
 from ehm.core.observations.samples import ScanRays, TrainingSamples
 from ehm.core.search.kernel_search import query_groups
 from ehm.core.timing import StageTimer
+from ehm.core.weights.calibration import calibration_samples, fitted_scale
 from ehm.core.weights.forgetting import fade, fade_shares, forget, mark_seen, standing_shares
 from ehm.core.weights.posterior import update_posterior
 from ehm.core.weights.sgd import loss_weights, train_weights
@@ -108,7 +109,20 @@ def update(
         memory.insert(visit, grouped.in_cluster[:n_new], np.nan if time is None else time)
     if time is not None:
         model.time = time if model.time is None else max(model.time, time)
+    if cfg.calibrate:
+        with timer("calibration"):
+            model.scale = calibrated_scale(model, rays)
     return report
+
+
+def calibrated_scale(model: LearnedModel, rays: ScanRays) -> float:
+    """The scale of the model's log-odds fitted on samples drawn afresh from `rays`, the batch
+    it just learned (ehm.core.weights.calibration), from a generator jumped off the model's, so
+    that the model's own draws stay as they were."""
+    rng = np.random.Generator(model.rng.bit_generator.jumped())
+    samples = calibration_samples(rays, model.config, rng)
+    log_odds, _ = model.log_odds(samples.points, model.config.query_mode, False)
+    return fitted_scale(log_odds, samples.occupied, samples.weight)
 
 
 def training_groups(

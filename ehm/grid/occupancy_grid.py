@@ -43,8 +43,10 @@ class OccupancyGrid:
     """Occupancy probabilities of a map on a regular grid of voxels, 2D or 3D.
 
     origin: (d,) metres, world frame, low corner of voxel (0, ..., 0). resolution: voxel side,
-    metres. shape: voxels per axis. scores: array of `shape`, log-odds w^T phi at each voxel
-    centre (Eq. 17); probability: p(occupied) there (Eq. 18); std, for grids made with_std:
+    metres. shape: voxels per axis. scores: array of `shape`, raw log-odds w^T phi at each voxel
+    centre (Eq. 17); intercept and scale: log_odds = scale (scores + intercept), the map's
+    calibrated log-odds (ehm.core.weights.calibration), as its point queries read them;
+    probability: p(occupied) there (Eq. 18); std, for grids made with_std:
     the standard deviation of that probability. Build one with HilbertMap.grid or
     `OccupancyGrid.of`; `update` brings it up to date with a newer snapshot.
     """
@@ -61,6 +63,7 @@ class OccupancyGrid:
         # Field 0: the scores; with the std, fields 1 and 2: sum_m k^2 / lambda_m, sum_m k.
         self._fields = np.zeros((3 if with_std else 1, *shape))
         self.intercept = 0.0
+        self.scale = 1.0
         self.prior_precision = 1.0
         self._probability: np.ndarray | None = None
         self._std: np.ndarray | None = None
@@ -102,7 +105,7 @@ class OccupancyGrid:
         `origin` ((d,) metres, low corner): a whole map's grid wherever no other cluster
         reaches (the blocks of ehm.grid.blocks). `update` rebuilds it from all clusters."""
         grid = cls(origin, resolution, shape, with_std)
-        grid.intercept = snapshot.intercept
+        grid.intercept, grid.scale = snapshot.intercept, snapshot.scale
         grid.prior_precision = snapshot.prior_precision
         lattice = Lattice.lift(grid.origin, grid.resolution, grid.shape)
         local = LocalGrids.of(snapshot, np.asarray(rows, dtype=np.int64), lattice, 1.0, with_std)
@@ -120,7 +123,7 @@ class OccupancyGrid:
     ) -> OccupancyGrid:
         """A grid of given values, for maps that are not one snapshot (a TiledMap blends its
         tiles'): origin (d,) metres, world frame, low corner; log_odds, an array of the grid's
-        shape; variance, of the same shape, the log-odds' variance at each voxel (None: a grid
+        shape, calibrated (scale 1); variance, of the same shape, the log-odds' variance at each voxel (None: a grid
         without the std); prior_precision: the maps' (MapConfig.prior_precision).
         `variance_sums` then holds (variance, 1): the whole variance, no background share.
         `update` starts such a grid over from a snapshot."""
@@ -137,6 +140,12 @@ class OccupancyGrid:
     def scores(self) -> np.ndarray:
         """Log-odds w^T phi at each voxel centre (Eq. 17), float64 array of `shape` (a view)."""
         return self._fields[0]
+
+    @property
+    def log_odds(self) -> np.ndarray:
+        """The calibrated log-odds at each voxel centre, scale (scores + intercept), float64
+        array of `shape` (a new array)."""
+        return self.scale * (self.scores + self.intercept)
 
     @property
     def has_std(self) -> bool:
@@ -166,7 +175,7 @@ class OccupancyGrid:
     def probability(self) -> np.ndarray:
         """p(occupied) per voxel, float64 array of `shape` (computed once per update)."""
         if self._probability is None:
-            self._probability = sigmoid(self.scores + self.intercept)
+            self._probability = sigmoid(self.log_odds)
         return self._probability
 
     @property
@@ -174,11 +183,17 @@ class OccupancyGrid:
         """Standard deviation of p(occupied) per voxel under the weights' posterior
         (ehm.core.weights.uncertainty), float64 array of `shape` (computed once per update);
         InputError for a grid made without it."""
-        self._require_std()
         if self._std is None:
-            variance = logit_variance(self._fields[1], self._fields[2], self.prior_precision)
-            self._std = occupancy_std(self.scores + self.intercept, variance)
+            self._std = occupancy_std(self.log_odds, self.log_odds_variance)
         return self._std
+
+    @property
+    def log_odds_variance(self) -> np.ndarray:
+        """Variance of `log_odds` per voxel under the weights' posterior, float64 array of
+        `shape` (a new array); InputError for a grid made without the std."""
+        self._require_std()
+        variance = logit_variance(self._fields[1], self._fields[2], self.prior_precision)
+        return self.scale**2 * variance
 
     def axis_centers(self, axis: int) -> np.ndarray:
         """(shape[axis],) metres: voxel centres along one axis."""
@@ -212,7 +227,7 @@ class OccupancyGrid:
         if snapshot.dim != self.dim:
             raise InputError(f"the grid is {self.dim}D, the map is {snapshot.dim}D")
         lattice = Lattice.lift(self.origin, self.resolution, self.shape)
-        self.intercept = snapshot.intercept
+        self.intercept, self.scale = snapshot.intercept, snapshot.scale
         self.prior_precision = snapshot.prior_precision
         self._probability = self._std = None
         with_std = self.has_std

@@ -82,8 +82,8 @@ class PlannerSupport:
         # Where the map's grid is too large: a grid around the points last asked their
         # distance, and its fields, until the map learns.
         self._near: tuple[OccupancyGrid, dict] | None = None
-        # Distance fields by (log-odds level, unknown space is an obstacle, the box it is one
-        # in, the box obstacles count in).
+        # Distance fields by (raw log-odds level, unknown space is an obstacle, the box it is
+        # one in, the box obstacles count in).
         self._fields: dict[tuple[float, bool, FlatBox, FlatBox], DistanceField] = {}
 
     def grid(self, take_snapshot: Callable[[], MapSnapshot]) -> GridLogOdds | None:
@@ -303,6 +303,9 @@ class PlannerSupport:
         old, self._kernels = self._kernels, snapshot
         if snapshot is None:
             return
+        if old is not None and old.scale != snapshot.scale:
+            # Queries ask calibrated levels: a raw level other than 0 now stands for another.
+            self._fields = {key: field for key, field in self._fields.items() if key[0] == 0.0}
         if self._cover is not None:
             self._cover = self._cover_update(old, snapshot)
         if self._known_cover is not None:

@@ -83,7 +83,7 @@ def octree_of_grids(grids: Iterable[OccupancyGrid], max_bytes: int = DEFAULT_MAX
                 "(max_bytes; --max-gib)"
             )
         centres = grid.origin + (voxels + 0.5) * grid.resolution
-        log_odds = grid.scores[tuple(voxels.T)] + grid.intercept
+        log_odds = grid.scale * (grid.scores[tuple(voxels.T)] + grid.intercept)
         for centre, value in zip(centres, log_odds, strict=True):
             tree.updateNode(centre, float(value), True)
         known += len(voxels)

@@ -1,5 +1,6 @@
-"""Occupancy grids as .npz files: probability, scores, intercept, origin, resolution, and for
-grids with the occupancy's standard deviation, std and the variance sums it comes from."""
+"""Occupancy grids as .npz files: probability, scores, intercept, scale, origin, resolution,
+and for grids with the occupancy's standard deviation, std and the variance sums it comes
+from. Files without a scale (written before maps calibrated their log-odds) read scale 1."""
 
 from __future__ import annotations
 
@@ -13,12 +14,13 @@ from ehm.io.files import read_archive
 
 
 def save_grid(grid: OccupancyGrid, path: str | PathLike[str]) -> None:
-    """Write a grid as .npz: probability, scores, intercept, origin, resolution; with the std
+    """Write a grid as .npz: probability, scores, intercept, scale, origin, resolution; with the std
     also std, variance_sums ((2,) + shape: sum k^2 / lambda, sum k) and prior_precision."""
     arrays = {
         "probability": grid.probability,
         "scores": grid.scores,
         "intercept": grid.intercept,
+        "scale": grid.scale,
         "origin": grid.origin,
         "resolution": grid.resolution,
     }
@@ -44,6 +46,7 @@ def load_grid(path: str | PathLike[str]) -> OccupancyGrid:
         grid = OccupancyGrid(arrays["origin"], float(arrays["resolution"]), shape, with_std)
         grid.scores[...] = arrays["scores"]
         grid.intercept = float(arrays["intercept"])
+        grid.scale = float(arrays["scale"]) if "scale" in arrays else 1.0
         if with_std:
             grid.variance_sums[...] = arrays["variance_sums"]
             grid.prior_precision = float(arrays["prior_precision"])

@@ -72,7 +72,9 @@ SENSOR_PATH = "sensor_path"
 # Version 18 maps may keep their clusters and memory relative to a point near their first
 # sensor pose (HilbertMap.local_origin_, georeferenced data); older files keep the world
 # origin, and load so.
-FORMAT_VERSION = 18
+# Version 19 maps read their log-odds calibrated (MapConfig.calibrate, the scale they read them
+# times); older files read them raw, and load with calibrate off.
+FORMAT_VERSION = 19
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -118,6 +120,7 @@ def map_bytes(state: MapState) -> bytes:
             "rng_state": state.rng_state,
             "time": state.time,
             "local_origin": None if state.local_origin is None else state.local_origin.tolist(),
+            "scale": state.scale,
             "arrays": entries,
         }
     ).encode()
@@ -129,7 +132,7 @@ def map_bytes(state: MapState) -> bytes:
 
 
 def read_map(path: str | PathLike[str]) -> MapState:
-    """Read the state of a map written by `write_map` (format versions 3 to 17); MapFileError
+    """Read the state of a map written by `write_map` (format versions 3 to 19); MapFileError
     names what is wrong otherwise."""
     return map_state_of_bytes(read_bytes(path), path)
 
@@ -223,6 +226,8 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
     if version < 17:
         length_scale = settings.get("length_scale", MapConfig().length_scale)
         settings = {**settings, "occupied_length_scale": length_scale}
+    if version < 19:
+        settings = {**settings, "calibrate": False}
     config = MapConfig.from_dict(settings)
     if kept is not None:
         memory = EvidenceMemory.of_samples(dim, config, *kept)
@@ -242,6 +247,7 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         sensor_path,
         header.get("time"),
         None if header.get("local_origin") is None else np.array(header["local_origin"], float),
+        header.get("scale", 1.0),
     )
 
 

@@ -29,7 +29,6 @@ from ehm.config import MapConfig
 from ehm.core.queries.raycast import cast_rays
 from ehm.core.sensor.scan import Scan
 from ehm.core.sensor.waiting_scans import check_scan
-from ehm.core.weights.uncertainty import logit_variance
 from ehm.errors import EmptyMapError, InputError, SettingsError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES, aligned_bounds, bytes_per_voxel, grid_shape
 from ehm.grid.occupancy_grid import OccupancyGrid
@@ -524,12 +523,9 @@ class TiledMap(MapQueries):
                     variance[part] += weight / self.config.prior_precision
                 continue
             tile_grid = tile_map.grid(part_box, resolution, max_bytes=max_bytes, std=std)
-            log_odds[part] += weight * (tile_grid.scores + tile_grid.intercept)
+            log_odds[part] += weight * tile_grid.log_odds
             if std:
-                sums = tile_grid.variance_sums
-                variance[part] += weight * logit_variance(
-                    sums[0], sums[1], tile_grid.prior_precision
-                )
+                variance[part] += weight * tile_grid.log_odds_variance
         return OccupancyGrid.of_log_odds(
             origin, resolution, log_odds, variance, self.config.prior_precision
         )

@@ -9,7 +9,6 @@ from os import PathLike
 import numpy as np
 
 from ehm.changes import MapChanges
-from ehm.core.weights.uncertainty import occupancy_std
 from ehm.errors import InputError
 from ehm.grid.occupancy_grid import OccupancyGrid
 from ehm.hilbert_map import HilbertMap
@@ -42,16 +41,14 @@ def occupancy_slices(
     exact_occupancy: when given, the true occupancy of (n, d) points ((n,) bool, for example
     a simulated scene's `occupied`), drawn as contours of the exact surfaces. std: draw the
     standard deviation of the occupancy instead (from 0 to its value where nothing was
-    observed)."""
+    observed, read beyond the map's extent)."""
     plt = pyplot()
     quantity = "std of occupancy" if std else "occupancy"
     if std:
-        prior_variance = np.ones(1) / hilbert_map.config.prior_precision
-        colours = {
-            "cmap": "magma",
-            "vmin": 0.0,
-            "vmax": occupancy_std(np.zeros(1), prior_variance)[0],
-        }
+        extent = hilbert_map.extent()
+        beyond = extent[1:] + (extent[1] - extent[0]) + 1.0  # where no kernel reaches
+        unobserved = hilbert_map.occupancy(beyond, return_std=True)[1][0]
+        colours = {"cmap": "magma", "vmin": 0.0, "vmax": unobserved}
     else:
         colours = {"cmap": "viridis", "vmin": 0.0, "vmax": 1.0}
 

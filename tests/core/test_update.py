@@ -20,6 +20,7 @@ STAGES = [
     "sgd",
     "precision",
     "memory_insert",
+    "calibration",
 ]
 
 

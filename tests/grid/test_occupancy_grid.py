@@ -114,7 +114,8 @@ def test_followed_grids_stay_equal_to_rebuilt_ones(room):
         for followed in (fine, coarse):
             rebuilt = hilbert_map.grid(bounds, followed.resolution, std=followed.has_std)
             np.testing.assert_allclose(followed.scores, rebuilt.scores, rtol=0, atol=1e-9)
-            np.testing.assert_array_equal(followed.probability, 1 / (1 + np.exp(-followed.scores)))
+            calibrated = hilbert_map.model_.scale * followed.scores
+            np.testing.assert_array_equal(followed.probability, 1 / (1 + np.exp(-calibrated)))
         np.testing.assert_allclose(coarse.std, rebuilt.std, rtol=0, atol=1e-9)
     assert kinds == ["incremental"] * 3
 

@@ -120,6 +120,17 @@ class ScanRays:
     def __len__(self) -> int:
         return len(self.lengths)
 
+    def subset(self, rows: np.ndarray) -> ScanRays:
+        """The rays at `rows` (int64 indices), their planes still to be fitted."""
+        per_ray = ("origins", "directions", "lengths", "hits", "free_start", "free_end")
+        taken = {name: getattr(self, name)[rows] for name in per_ray}
+        return ScanRays(
+            **taken,
+            spacing=self.spacing[rows],
+            ray_spacing=self.ray_spacing[rows],
+            plane_side=self.plane_side,
+        )
+
     @cached_property
     def ends(self) -> np.ndarray:
         """(n, d) where each ray ends, metres: its hit, or where it stops without one; found
