@@ -123,10 +123,10 @@ class OccupancyGrid:
     ) -> OccupancyGrid:
         """A grid of given values, for maps that are not one snapshot (a TiledMap blends its
         tiles'): origin (d,) metres, world frame, low corner; log_odds, an array of the grid's
-        shape, calibrated (scale 1); variance, of the same shape, the log-odds' variance at each voxel (None: a grid
-        without the std); prior_precision: the maps' (MapConfig.prior_precision).
-        `variance_sums` then holds (variance, 1): the whole variance, no background share.
-        `update` starts such a grid over from a snapshot."""
+        shape, calibrated (the grid's scale is 1); variance, of the same shape, the log-odds'
+        variance at each voxel (None: a grid without the std); prior_precision: the maps'
+        (MapConfig.prior_precision). `variance_sums` then holds (variance, 1): the whole
+        variance, no background share. `update` starts such a grid over from a snapshot."""
         log_odds = np.asarray(log_odds, dtype=np.float64)
         grid = cls(origin, resolution, log_odds.shape, variance is not None)
         grid.prior_precision = float(prior_precision)

@@ -28,6 +28,7 @@ def test_round_trip_answers_exactly_as_saved(small_map, tmp_path, rng):
         loaded.occupancy(points, mode="exact"), small_map.occupancy(points, mode="exact")
     )
     assert loaded.config == small_map.config
+    assert loaded.model_.scale == small_map.model_.scale != 1.0
     assert loaded.n_scans_ == small_map.n_scans_
     assert loaded.memory_bytes() == small_map.memory_bytes()
     # Saving the loaded map again gives the same bytes.
