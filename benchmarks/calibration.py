@@ -1,6 +1,6 @@
 """How often the occupancy is right when it says so: raw and calibrated log-odds, every data set.
 
-    python benchmarks/calibration.py [--seeds 0] [--fractions 0.8] [--datasets street,...]
+    python benchmarks/calibration.py [--seeds 0,1,2] [--fractions 0.8] [--datasets street,...]
 
 Each data set is split by held-out rays (ehm.eval.protocol.held_out_rays) at its resolution,
 and EHM learns the training scans in both profiles of `MapConfig.for_resolution`. One map gives

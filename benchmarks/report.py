@@ -25,6 +25,7 @@ OUTPUT = BENCHMARKS.parent / "BENCHMARKS.md"
 SECTIONS = {
     "peers": "Against OctoMap, wavemap and DUFOMap",
     "nav2_maps": "2D maps for nav2",
+    "calibration": "Calibrated occupancy: held-out rays read raw and calibrated",
     "changing_scene": "Changing scenes",
     "paper_evaluation": "The paper's evaluation (Sec. 4)",
     "online_mapping": "Online mapping: scan by scan, one batch and OctoMap",

@@ -2,11 +2,13 @@
 became occupied and those that became free.
 
 Both maps are read on one grid (HilbertMap.grid or TiledMap.grid: the same voxels, over the
-box holding both unless bounds are given). A voxel appeared where the old map reads it free (p
-at most `free`) and the new one occupied (p at least `occupied`), and vanished the other way
-round; where either map reads it unknown, between the two levels, nothing is said to have
-changed: a place one of them has not seen is no change. The levels default to those of nav2's
-map_server.
+box holding both unless bounds are given). A voxel appeared where the new map reads it
+occupied (p at least `occupied`) and the old one reads it and every voxel next to it free (p at
+most `free`), and vanished the other way round: two maps of one place put a surface's edge up
+to a voxel apart, and their calibrated occupancy passes from free to occupied within a voxel,
+so a surface that stayed is no change. Where either map reads a voxel unknown, between the two
+levels, nothing is said to have changed: a place one of them has not seen is no change. The
+levels default to those of nav2's map_server.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import maximum_filter
 
 from ehm.errors import InputError
 from ehm.grid.bounds import DEFAULT_MAX_BYTES
@@ -77,9 +80,12 @@ def diff(
     before = old.grid(bounds, resolution, max_bytes=max_bytes)
     after = new.grid(bounds, resolution, max_bytes=max_bytes)
     was, now = before.probability.ravel(), after.probability.ravel()
+    # The most occupied of each voxel and the voxels next to it, in either map.
+    was_around = maximum_filter(before.probability, size=3, mode="nearest").ravel()
+    now_around = maximum_filter(after.probability, size=3, mode="nearest").ravel()
     return MapChanges(
-        _centres(after, (was <= free) & (now >= occupied)),
-        _centres(after, (was >= occupied) & (now <= free)),
+        _centres(after, (was_around <= free) & (now >= occupied)),
+        _centres(after, (was >= occupied) & (now_around <= free)),
         _centres(after, (was >= occupied) & (now >= occupied)),
         after.resolution,
         after.bounds,
