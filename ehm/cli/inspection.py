@@ -72,6 +72,9 @@ def info(
     table.add_row("resolution", f"{hilbert_map.config.resolution:g} m (outputs default to it)")
     table.add_row("clusters", str(hilbert_map.n_clusters))
     table.add_row("scans", str(hilbert_map.n_scans_))
+    scale = hilbert_map.model_.scale if hilbert_map.model_ is not None else 1.0
+    reading = "calibrated" if hilbert_map.config.calibrate else "raw: calibrate is off"
+    table.add_row("log-odds read times", f"{scale:.3g} ({reading})")
     if hilbert_map.time_ is not None:
         table.add_row("latest time stamp", f"{hilbert_map.time_:.3f} s")
     path = hilbert_map.sensor_path
