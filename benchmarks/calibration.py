@@ -3,8 +3,8 @@
     python benchmarks/calibration.py [--seeds 0,1,2] [--fractions 0.8] [--datasets street,...]
 
 Each data set is split by held-out rays (ehm.eval.protocol.held_out_rays) at its resolution,
-and EHM learns the training scans in both profiles of `MapConfig.for_resolution`. One map gives
-both readings: its calibrated log-odds (MapConfig.calibrate, the default) and the raw ones,
+and EHM learns the training scans in both profiles of `MapConfig.for_resolution`, calibrated
+(MapConfig.calibrate). One map gives both readings: its calibrated log-odds and the raw ones,
 w^T phi, which are those over the map's scale. Per reading: the held-out log loss and Brier
 score (lower is better), the share of held-out free points read free by map_server's
 threshold (occupancy below 0.196) and of held-out hits read occupied (above 0.65), as a
@@ -55,7 +55,7 @@ def measure(split: HeldOutSplit, resolution: float) -> dict[str, dict[str, float
     for EHM, the map's scale."""
     found = {}
     for profile in PROFILES:
-        config = ehm.MapConfig.for_resolution(resolution, profile)
+        config = ehm.MapConfig.for_resolution(resolution, profile, calibrate=True)
         hilbert_map = MappingPipeline(split.train, ehm.HilbertMap(config)).run().hilbert_map
         calibrated = hilbert_map.decision_function(split.points)
         scale = hilbert_map.model_.scale

@@ -3,17 +3,19 @@
     python benchmarks/nav2_maps.py [--seeds 0,1,2] [--fractions 0.8,0.4]
 
 Each 2D data set (the Intel lab, a generated office floor) is split by held-out rays. EHM
-learns the training rays scan by scan at 0.05 m (`MapConfig.for_resolution`), its navigation
-grid (`ehm.grid.navigation`) is exported with `ehm.io.exports.write_map_server` and read back
-from the .pgm the way map_server reads it in trinary mode: a pixel p has occupancy
+learns the training rays scan by scan at 0.05 m (`MapConfig.for_resolution`; ehm-calibrated
+with `calibrate` on, its log-odds read calibrated), its navigation grid
+(`ehm.grid.navigation`) is exported with `ehm.io.exports.write_map_server` and read back from
+the .pgm the way map_server reads it in trinary mode: a pixel p has occupancy
 (255 - p) / 255, occupied above 0.65, free below 0.196, unknown between. OctoMap at 0.05 m
 gives each pixel the occupancy of its voxel, written to a pixel as round(255 (1 - p))
 (unknown voxels grey). Reported per method: the share of held-out free points (ray-observed
 free space) read free and read unknown, the share of held-out hits read occupied and read
 free, the share of unseen points read free (0.2-1 m behind training hits, along their rays,
 where no training ray passed: OctoMap's voxel there is unknown), the share of held-out free
-points the map itself reads free (occupancy below 0.196, as a planner asking it would) and of
-held-out hits it reads occupied (above 0.65), and held-out F1 at 0.5.
+points the map itself reads free (occupancy below 0.196, as a planner asking it would), of
+held-out hits it reads occupied (above 0.65) and of the unseen points it reads free, and
+held-out F1 at 0.5.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ from ehm.io.exports import (
 from ehm.pipeline import MappingPipeline
 
 DATASETS = ("intel_lab", "office_floor")
-METHODS = ("ehm", "octomap")
+METHODS = ("ehm", "ehm-calibrated", "octomap")
 
 
 def office_floor() -> list[ehm.Scan]:
@@ -103,29 +105,33 @@ def unseen_points(train: list[ehm.Scan], n: int = 20_000, seed: int = 0) -> np.n
 def measures(method: str, split: HeldOutSplit) -> list[float]:
     """For `method` learned from the split's training scans: free points read free and read
     unknown, hits read occupied and read free, unseen points read free (map_server's reading
-    of its export), free points and hits the map's own occupancy reads free and occupied
-    (map_server's thresholds), and held-out F1 (its occupancy at 0.5)."""
+    of its export), free points, hits and unseen points the map's own occupancy reads free,
+    occupied and free (map_server's thresholds), and held-out F1 (its occupancy at 0.5)."""
     unseen = unseen_points(split.train)
     points = np.concatenate([split.points, unseen])
-    if method == "ehm":
-        config = ehm.MapConfig.for_resolution(RESOLUTION)
+    if method.startswith("ehm"):
+        calibrate = method == "ehm-calibrated"
+        config = ehm.MapConfig.for_resolution(RESOLUTION, calibrate=calibrate)
         hilbert_map = MappingPipeline(split.train, ehm.HilbertMap(config)).run().hilbert_map
-        occupancy = hilbert_map.occupancy(split.points)
+        occupancy = hilbert_map.occupancy(points)
         reading = ehm_reading(hilbert_map, points)
     else:
         octomap = OctoMapMapper(RESOLUTION)
         octomap.build(split.train)
-        occupancy = octomap.occupancy(split.points)
-        reading = octomap_reading(octomap.occupancy(points))
-    held_out, unseen_reading = reading[: len(split.points)], reading[len(split.points) :]
+        occupancy = octomap.occupancy(points)
+        reading = octomap_reading(occupancy)
+    n = len(split.points)
+    held_out, unseen_reading = reading[:n], reading[n:]
     free, hit = held_out[~split.occupied], held_out[split.occupied]
     shares = [np.mean(free == 0), np.mean(free == -1), np.mean(hit == 1), np.mean(hit == 0)]
-    own = [
-        np.mean(occupancy[~split.occupied] < MAP_SERVER_FREE),
-        np.mean(occupancy[split.occupied] > MAP_SERVER_OCCUPIED),
+    own, unseen = occupancy[:n], occupancy[n:]
+    own_shares = [
+        np.mean(own[~split.occupied] < MAP_SERVER_FREE),
+        np.mean(own[split.occupied] > MAP_SERVER_OCCUPIED),
+        np.mean(unseen < MAP_SERVER_FREE),
     ]
     unseen_free = np.mean(unseen_reading == 0)
-    return [*shares, unseen_free, *own, f1_score(split.occupied, occupancy > 0.5)]
+    return [*shares, unseen_free, *own_shares, f1_score(split.occupied, own > 0.5)]
 
 
 def main() -> None:
@@ -159,6 +165,7 @@ def main() -> None:
         "unseen read free",
         "model: free read free",
         "model: hits read occupied",
+        "model: unseen read free",
         "held-out F1",
     ]
     print(markdown_table(header, rows, text_columns=3))

@@ -5,10 +5,10 @@ Both maps are read on one grid (HilbertMap.grid or TiledMap.grid: the same voxel
 box holding both unless bounds are given). A voxel appeared where the new map reads it
 occupied (p at least `occupied`) and the old one reads it and every voxel next to it free (p at
 most `free`), and vanished the other way round: two maps of one place put a surface's edge up
-to a voxel apart, and their calibrated occupancy passes from free to occupied within a voxel,
-so a surface that stayed is no change. Where either map reads a voxel unknown, between the two
-levels, nothing is said to have changed: a place one of them has not seen is no change. The
-levels default to those of nav2's map_server.
+to a voxel apart, and a calibrated map's occupancy (MapConfig.calibrate) passes from free to
+occupied within a voxel, so a surface that stayed is no change. Where either map reads a
+voxel unknown, between the two levels, nothing is said to have changed: a place one of them
+has not seen is no change. The levels default to those of nav2's map_server.
 """
 
 from __future__ import annotations

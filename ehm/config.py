@@ -267,12 +267,13 @@ class MapConfig:
     """Add the learned intercept (bias) to the query scores. It absorbs the share of free
     samples during training, which the sampling settings set, not the scene; left out, a point
     no cluster reaches reads 0.5 (unknown), as in OctoMap."""
-    calibrate: bool = setting(True, "queries")
+    calibrate: bool = setting(False, "queries")
     """Read the log-odds calibrated: times the one scale that best predicts the evidence of
     the latest batch's rays, drawn afresh after it is learned (ehm.core.weights.calibration).
     Regularised SGD leaves the weights too small, so the raw occupancy reads observed free
     space and hits closer to 0.5 than they are; the scale changes no reading's side of 0.5.
-    False: the raw log-odds, w^T phi."""
+    Off by default: fitted where rays passed, it sharpens the map's weak readings of thinly
+    observed space too (what `ehm.diff` reads as changes). False: the raw log-odds, w^T phi."""
     query_mode: QueryMode = setting("batch", "queries")
     """With features 'nearest': 'batch', neighbour search once per group of query points;
     'exact', once per point. With 'support' both are the same."""

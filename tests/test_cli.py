@@ -46,8 +46,7 @@ def test_map_then_info_and_query(map_file, tmp_path, table_row):
     assert table_row(every, "kernels.coarse_neighbours") == ["4"]
     assert table_row(info.output, "dimensions") == ["2"]
     assert table_row(info.output, "scans") == ["5"]
-    scale = f"{hilbert_map.model_.scale:.3g} (calibrated)"
-    assert table_row(info.output, "log-odds read times") == [scale]
+    assert table_row(info.output, "log-odds read times") == ["1 (raw: calibrate is off)"]
     path = hilbert_map.sensor_path
     length = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
     assert table_row(info.output, "sensor path") == [f"5 poses, {length:.2f} m long"]

@@ -85,7 +85,7 @@ def test_incremental_merges_reobserved_clusters(room):
     assert hilbert_map.n_scans_ == 2
     # The scan's samples, then the update's stages (tests/core/test_update.py), no grid kept.
     stages = list(hilbert_map.timings_)
-    assert stages[0] == "samples" and stages[-1] == "calibration" and "grids" not in stages
+    assert stages[0] == "samples" and stages[-1] == "memory_insert" and "grids" not in stages
 
 
 def test_map_works_in_2d(plan):

@@ -20,7 +20,6 @@ STAGES = [
     "sgd",
     "precision",
     "memory_insert",
-    "calibration",
 ]
 
 

@@ -28,7 +28,6 @@ def test_round_trip_answers_exactly_as_saved(small_map, tmp_path, rng):
         loaded.occupancy(points, mode="exact"), small_map.occupancy(points, mode="exact")
     )
     assert loaded.config == small_map.config
-    assert loaded.model_.scale == small_map.model_.scale != 1.0
     assert loaded.n_scans_ == small_map.n_scans_
     assert loaded.memory_bytes() == small_map.memory_bytes()
     # Saving the loaded map again gives the same bytes.
@@ -165,7 +164,7 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
-    settings_then = {"batch_rays": 0, "occupied_length_scale": 3.0, "calibrate": False}  # 9, 17, 19
+    settings_then = {"batch_rays": 0, "occupied_length_scale": 3.0}  # formats 9 and 17
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
             features="nearest",
@@ -256,10 +255,8 @@ def test_maps_of_format_12_load_their_kept_samples_as_evidence(small_map, tmp_pa
     (tmp_path / "old.ehm").write_bytes(map_file.map_bytes(old))
     monkeypatch.undo()
     loaded = ehm.load(tmp_path / "old.ehm")
-    # Occupied kernels as wide as free ones, and raw log-odds, as every map of format 12 had.
-    then = small_map.config.replace(
-        occupied_length_scale=small_map.config.length_scale, calibrate=False
-    )
+    # Occupied kernels as wide as free ones, as every map of format 12 made them.
+    then = small_map.config.replace(occupied_length_scale=small_map.config.length_scale)
     assert loaded.config.keep_evidence and loaded.config == then
     evidence = loaded.model_.memory.samples()
     assert evidence.weight.sum() == pytest.approx(14.0)

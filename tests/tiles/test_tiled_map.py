@@ -94,7 +94,7 @@ def test_queries_take_the_same_checks_as_a_hilbert_map(tiled_room):
 def test_the_grid_blends_tiles_as_point_queries_do(room):
     """With every kernel not zero at a point as its features, a tile's grid and its point
     queries are one model (see the grid's tests), and so are the blended ones."""
-    settings = {"features": "support", "prior_precision": 2.0}
+    settings = {"features": "support", "prior_precision": 2.0, "calibrate": True}
     tiled = TiledMap(TILE, OVERLAP, **settings).integrate_scan(room.scans[0])
     bounds = np.array([[-3.0, -2.0, 0.2], [3.0, 2.0, 2.2]])
     grid = tiled.grid(bounds, resolution=0.1, std=True)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import ehm
+from ehm.core.learned_model import LearnedModel
 from ehm.core.observations.samples import scan_rays
 from ehm.core.weights.calibration import (
     CALIBRATION_SAMPLES,
@@ -68,8 +69,8 @@ def test_samples_are_hits_points_behind_them_and_free_space_along_rays(room):
 
 def test_a_calibrated_map_reads_held_out_rays_better_than_raw(plan):
     split = held_out_rays(plan.scans, 0.8, 0.05, 0)
-    calibrated = ehm.HilbertMap().fit(split.train)
-    raw = ehm.HilbertMap(calibrate=False).fit(split.train)
+    calibrated = ehm.HilbertMap(calibrate=True).fit(split.train)
+    raw = ehm.HilbertMap().fit(split.train)
     scale = calibrated.model_.scale
     assert raw.model_.scale == 1.0 and 1.5 < scale <= SCALE_BOUNDS[1]
     # The same weights, read times the scale: no point changes its side of 0.5.
@@ -92,8 +93,8 @@ def test_a_calibrated_map_reads_held_out_rays_better_than_raw(plan):
 def test_rays_and_distances_at_a_level_read_the_calibrated_occupancy(room):
     """A calibrated map and a raw one learn the same weights; asked at a level, the calibrated
     one answers as the raw one at the level of the same raw log-odds."""
-    calibrated = ehm.HilbertMap().fit(room.scans[:1])
-    raw = ehm.HilbertMap(calibrate=False).fit(room.scans[:1])
+    calibrated = ehm.HilbertMap(calibrate=True).fit(room.scans[:1])
+    raw = ehm.HilbertMap().fit(room.scans[:1])
     scale = calibrated.model_.scale
     scan = room.scans[0]
     rng = np.random.default_rng(2)
@@ -118,7 +119,7 @@ def test_a_distance_field_kept_at_a_level_follows_a_new_scale(room):
     scan = room.scans[0]
     rays = np.arange(len(scan))
     first, second = scan.subset(rays % 2 == 0), scan.subset(rays % 2 == 1)
-    hilbert_map = ehm.HilbertMap().integrate_scan(first)
+    hilbert_map = ehm.HilbertMap(calibrate=True).integrate_scan(first)
     hilbert_map.distance(points, level=0.8)
     hilbert_map.distance(points, level=0.5)
 
@@ -131,3 +132,20 @@ def test_a_distance_field_kept_at_a_level_follows_a_new_scale(room):
     assert raw_levels() == [0.0]
     hilbert_map.distance(points, level=0.8)
     assert raw_levels() == pytest.approx([0.0, logit / hilbert_map.model_.scale])
+
+
+def test_a_calibrated_map_keeps_its_scale_in_its_file_and_state(plan, tmp_path, rng):
+    hilbert_map = ehm.HilbertMap(calibrate=True).fit(plan.scans)
+    assert list(hilbert_map.timings_)[-1] == "calibration"
+    hilbert_map.save(tmp_path / "plan.ehm")
+    loaded = ehm.load(tmp_path / "plan.ehm")
+    assert loaded.model_.scale == hilbert_map.model_.scale != 1.0
+    points = rng.uniform(-6.0, 6.0, (2000, 2))
+    np.testing.assert_array_equal(loaded.occupancy(points), hilbert_map.occupancy(points))
+    # The model itself reads raw log-odds; the map reads them times its scale, their variance
+    # times its square.
+    model = LearnedModel.of_state(hilbert_map.state())
+    scores, variance = model.log_odds(points, "batch", True)
+    calibrated, spread = hilbert_map.decision_function(points, return_variance=True)
+    np.testing.assert_array_equal(model.scale * scores, calibrated)
+    np.testing.assert_array_equal(model.scale**2 * variance, spread)
