@@ -1,6 +1,6 @@
 """Occupancy grids as .npz files: probability, scores, intercept, scale, origin, resolution,
 and for grids with the occupancy's standard deviation, std and the variance sums it comes
-from. Files without a scale (written before maps calibrated their log-odds) read scale 1."""
+from. Files without a scale (written before maps could calibrate their log-odds) read scale 1."""
 
 from __future__ import annotations
 
