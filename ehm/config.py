@@ -92,6 +92,11 @@ class MapConfig:
     """The samples behind and in front of hits are gathered in cells this many times as wide
     as the hits' own (ehm.core.observations.evidence; a quarter of a cluster radius). 1: 2
     learns crowded hits (a depth camera's) faster, at the cost of slightly thicker surfaces."""
+    fine_free_band: float = setting(0.0, "sampling", low=0.0)
+    """Free samples along a ray that lie within this many free cluster radii before its hit
+    are gathered and clustered as the samples around hits are (fine cells, cluster_radius),
+    not as open space: fine free kernels then cover the space just in front of surfaces, which
+    otherwise only coarse kernels straddling them reach. 0: none."""
     surface_margin: float = setting(0.05, "sampling", unit="m", low=0.0, low_open=True, length=True)
     """Margin in front of each hit, metres: free samples along the ray stop this far before
     it, and one free sample is drawn from a quarter of it to `front_reach` times it in front

@@ -163,6 +163,7 @@ def gather_kernel(
     sides,
     behind_kind,
     bits,
+    band,
     table,
     used,
 ):  # pragma: no cover - compiled
@@ -180,7 +181,9 @@ def gather_kernel(
     hits outside it are left out; front_stretch (n,): how many times as far along its ray each
     hit's free sample lies (ehm.core.observations.samples.front_stretches); sides (4,)
     metres: the cell side of each kind (kind_sides); behind_kind: the kind of the occupied
-    sample behind each hit (OCCUPIED or OCCUPIED_BEHIND); bits: bits per axis of a key.
+    sample behind each hit (OCCUPIED or OCCUPIED_BEHIND); bits: bits per axis of a key;
+    band: metres, free samples along a ray with a hit that lie within it before the hit are of
+    the kind FREE_AT_SURFACE (`fine_free_band`).
 
     Each sample is added where it is made, in one place of this loop: a helper taking the
     table's arrays, called once per sample, is several times slower.
@@ -219,6 +222,8 @@ def gather_kernel(
                 k = j - around_hit - far_counts[r]
                 depth = dense_start[r] + (k + random[r, 2]) * spacing[r]
                 weight, kind = 1.0, FREE_ALONG_RAY
+            if j >= around_hit and hits[r] and lengths[r] - depth < band:
+                kind = FREE_AT_SURFACE
             side = sides[kind]
             inside = True
             key = np.int64(0)
@@ -258,7 +263,7 @@ def gather_kernel(
 
 def _gather_rays(arguments: tuple, first: int, last: int) -> _CellTable:
     """The cells of the samples of rays first, ..., last - 1 (`arguments`: gather_kernel's from
-    `origins` to `bits`), in a table grown as they fill it."""
+    `origins` to `band`), in a table grown as they fill it."""
     dim, far, dense = arguments[1].shape[1], arguments[7], arguments[8]
     samples = int(far[first:last].sum() + dense[first:last].sum()) + 3 * (last - first)
     table = _CellTable.empty(samples // SAMPLES_PER_CELL, dim)
@@ -324,6 +329,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         sides,
         behind_kind(config),
         bits,
+        config.fine_free_band * config.free_cluster_radius,
     )
     samples_to = np.cumsum(far + dense + 3 * rays.hits)  # samples of the rays up to each
     total = samples_to[-1] if len(samples_to) else 0
@@ -473,7 +479,8 @@ def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -
     kind[1 : 3 * int(rays.hits.sum()) : 3] = behind_kind(config)  # each hit's second sample
     if config.learn_box:  # the samples around hits outside the box
         box = learn_box(config, rays.directions.shape[1])
-        inside = ~samples.at_surface | points_in_box(samples.points, box)
+        around_hit = np.arange(len(samples)) < 3 * int(rays.hits.sum())
+        inside = ~around_hit | points_in_box(samples.points, box)
         samples, kind = samples.subset(inside), kind[inside]
     keys = packed_cell_keys(samples.points, kind_sides(config)[kind], kind, KIND_BITS)
     _, cell = np.unique(keys, return_inverse=True)

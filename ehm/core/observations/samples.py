@@ -21,7 +21,8 @@ class TrainingSamples:
     """Labelled points for the classifier.
 
     points: (n, d) float64, metres, world frame. occupied: (n,) bool. at_surface: (n,) bool,
-    True for the samples drawn around hits (both classes), False for free samples along rays.
+    True for the samples drawn around hits (both classes) and the free samples along rays
+    within MapConfig.fine_free_band of their hit, False for the other free samples along rays.
     weight: (n,) float64, how many drawn samples each stands for in the loss (None gives
     ones). scatter: (n, d, d) float64, m^2, the scatter of those samples about the point, for
     a point that is their mean (ehm.core.observations.evidence), or None: none (zero) for
@@ -283,7 +284,8 @@ def training_samples(scan: Scan, config: MapConfig, rng: np.random.Generator) ->
     free.
     Along each ray, free points are stratified: one in each `spacing` of its free part, from a
     random offset, where it lies within FAR_REACH free cluster radii of the ray's hit; one in
-    each `free_thinning` spacings, of that weight, farther and along rays without a hit. With
+    each `free_thinning` spacings, of that weight, farther and along rays without a hit; those
+    within `fine_free_band` free cluster radii before the hit are at_surface. With
     `learn_box`, the samples around hits outside it are left out.
     """
     rays = scan_rays([scan], config)
@@ -308,26 +310,30 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
         (far, rays.free_start, config.free_thinning * rays.spacing),
         (dense, dense_start, rays.spacing),
     )
-    along = []
+    along, near_hit = [], []
+    band = config.fine_free_band * config.free_cluster_radius
     for counts, start, spacing in runs:
         ray_of_sample = np.repeat(np.arange(len(counts)), counts)
         rank = np.arange(len(ray_of_sample)) - np.repeat(np.cumsum(counts) - counts, counts)
         depth = start[ray_of_sample] + (rank + randoms[ray_of_sample, 2]) * spacing[ray_of_sample]
         along.append(rays.origins[ray_of_sample] + rays.directions[ray_of_sample] * depth[:, None])
+        near_hit.append(rays.hits[ray_of_sample] & (rays.lengths[ray_of_sample] - depth < band))
     # Each hit's three samples together, then the free samples of every ray.
     surface = np.stack([hit_points, behind, in_front], axis=1).reshape(-1, rays.origins.shape[1])
     points = np.concatenate([surface, *along])
     n_surface = len(surface)
     occupied = np.zeros(len(points), dtype=bool)
     occupied[:n_surface] = np.tile([True, True, False], len(hit_points))
-    at_surface = np.zeros(len(points), dtype=bool)
-    at_surface[:n_surface] = True
+    around_hit = np.zeros(len(points), dtype=bool)
+    around_hit[:n_surface] = True
+    at_surface = around_hit.copy()
+    at_surface[n_surface:] = np.concatenate(near_hit)  # within fine_free_band of their hit
     weight = np.ones(len(points))
     weight[n_surface : n_surface + len(along[0])] = config.free_thinning
     samples = TrainingSamples(points, occupied, at_surface, weight)
     if config.learn_box:  # the samples around hits outside the box
         box = learn_box(config, rays.origins.shape[1])
-        return samples.subset(~at_surface | points_in_box(points, box))
+        return samples.subset(~around_hit | points_in_box(points, box))
     return samples
 
 

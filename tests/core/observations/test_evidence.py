@@ -28,15 +28,17 @@ def _sorted(samples):
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("box", [False, True])
 @pytest.mark.parametrize(
-    "thinning, front_reach, pooling", [(1, 1.0, 1), (3, 2.0, 1), (1, 1.0, 2), (2, 2.0, 3)]
+    "thinning, front_reach, pooling, band",
+    [(1, 1.0, 1, 0.0), (3, 2.0, 1, 0.0), (1, 1.0, 2, 0.5), (2, 2.0, 3, 0.25)],
 )
-def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reach, pooling):
+def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reach, pooling, band):
     config = MapConfig(
         free_spacing=0.3,
         max_free_samples=12,
         free_thinning=thinning,
         front_reach=front_reach,
         surface_pooling=pooling,
+        fine_free_band=band,
     )
     if box:
         config = config.replace(learn_box=(-2.0,) * dim + (3.0,) * dim)

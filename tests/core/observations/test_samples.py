@@ -115,6 +115,27 @@ def test_free_samples_far_from_hits_are_sparser_and_weigh_more(rng):
     assert abs((~hit[ray]).sum() / (200 * 8.0) - 5) < 0.3
 
 
+def test_free_samples_within_the_fine_band_of_their_hit_are_at_the_surface(rng):
+    """With fine_free_band 0.5 (of a 0.6 m free cluster radius), the free samples along a ray
+    that lie within 0.3 m before its hit are at_surface, clustered as those around hits; the
+    others, and all along rays without a hit, are not. The samples themselves do not move."""
+    angles = rng.uniform(0, 2 * np.pi, 400)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+    hit = np.arange(400) < 200
+    scan = Scan(directions * 8.0, np.zeros(2), hit)
+    config = MapConfig(free_spacing=0.1, free_cluster_radius=0.6, surface_margin=0.05)
+    plain = training_samples(scan, config, np.random.default_rng(4))
+    banded = training_samples(scan, config.replace(fine_free_band=0.5), np.random.default_rng(4))
+    np.testing.assert_array_equal(banded.points, plain.points)
+    np.testing.assert_array_equal(banded.occupied, plain.occupied)
+    moved = banded.at_surface & ~plain.at_surface
+    assert not banded.occupied[moved].any() and moved.sum() > 200 * 2  # about 2.5 a ray
+    along = ~plain.at_surface
+    ray = np.argmax(banded.points @ directions.T, axis=1)
+    near = hit[ray] & (np.linalg.norm(banded.points, axis=1) > 8.0 - 0.3)
+    np.testing.assert_array_equal(moved[along], near[along])
+
+
 def test_no_return_rays_give_free_samples_only(rng):
     scan = Scan(np.array([[3.0, 0.0], [0.0, 2.0]]), np.zeros(2), np.array([False, False]))
     samples = training_samples(scan, MapConfig(free_spacing=0.1), rng)
