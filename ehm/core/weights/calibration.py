@@ -45,7 +45,10 @@ def calibration_samples(
     front of each hit)."""
     rows = np.sort(rng.choice(len(rays), min(CALIBRATION_RAYS, len(rays)), replace=False))
     some = rays.subset(rows)
-    samples = samples_of_rays(some, ray_randoms(len(some), rng), config)
+    # The front samples are left out: no planes fitted to place them; free samples in the fine
+    # band stay flagged as along rays, where the selection below finds them.
+    drawn = config.replace(front_stretch=False, fine_free_band=0.0)
+    samples = samples_of_rays(some, ray_randoms(len(some), rng), drawn)
     certain = np.flatnonzero(samples.occupied | ~samples.at_surface)
     if len(certain) > CALIBRATION_SAMPLES:
         certain = np.sort(rng.choice(certain, CALIBRATION_SAMPLES, replace=False))

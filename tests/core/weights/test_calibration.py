@@ -149,3 +149,14 @@ def test_a_calibrated_map_keeps_its_scale_in_its_file_and_state(plan, tmp_path, 
     calibrated, spread = hilbert_map.decision_function(points, return_variance=True)
     np.testing.assert_array_equal(model.scale * scores, calibrated)
     np.testing.assert_array_equal(model.scale**2 * variance, spread)
+
+
+def test_free_samples_in_the_fine_band_are_calibration_samples_too(room):
+    """The fine band moves free samples near hits to the fine clusters, not out of the
+    calibration: the same draw gives the same samples with and without it."""
+    rays = scan_rays(room.scans[:1], ehm.MapConfig())
+    plain = calibration_samples(rays, ehm.MapConfig(), np.random.default_rng(1))
+    banded = ehm.MapConfig(fine_free_band=0.5)
+    again = calibration_samples(rays, banded, np.random.default_rng(1))
+    np.testing.assert_array_equal(again.points, plain.points)
+    np.testing.assert_array_equal(again.occupied, plain.occupied)
