@@ -49,6 +49,8 @@ DATASETS = (
     "tum_fr2_pioneer_slam2",
     "pcl_room",
     "intel_lab",
+    "icl_living_room",
+    "icl_living_room_noisy",
     *SIMULATED,
 )
 METHODS = ("octomap", "wavemap", "dufomap", "ehm", "ehm-realtime")

@@ -227,6 +227,14 @@ class MapConfig:
     """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0: the log-odds
     variance of never-observed space (occupancy std 0.21 at 1; ehm.core.weights.uncertainty), and
     under 'posterior' the prior the first update starts from."""
+    coarse_free_only: bool = setting(False, "learning")
+    """Hold the weights of coarse clusters (open free space, from free samples along rays) at
+    or below 0, so they only ever read space free. Unconstrained, SGD gives some of them
+    positive weights near surfaces, where they offset the intercept; queries leave the
+    intercept out, so such a kernel reads observed free space occupied up to its reach
+    (about 1 m at 0.05 m) in front of surfaces. Off by default: where hits are too sparse to
+    form fine clusters (beyond about 10 m on OctoMap's sample scan) those positive kernels are
+    what reads them occupied. False: the paper's unconstrained weights."""
     balance_classes: bool = setting(False, "learning")
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = setting(2, "learning", low=1)

@@ -34,7 +34,8 @@ def eval_command(
         str,
         typer.Option(
             help="Comma-separated: virtual_room warehouse street dense_room dense_room_noisy "
-            "octomap_scan tum_fr2_pioneer_slam2 pcl_room intel_lab, or all."
+            "octomap_scan tum_fr2_pioneer_slam2 pcl_room intel_lab icl_living_room "
+            "icl_living_room_noisy, or all."
         ),
     ] = "virtual_room",
     fractions: Annotated[str, typer.Option(help="Train fractions of the rays.")] = "0.8,0.6,0.4",

@@ -25,7 +25,7 @@ from ehm.core.timing import StageTimer
 from ehm.core.weights.calibration import calibration_samples, fitted_scale
 from ehm.core.weights.forgetting import fade, fade_shares, forget, mark_seen, standing_shares
 from ehm.core.weights.posterior import update_posterior
-from ehm.core.weights.sgd import loss_weights, train_weights
+from ehm.core.weights.sgd import loss_weights, train_weights, weight_ceilings
 from ehm.core.weights.uncertainty import add_curvature
 
 
@@ -94,6 +94,7 @@ def update(
         weights = loss_weights(train.occupied, train.weight, cfg.balance_classes)
         if cfg.update_rule == "posterior":
             update_posterior(features, train.occupied, weights, clusters, model.bias_state, cfg)
+            np.minimum(clusters.weights, weight_ceilings(clusters, cfg), out=clusters.weights)
         else:
             train_weights(
                 features, train.occupied, weights, clusters, model.bias_state, cfg, model.rng

@@ -72,11 +72,13 @@ def train_weights(
     bool and loss weights `sample_weights` (n,) float64, each in a fresh random order (Alg. 2
     lines 26-28, see `blocked_order`: the samples must come shuffled), the two sides of space
     on two threads (see `space_sides`); updates the clusters' weights and AdaGrad state and
-    bias_state in place. Batches of fewer than TWO_SIDED_MIN_SAMPLES samples run on one.
-    The features' rows are relabelled to the order the clusters learn in, and back after.
+    bias_state in place, each weight held at or below its `weight_ceilings`. Batches of fewer
+    than TWO_SIDED_MIN_SAMPLES samples run on one. The features' rows are relabelled to the
+    order the clusters learn in, and back after.
     """
     labels = occupied.astype(np.float64)
     rows, weights, grad_sq = features.rows, clusters.weights, clusters.grad_sq
+    ceilings = weight_ceilings(clusters, config)
     stored = None
     if len(labels) >= TWO_SIDED_MIN_SAMPLES:
         sides, cluster_side = space_sides(features, clusters.means)
@@ -86,7 +88,7 @@ def train_weights(
         place = np.empty_like(stored)  # where each cluster is stored: stored's inverse
         place[stored] = np.arange(len(stored))
         relabel(rows, place)
-        weights, grad_sq = weights[stored], grad_sq[stored]
+        weights, grad_sq, ceilings = weights[stored], grad_sq[stored], ceilings[stored]
     else:
         sides = np.full(len(labels), BORDER, dtype=np.int64)
     samples = (features.indptr, rows, features.values, labels, sample_weights)
@@ -94,7 +96,7 @@ def train_weights(
     try:
         for _ in range(config.epochs):
             plan = visiting_plan(blocked_order(len(labels), rng), sides)
-            sgd_rounds(*samples, *plan, weights, grad_sq, bias_state, *steps)
+            sgd_rounds(*samples, *plan, weights, grad_sq, ceilings, bias_state, *steps)
     finally:
         if stored is not None:
             relabel(rows, stored)
@@ -108,6 +110,15 @@ def relabel(rows, labels):  # pragma: no cover - compiled
     relabelled without a second array as large, whose fresh pages cost more than the work."""
     for e in numba.prange(len(rows)):
         rows[e] = labels[rows[e]]
+
+
+def weight_ceilings(clusters: ClusterSet, config: MapConfig) -> np.ndarray:
+    """(M,) float64, log-odds: the most each cluster's weight may be. 0 for coarse clusters
+    with `config.coarse_free_only` (open free space only ever says free), +inf otherwise."""
+    ceilings = np.full(len(clusters.weights), np.inf)
+    if config.coarse_free_only:
+        ceilings[clusters.coarse] = 0.0
+    return ceilings
 
 
 def relabel_reference(rows: np.ndarray, labels: np.ndarray) -> None:
@@ -216,9 +227,21 @@ def blocked_order(n: int, rng: np.random.Generator, block: int = SGD_BLOCK) -> n
 
 @numba.njit(cache=True, inline="always")
 def _step(
-    i, indptr, rows, values, labels, sample_weights, weights, grad_sq, bias, learning_rate, l2
+    i,
+    indptr,
+    rows,
+    values,
+    labels,
+    sample_weights,
+    weights,
+    grad_sq,
+    ceilings,
+    bias,
+    learning_rate,
+    l2,
 ):  # pragma: no cover - compiled
-    """One AdaGrad step on sample i (see sgd_rounds); bias: [bias, its squared gradients]."""
+    """One AdaGrad step on sample i (see sgd_rounds), each weight projected back under its
+    ceiling; bias: [bias, its squared gradients]."""
     score = bias[0]
     for e in range(indptr[i], indptr[i + 1]):
         score += weights[rows[e]] * values[e]
@@ -229,7 +252,8 @@ def _step(
         grad = error * values[e] + l2 * weights[cluster]
         grad_sq[cluster] += weight * grad * grad
         step = learning_rate * weight * grad / np.sqrt(grad_sq[cluster] + EPSILON)
-        weights[cluster] -= min(max(step, -MAX_STEP), MAX_STEP)
+        moved = weights[cluster] - min(max(step, -MAX_STEP), MAX_STEP)
+        weights[cluster] = min(moved, ceilings[cluster])
     bias[1] += weight * error * error
     bias[0] -= learning_rate * weight * error / np.sqrt(bias[1] + EPSILON)
 
@@ -245,12 +269,14 @@ def sgd_rounds(
     starts,
     weights,
     grad_sq,
+    ceilings,
     bias_state,
     learning_rate,
     l2,
 ):  # pragma: no cover - compiled
     """One pass over the samples in the rounds of `visits` and `starts` (visiting_plan),
-    updating weights, grad_sq and bias_state in place. In each round the two sides' samples
+    updating weights (each held at or below its ceiling, (M,) float64), grad_sq and
+    bias_state in place. In each round the two sides' samples
     are stepped at once, each side from the bias at the round's start, and the bias then
     moves by both sides' steps; the round's BORDER samples follow. The result does not depend
     on the threads.
@@ -260,7 +286,7 @@ def sgd_rounds(
     docstring); bias_state: [bias, its accumulated squared gradient].
     """
     shift = np.zeros((2, 2))
-    data = (visits, indptr, rows, values, labels, sample_weights, weights, grad_sq)
+    data = (visits, indptr, rows, values, labels, sample_weights, weights, grad_sq, ceilings)
     for r in range((len(starts) - 1) // 3):
         for side in numba.prange(2):
             bias = bias_state.copy()
@@ -275,8 +301,8 @@ def sgd_rounds(
 @numba.njit(cache=True, inline="always")
 def _steps(first, last, data, bias, learning_rate, l2):  # pragma: no cover - compiled
     """AdaGrad steps on the samples visits[first:last] (data: visits, then _step's arrays up
-    to grad_sq)."""
-    visits, indptr, rows, values, labels, sample_weights, weights, grad_sq = data
+    to ceilings)."""
+    visits, indptr, rows, values, labels, sample_weights, weights, grad_sq, ceilings = data
     for k in range(first, last):
         _step(
             visits[k],
@@ -287,6 +313,7 @@ def _steps(first, last, data, bias, learning_rate, l2):  # pragma: no cover - co
             sample_weights,
             weights,
             grad_sq,
+            ceilings,
             bias,
             learning_rate,
             l2,
@@ -303,6 +330,7 @@ def sgd_rounds_reference(
     starts: np.ndarray,
     weights: np.ndarray,
     grad_sq: np.ndarray,
+    ceilings: np.ndarray,
     bias_state: np.ndarray,
     learning_rate: float,
     l2: float,
@@ -316,7 +344,8 @@ def sgd_rounds_reference(
         grad = error * phi + l2 * weights[touched]
         grad_sq[touched] += weight * grad * grad
         step = learning_rate * weight * grad / np.sqrt(grad_sq[touched] + EPSILON)
-        weights[touched] -= np.clip(step, -MAX_STEP, MAX_STEP)
+        moved = weights[touched] - np.clip(step, -MAX_STEP, MAX_STEP)
+        weights[touched] = np.minimum(moved, ceilings[touched])
         bias[1] += weight * error * error
         bias[0] -= learning_rate * weight * error / np.sqrt(bias[1] + EPSILON)
 

@@ -8,11 +8,13 @@ FileNotFoundError) naming the path when its files are absent.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ehm.core.sensor.scan import Scan
+from ehm.errors import AssumptionWarning
 from ehm.io.carmen import read_carmen
 from ehm.io.pcd import read_pcd
 from ehm.io.readers import read_scans
@@ -73,6 +75,25 @@ def tum_fr2_pioneer_slam2() -> list[Scan]:
     )
 
 
+def icl_living_room(noise_std: float = 0.0, seed: int = 0) -> list[Scan]:
+    """Five depth frames rendered from the ICL-NUIM living room's mesh (Open3D's Redwood
+    sample, millimetres, noise-free), through its camera file; with `noise_std` > 0, Gaussian
+    noise of that many metres on each range (seeded by `seed`)."""
+    with warnings.catch_warnings():  # the reader says it reads millimetres: known here
+        warnings.simplefilter("ignore", AssumptionWarning)
+        scans = read_scans(_require("rgbd_mm"), format="redwood")
+    if noise_std <= 0.0:
+        return scans
+    rng = np.random.default_rng(seed)
+    noisy = []
+    for scan in scans:
+        offsets = scan.points_world - scan.origin
+        ranges = np.linalg.norm(offsets, axis=1)
+        stretch = 1.0 + rng.normal(0.0, noise_std, len(ranges)) / ranges
+        noisy.append(Scan(scan.origin + offsets * stretch[:, None], scan.origin))
+    return noisy
+
+
 def intel_lab() -> list[Scan]:
     """The Intel Research Lab 2D laser log: 910 scans, dropouts (81.83 m) removed."""
     return read_carmen(_require("intel_lab/intel.gfs.log"))
@@ -83,4 +104,6 @@ REAL_DATASETS = {
     "pcl_room": pcl_room,
     "tum_fr2_pioneer_slam2": tum_fr2_pioneer_slam2,
     "intel_lab": intel_lab,
+    "icl_living_room": icl_living_room,
+    "icl_living_room_noisy": lambda: icl_living_room(noise_std=0.01),
 }

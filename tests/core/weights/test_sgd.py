@@ -28,11 +28,13 @@ from ehm.core.weights.sgd import (
 )
 
 
-def sgd_pass(indptr, rows, values, labels, sample_weights, order, *state):
+def sgd_pass(indptr, rows, values, labels, sample_weights, order, weights, grad_sq, *rest):
     """One pass over the samples in `order`, one after the other (every sample on the
-    border)."""
+    border), no weight held under a ceiling."""
     visits, starts = visiting_plan(order, np.full(len(labels), BORDER))
-    sgd_rounds(indptr, rows, values, labels, sample_weights, visits, starts, *state)
+    ceilings = np.full(len(weights), np.inf)
+    arguments = (indptr, rows, values, labels, sample_weights, visits, starts)
+    sgd_rounds(*arguments, weights, grad_sq, ceilings, *rest)
 
 
 def _two_sided_batch(rng, sparse_batch, n=2000, n_clusters=60):
@@ -48,7 +50,10 @@ def test_sgd_rounds_match_reference(rng, sparse_batch, monkeypatch):
     assert set(np.unique(sides)) == {0, 1, BORDER}
     n, n_clusters = len(labels), 60
     visits, starts = visiting_plan(rng.permutation(n), sides, 256)
-    state = [rng.normal(size=n_clusters), rng.uniform(0, 1, n_clusters), np.array([0.1, 0.5])]
+    # A third of the weights held at or below 0 (coarse clusters, weight_ceilings).
+    ceilings = np.where(np.arange(n_clusters) % 3 == 0, 0.0, np.inf)
+    weights = np.minimum(rng.normal(size=n_clusters), ceilings)
+    state = [weights, rng.uniform(0, 1, n_clusters), ceilings, np.array([0.1, 0.5])]
     compiled = [a.copy() for a in state]
     reference = [a.copy() for a in state]
     sample_weights = rng.uniform(0.5, 3.0, n)
@@ -59,6 +64,9 @@ def test_sgd_rounds_match_reference(rng, sparse_batch, monkeypatch):
     for got, want in zip(compiled, reference, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     assert not np.allclose(compiled[0], state[0])
+    held = ceilings == 0.0
+    assert np.all(compiled[0][held] <= 0.0) and np.any(compiled[0][held] == 0.0)
+    assert np.any(compiled[0][~held] > 0.0)
     # The heavy samples' steps were held: unheld, the twin's weights come out otherwise.
     unheld = [a.copy() for a in state]
     monkeypatch.setattr("ehm.core.weights.sgd.MAX_STEP", np.inf)
@@ -71,7 +79,7 @@ def test_sgd_rounds_do_not_depend_on_the_threads(rng, sparse_batch):
     visits, starts = visiting_plan(rng.permutation(len(labels)), sides, 256)
     runs = []
     for threads in (1, 2):
-        state = [np.zeros(60), np.zeros(60), np.zeros(2)]
+        state = [np.zeros(60), np.zeros(60), np.full(60, np.inf), np.zeros(2)]
         numba.set_num_threads(threads)
         try:
             sgd_rounds(
@@ -132,8 +140,12 @@ def test_training_with_each_sides_clusters_stored_together_gives_the_same_weight
     occupied = rng.random(n) < 0.4
     sample_weights = rng.uniform(0.5, 2.0, n)
     config = MapConfig(epochs=2)
-    start = (rng.normal(size=n_clusters), rng.uniform(0.1, 1.0, n_clusters))
-    clusters = SimpleNamespace(means=means, weights=start[0].copy(), grad_sq=start[1].copy())
+    coarse = rng.random(n_clusters) < 0.3
+    ceilings = np.where(coarse, 0.0, np.inf)
+    start = (np.minimum(rng.normal(size=n_clusters), ceilings), rng.uniform(0.1, 1.0, n_clusters))
+    clusters = SimpleNamespace(
+        means=means, weights=start[0].copy(), grad_sq=start[1].copy(), coarse=coarse
+    )
     bias = np.array([0.1, 0.5])
     train_weights(features, occupied, sample_weights, clusters, bias, config, default_rng(7))
     sides, _ = space_sides(features, means)
@@ -152,6 +164,7 @@ def test_training_with_each_sides_clusters_stored_together_gives_the_same_weight
             starts,
             weights,
             grad_sq,
+            ceilings,
             want_bias,
             config.learning_rate,
             config.l2,
