@@ -136,6 +136,11 @@ class MapConfig:
     )
     """Inner radius r_i of quick-means for free samples along rays, metres, when clustered
     apart; they form the coarse clusters. Samples around hits use `cluster_radius`."""
+    hits_per_radius: float = setting(1.5, "clustering", low=0.0)
+    """Fine clusters where hits lie far apart are wider: 2, 4 times `cluster_radius`, the
+    least that spans this many ray footprints (the rays' angular spacing times the distance
+    from the sensor; ehm.core.clustering.footprints). 0: every fine cluster of
+    `cluster_radius`."""
     min_cluster_size: int = setting(4, "clustering", low=1)
     """Quick-means drops seeds with fewer samples than this within the outer radius."""
     kmeans_iterations: int = setting(0, "clustering", low=0)
@@ -227,14 +232,12 @@ class MapConfig:
     """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0: the log-odds
     variance of never-observed space (occupancy std 0.21 at 1; ehm.core.weights.uncertainty), and
     under 'posterior' the prior the first update starts from."""
-    coarse_free_only: bool = setting(False, "learning")
+    coarse_free_only: bool = setting(True, "learning")
     """Hold the weights of coarse clusters (open free space, from free samples along rays) at
     or below 0, so they only ever read space free. Unconstrained, SGD gives some of them
     positive weights near surfaces, where they offset the intercept; queries leave the
     intercept out, so such a kernel reads observed free space occupied up to its reach
-    (about 1 m at 0.05 m) in front of surfaces. Off by default: where hits are too sparse to
-    form fine clusters (beyond about 10 m on OctoMap's sample scan) those positive kernels are
-    what reads them occupied. False: the paper's unconstrained weights."""
+    (about 1 m at 0.05 m) in front of surfaces. False: the paper's unconstrained weights."""
     balance_classes: bool = setting(False, "learning")
     """Weight occupied and free samples so each class carries half of the loss."""
     epochs: int = setting(2, "learning", low=1)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ehm.core.clustering.coplanar import merge_coplanar
+from ehm.core.clustering.footprints import fine_levels
 from ehm.core.clustering.grouping import SampleGroups, group_samples
 from ehm.core.clustering.merging import absorb_clusters
 from ehm.core.learned_model import LearnedModel
@@ -47,7 +48,9 @@ def update(
         forgetting = retract_passes(model, rays, visit)
     with timer("clustering"):
         pending = memory.pending(visit)
-        grouped = group_samples(samples + pending.samples, cfg, model.rng)
+        clustered = samples + pending.samples
+        levels = fine_levels(clustered.points, rays, cfg)
+        grouped = group_samples(clustered, cfg, model.rng, levels)
     with timer("merging"):
         new = grouped.clusters
         candidates = model.search.merge_candidates(new.means, new.coarse, clusters)

@@ -74,7 +74,10 @@ SENSOR_PATH = "sensor_path"
 # origin, and load so.
 # Version 19 maps read their log-odds calibrated (MapConfig.calibrate, the scale they read them
 # times); older files read them raw, and load with calibrate off.
-FORMAT_VERSION = 19
+# Version 20 maps may hold coarse weights at or below 0 (MapConfig.coarse_free_only) and widen
+# fine clusters where hits lie far apart (MapConfig.hits_per_radius); older files learned
+# without either, and learn on so.
+FORMAT_VERSION = 20
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -228,6 +231,8 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         settings = {**settings, "occupied_length_scale": length_scale}
     if version < 19:
         settings = {**settings, "calibrate": False}
+    if version < 20:
+        settings = {**settings, "coarse_free_only": False, "hits_per_radius": 0.0}
     config = MapConfig.from_dict(settings)
     if kept is not None:
         memory = EvidenceMemory.of_samples(dim, config, *kept)

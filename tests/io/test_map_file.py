@@ -164,7 +164,12 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
-    settings_then = {"batch_rays": 0, "occupied_length_scale": 3.0}  # formats 9 and 17
+    settings_then = {  # formats 9, 17 and 20
+        "batch_rays": 0,
+        "occupied_length_scale": 3.0,
+        "coarse_free_only": False,
+        "hits_per_radius": 0.0,
+    }
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
             features="nearest",

@@ -74,21 +74,38 @@ def _cluster_part(
     return kmeans_refine(points, result, config.kmeans_iterations, weights, scatter)
 
 
+def _fine_parts(
+    kinds: list[np.ndarray], levels: np.ndarray | None, radius: float
+) -> list[tuple[np.ndarray, float, bool]]:
+    """The parts of fine samples clustered apart: each of `kinds` (n,) bool, level by level
+    (its samples of level l with 2^l times `radius`), the levels no sample has left out."""
+    if levels is None or not levels.any():
+        return [(np.flatnonzero(kind), radius, False) for kind in kinds]
+    return [
+        (np.flatnonzero(kind & (levels == level)), radius * 2.0**level, False)
+        for kind in kinds
+        for level in np.unique(levels)
+    ]
+
+
 def group_samples(
-    samples: TrainingSamples, config: MapConfig, rng: np.random.Generator
+    samples: TrainingSamples,
+    config: MapConfig,
+    rng: np.random.Generator,
+    levels: np.ndarray | None = None,
 ) -> SampleGroups:
     """Quick-means over the samples. With `cluster_free_apart`, occupied samples, free samples
     around hits (both fine, `cluster_radius`) and free samples along rays (coarse,
-    `free_cluster_radius`) are clustered each on their own; otherwise all at once (fine)."""
+    `free_cluster_radius`) are clustered each on their own; otherwise all at once (fine).
+    levels: (n,) int64, fine samples of level l are clustered apart, with 2^l times the
+    radius (ehm.core.clustering.footprints); None: all of level 0."""
     if config.cluster_free_apart:
         free = ~samples.occupied
-        parts = [
-            (np.flatnonzero(samples.occupied), config.cluster_radius, False),
-            (np.flatnonzero(free & samples.at_surface), config.cluster_radius, False),
-            (np.flatnonzero(free & ~samples.at_surface), config.free_cluster_radius, True),
-        ]
+        fine = [samples.occupied, free & samples.at_surface]
+        coarse = [(np.flatnonzero(free & ~samples.at_surface), config.free_cluster_radius, True)]
     else:
-        parts = [(np.arange(len(samples)), config.cluster_radius, False)]
+        fine, coarse = [np.ones(len(samples), dtype=bool)], []
+    parts = _fine_parts(fine, levels, config.cluster_radius) + coarse
     group_of_point = np.empty(len(samples), dtype=np.int64)
     in_cluster = np.empty(len(samples), dtype=bool)
     centres, means, covariances, counts, coarse, occupied = [], [], [], [], [], []

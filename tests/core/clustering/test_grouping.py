@@ -70,3 +70,28 @@ def test_kinds_clustered_on_threads_group_as_on_one(room, monkeypatch):
     np.testing.assert_array_equal(one.clusters.covariances, two.clusters.covariances)
     np.testing.assert_array_equal(one.in_cluster, two.in_cluster)
     assert len(one.clusters) > 100
+
+
+def test_fine_samples_of_a_level_are_clustered_with_its_wider_radius():
+    """Hits 0.2 m apart along a wall: at level 0 (radius 0.12 m, outer 0.18 m) each seed
+    gathers one and makes no cluster of two; at level 1 (0.24 m, outer 0.36 m) seeds gather
+    three. The levels given as all 0 cluster as none given."""
+    x = np.arange(0.0, 4.0, 0.2)
+    points = np.column_stack([x, np.full_like(x, 3.0)])
+    samples = TrainingSamples(points, np.ones(len(x), bool), np.ones(len(x), bool))
+    config = MapConfig(min_cluster_size=2)
+    flat = group_samples(samples, config, np.random.default_rng(0))
+    assert len(flat.clusters) == 0
+    zeros = group_samples(samples, config, np.random.default_rng(0), np.zeros(len(x), np.int64))
+    np.testing.assert_array_equal(zeros.groups.group_of_point, flat.groups.group_of_point)
+    levels = (x >= 2.0).astype(np.int64)  # the far half at level 1
+    wide = group_samples(samples, config, np.random.default_rng(0), levels)
+    assert len(wide.clusters) > 0
+    assert not wide.in_cluster[levels == 0].any() and wide.in_cluster[levels == 1].mean() > 0.5
+    assert np.all(wide.clusters.means[:, 0] > 1.9)
+    # No group mixes levels, and the wide ones reach as far as their radius allows.
+    group_of_point = wide.groups.group_of_point
+    for group in np.unique(group_of_point):
+        assert len(np.unique(levels[group_of_point == group])) == 1
+    spread = np.abs(x - wide.groups.centres[group_of_point, 0])
+    assert spread[levels == 1].max() > 0.12
