@@ -41,7 +41,7 @@ def test_real_icl_living_room_with_and_without_noise(real_data):
     for exact, moved in zip(clean, noisy, strict=True):
         np.testing.assert_array_equal(exact.origin, moved.origin)
         ranges = np.linalg.norm(exact.points_world - exact.origin, axis=1)
-        assert 0.9 < ranges.min() and ranges.max() < 3.5
+        assert ranges.min() > 0.9 and ranges.max() < 3.5
         offsets = moved.points_world - exact.points_world
         along = np.einsum("nd,nd->n", offsets, exact.points_world - exact.origin) / ranges
         np.testing.assert_allclose(np.abs(along), np.linalg.norm(offsets, axis=1), atol=1e-9)
