@@ -5,7 +5,7 @@ import pytest
 
 import ehm
 from ehm.core.weights.uncertainty import occupancy_std
-from ehm.eval.datasets import warehouse
+from ehm.eval.datasets.real import tum_fr2_pioneer_slam2
 from ehm.eval.metrics import roc_auc, score
 from ehm.eval.protocol import exact_test_points, held_out_rays, near_surface_points, observed_mask
 
@@ -232,27 +232,24 @@ def test_following_grids_catch_up_when_a_batch_is_learned(plan):
     assert not np.array_equal(grid.scores, before)
 
 
-def test_scan_by_scan_with_the_memory_does_not_forget():
-    """Six sparse LiDAR scans along a warehouse's aisles: learned scan by scan with past
-    evidence replayed, held-out F1 rises above learning each scan alone and comes near one
-    batch's. The gain is small against the noise of one split (seeds 0, 1, 2: +0.0046,
-    -0.0027, +0.0084), so it is taken over three (measured: 0.712 against 0.709 alone and
-    0.725 in one batch)."""
-    scans = warehouse(rings=16, azimuths=360).scans
-    f1 = {False: [], True: [], "batch": []}
-    for seed in range(3):
-        split = held_out_rays(scans, 0.8, 0.05, seed)
-        for keep in (False, True):
-            hilbert_map = ehm.HilbertMap(keep_evidence=keep, batch_rays=0)
-            for scan in split.train:
-                hilbert_map.integrate_scan(scan)
-            f1[keep].append(score(split.occupied, hilbert_map.occupancy(split.points)).f1)
-            assert (len(hilbert_map.model_.memory) > 0) == keep
-        batch = ehm.HilbertMap().fit(split.train)
-        f1["batch"].append(score(split.occupied, batch.occupancy(split.points)).f1)
-    mean = {key: np.mean(values) for key, values in f1.items()}
-    assert mean[True] > mean[False] + 0.002
-    assert mean[True] > mean["batch"] - 0.015
+def test_scan_by_scan_with_the_memory_does_not_forget(real_data):
+    """TUM's ten depth frames of a robot driving through a hall: learned frame by frame with
+    past evidence replayed, held-out F1 stays near one batch's; each frame alone pulls the
+    weights it reaches towards its own view (measured, seeds 0 and 1: 0.977 with the memory,
+    0.936 without, 0.984 in one batch)."""
+    scans = real_data(tum_fr2_pioneer_slam2)
+    split = held_out_rays(scans, 0.8, 0.05, 0)
+    f1 = {}
+    for keep in (False, True):
+        hilbert_map = ehm.HilbertMap(keep_evidence=keep, batch_rays=0)
+        for scan in split.train:
+            hilbert_map.integrate_scan(scan)
+        f1[keep] = score(split.occupied, hilbert_map.occupancy(split.points)).f1
+        assert (len(hilbert_map.model_.memory) > 0) == keep
+    batch = ehm.HilbertMap().fit(split.train)
+    f1["batch"] = score(split.occupied, batch.occupancy(split.points)).f1
+    assert f1[True] > f1[False] + 0.02
+    assert f1[True] > f1["batch"] - 0.015
 
 
 def test_the_replay_stays_within_its_cap_when_places_are_passed_again(plan):

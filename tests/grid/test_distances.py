@@ -87,12 +87,13 @@ def test_distances_agree_with_dense_sampling_of_the_map(rng):
     assert np.percentile(error, 95) < 0.1
     assert error[0] < 0.03
     assert gradient.shape == (5001, 2)
-    # At the origin: away from a point at the level no more than a voxel (5 cm) farther than
-    # the nearest. The level is an arc with bumps (1.37 m away at 36 degrees, 1.41 at 18),
-    # and the field, whose surfels come from the grid's voxels, may take either.
+    # At the origin: away from a point at the level no more than two voxels (10 cm) farther
+    # than the nearest. The level is an arc with bumps (1.42 m away at 35 degrees, 1.49 at
+    # 62), and the field's surfels, which come from the grid's voxels, lie up to a voxel off
+    # it: the nearest may be any bump within a voxel of the nearest's distance.
     obstacles = raster[at_level(hilbert_map, raster)]
     reach = np.linalg.norm(obstacles, axis=1)
-    near = reach < reach.min() + 0.05
+    near = reach < reach.min() + 0.1
     assert np.min(obstacles[near] / reach[near, None] @ gradient[0]) < -0.98
 
 

@@ -260,8 +260,13 @@ def test_maps_of_format_12_load_their_kept_samples_as_evidence(small_map, tmp_pa
     (tmp_path / "old.ehm").write_bytes(map_file.map_bytes(old))
     monkeypatch.undo()
     loaded = ehm.load(tmp_path / "old.ehm")
-    # Occupied kernels as wide as free ones, as every map of format 12 made them.
-    then = small_map.config.replace(occupied_length_scale=small_map.config.length_scale)
+    # Occupied kernels as wide as free ones, coarse weights unbounded and fine clusters of one
+    # radius, as every map of format 12 learned.
+    then = small_map.config.replace(
+        occupied_length_scale=small_map.config.length_scale,
+        coarse_free_only=False,
+        hits_per_radius=0.0,
+    )
     assert loaded.config.keep_evidence and loaded.config == then
     evidence = loaded.model_.memory.samples()
     assert evidence.weight.sum() == pytest.approx(14.0)
