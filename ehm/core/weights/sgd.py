@@ -226,22 +226,10 @@ def blocked_order(n: int, rng: np.random.Generator, block: int = SGD_BLOCK) -> n
 
 
 @numba.njit(cache=True, inline="always")
-def _step(
-    i,
-    indptr,
-    rows,
-    values,
-    labels,
-    sample_weights,
-    weights,
-    grad_sq,
-    ceilings,
-    bias,
-    learning_rate,
-    l2,
-):  # pragma: no cover - compiled
-    """One AdaGrad step on sample i (see sgd_rounds), each weight projected back under its
-    ceiling; bias: [bias, its squared gradients]."""
+def _step(i, data, bias, learning_rate, l2):  # pragma: no cover - compiled
+    """One AdaGrad step on sample i (see sgd_rounds; data as _steps takes it), each weight
+    projected back under its ceiling; bias: [bias, its squared gradients]."""
+    _, indptr, rows, values, labels, sample_weights, weights, grad_sq, ceilings = data
     score = bias[0]
     for e in range(indptr[i], indptr[i + 1]):
         score += weights[rows[e]] * values[e]
@@ -300,24 +288,11 @@ def sgd_rounds(
 
 @numba.njit(cache=True, inline="always")
 def _steps(first, last, data, bias, learning_rate, l2):  # pragma: no cover - compiled
-    """AdaGrad steps on the samples visits[first:last] (data: visits, then _step's arrays up
-    to ceilings)."""
-    visits, indptr, rows, values, labels, sample_weights, weights, grad_sq, ceilings = data
+    """AdaGrad steps on the samples visits[first:last] (data: visits, indptr, rows, values,
+    labels, sample_weights, weights, grad_sq, ceilings; see sgd_rounds)."""
+    visits = data[0]
     for k in range(first, last):
-        _step(
-            visits[k],
-            indptr,
-            rows,
-            values,
-            labels,
-            sample_weights,
-            weights,
-            grad_sq,
-            ceilings,
-            bias,
-            learning_rate,
-            l2,
-        )
+        _step(visits[k], data, bias, learning_rate, l2)
 
 
 def sgd_rounds_reference(
