@@ -27,11 +27,20 @@ def fine_levels(points: np.ndarray, rays: ScanRays, config: MapConfig) -> np.nda
     levels = np.zeros(len(points), dtype=np.int64)
     if config.hits_per_radius == 0.0 or len(points) == 0 or len(rays) == 0:
         return levels
+    # Level 0 holds within `edge` of an origin. The points lie within their rays' reach of one
+    # (the clustered ones in regions of cluster_radius the batch's samples reach): a depth
+    # camera's batch is all level 0, and no distance is measured.
+    edge = config.cluster_radius / (config.hits_per_radius * np.median(rays.ray_spacing))
+    reach = rays.lengths.max() + config.occupied_depth + 2.0 * config.cluster_radius
+    if reach <= edge:
+        return levels
     # A batch's rays come scan by scan, each scan's from one origin.
     origins = rays.origins
-    starts = np.r_[True, np.any(origins[1:] != origins[:-1], axis=1)]
-    distance, _ = cKDTree(origins[starts]).query(points)
-    footprint = np.median(rays.ray_spacing) * distance
-    ratio = config.hits_per_radius * footprint / config.cluster_radius
-    levels[:] = np.ceil(np.log2(np.maximum(ratio, 1.0)))
+    origins = origins[np.r_[True, np.any(origins[1:] != origins[:-1], axis=1)]]
+    if len(origins) == 1:
+        offsets = points - origins[0]
+        distance = np.sqrt(np.einsum("nd,nd->n", offsets, offsets))
+    else:
+        distance, _ = cKDTree(origins).query(points)
+    levels[:] = np.ceil(np.log2(np.maximum(distance / edge, 1.0)))
     return np.minimum(levels, MAX_LEVEL)

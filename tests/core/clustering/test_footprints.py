@@ -44,3 +44,16 @@ def test_no_points_have_no_levels():
     config = MapConfig(hits_per_radius=3.0)
     rays = scan_rays([_fan(np.zeros(2), 180)], config)
     assert fine_levels(np.zeros((0, 2)), rays, config).shape == (0,)
+
+
+def test_a_batch_that_reaches_no_farther_than_level_zero_is_all_level_zero():
+    """1 m rays, 1 degree apart: level 0 holds to 2.29 m, beyond the batch's reach, so its
+    samples (and the ones waiting near them) are all of level 0, measured or not."""
+    config = MapConfig(hits_per_radius=3.0)
+    scan = _fan(np.zeros(2), 180)
+    near = Scan(scan.origin + (scan.points_world - scan.origin) / 10.0, scan.origin)
+    rays = scan_rays([near], config)
+    points = np.random.default_rng(0).uniform(-1.2, 1.2, (500, 2))
+    np.testing.assert_array_equal(fine_levels(points, rays, config), np.zeros(500))
+    # Measured through a batch of 10 m rays from the same origin, they are of level 0 too.
+    np.testing.assert_array_equal(fine_levels(points, scan_rays([scan], config), config), 0)
