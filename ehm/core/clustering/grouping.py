@@ -78,7 +78,7 @@ def _fine_parts(
     kinds: list[np.ndarray], levels: np.ndarray | None, radius: float
 ) -> list[tuple[np.ndarray, float, bool]]:
     """The parts of fine samples clustered apart: each of `kinds` (n,) bool, level by level
-    (its samples of level l with 2^l times `radius`), the levels no sample has left out."""
+    (its samples of level l with 2^l times `radius`), for the levels some sample has."""
     if levels is None or not levels.any():
         return [(np.flatnonzero(kind), radius, False) for kind in kinds]
     return [

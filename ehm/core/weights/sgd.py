@@ -263,11 +263,10 @@ def sgd_rounds(
     l2,
 ):  # pragma: no cover - compiled
     """One pass over the samples in the rounds of `visits` and `starts` (visiting_plan),
-    updating weights (each held at or below its ceiling, (M,) float64), grad_sq and
-    bias_state in place. In each round the two sides' samples
-    are stepped at once, each side from the bias at the round's start, and the bias then
-    moves by both sides' steps; the round's BORDER samples follow. The result does not depend
-    on the threads.
+    updating weights (each held at or below its ceiling; ceilings (M,) float64), grad_sq and
+    bias_state in place. In each round the two sides' samples are stepped at once, each side
+    from the bias at the round's start, and the bias then moves by both sides' steps; the
+    round's BORDER samples follow. The result does not depend on the threads.
 
     indptr, rows, values: the samples' features (see SparseFeatures); labels: (n,) 0 or 1;
     sample_weights: (n,) loss weight of each sample (how many it stands for, see the module's
