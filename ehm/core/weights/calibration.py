@@ -3,17 +3,16 @@ claims.
 
 Stochastic gradient descent with L2 regularisation (Eq. 2, ehm.core.weights.sgd) stops with
 weights smaller than the evidence supports: held out, points the raw model reads 0.3 are
-occupied a few times in a hundred, and a planner with map_server's thresholds (free below
-0.196) sees unknown in observed free space. With MapConfig.calibrate (off by default) the map
-reads its log-odds times a scale `a`, the one that best predicts (weighted log loss of
-sigmoid(a s)) samples drawn afresh from the rays of the batch it just learned: their hits and
-the points behind them, occupied, and the free samples along them (not the free sample in
-front of each hit, which the sampling places inside the surface's blur on purpose). Drawn
-afresh, they are not the cells the weights were fitted to, and the scale they give is close
-to the one held-out rays give. A scale changes
-no reading's side of 0.5: held-out F1, surfaces and meshes at 0.5 stay as they are. Fitted
-where rays passed, it sharpens the weak readings of thinly observed space as well, which is
-why it is off by default (docs/concepts/uncertainty.md).
+occupied a few times in a hundred, and a planner with map_server's thresholds (free below 0.196)
+sees unknown in observed free space. With MapConfig.calibrate (off by default) the map reads its
+log-odds times a scale `a`, the one that best predicts (weighted log loss of sigmoid(a s))
+samples drawn afresh from the rays of the batch it just learned: their hits and the points
+behind them, occupied, and the free samples along them (not the free sample in front of each
+hit, which the sampling places inside the surface's blur on purpose). Drawn afresh, they are not
+the cells the weights were fitted to, and the scale they give is close to the one held-out rays
+give. A scale changes no reading's side of 0.5: held-out F1, surfaces and meshes at 0.5 stay as
+they are. Fitted where rays passed, it sharpens the weak readings of thinly observed space as
+well, which is why it is off by default (docs/concepts/uncertainty.md).
 """
 
 from __future__ import annotations
