@@ -111,6 +111,13 @@ class MapConfig:
     normal as far along the ray (the cosine floored at 0.3;
     ehm.core.observations.samples.front_stretches). On: ground and walls seen at grazing
     angles read thinner, where rays otherwise leave them thick."""
+    noise_clearance: float = setting(4.0, "sampling", low=0.0)
+    """A hit's free sample lies this many standard deviations of the range noise farther in
+    front of it, the noise read off the batch's own hits at the hit's range (their spread
+    about the planes they lie on, ehm.core.observations.range_noise): in front of the band
+    the noise spreads a surface's hits over, where the others read it occupied. Noisy depth
+    reads hits occupied; surfaces read a little thicker. 0: within `surface_margin` of the
+    hit, however noisy."""
     occupied_depth: float = setting(0.15, "sampling", unit="m", low=0.0, low_open=True, length=True)
     """One occupied sample is drawn up to this far behind each hit, metres: surfaces are taken
     to be solid this deep."""

@@ -77,7 +77,9 @@ SENSOR_PATH = "sensor_path"
 # Version 20 maps may hold coarse weights at or below 0 (MapConfig.coarse_free_only) and widen
 # fine clusters where hits lie far apart (MapConfig.hits_per_radius); older files learned
 # without either, and learn on so.
-FORMAT_VERSION = 20
+# Version 21 maps place hits' free samples clear of the range noise (MapConfig.noise_clearance);
+# older files learned without, and learn on so.
+FORMAT_VERSION = 21
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -233,6 +235,8 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         settings = {**settings, "calibrate": False}
     if version < 20:
         settings = {**settings, "coarse_free_only": False, "hits_per_radius": 0.0}
+    if version < 21:
+        settings = {**settings, "noise_clearance": 0.0}
     config = MapConfig.from_dict(settings)
     if kept is not None:
         memory = EvidenceMemory.of_samples(dim, config, *kept)

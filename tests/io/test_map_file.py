@@ -164,11 +164,12 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
-    settings_then = {  # formats 9, 17 and 20
+    settings_then = {  # formats 9, 17, 20 and 21
         "batch_rays": 0,
         "occupied_length_scale": 3.0,
         "coarse_free_only": False,
         "hits_per_radius": 0.0,
+        "noise_clearance": 0.0,
     }
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
@@ -260,12 +261,14 @@ def test_maps_of_format_12_load_their_kept_samples_as_evidence(small_map, tmp_pa
     (tmp_path / "old.ehm").write_bytes(map_file.map_bytes(old))
     monkeypatch.undo()
     loaded = ehm.load(tmp_path / "old.ehm")
-    # Occupied kernels as wide as free ones, coarse weights unbounded and fine clusters of one
-    # radius, as every map of format 12 learned.
+    # Occupied kernels as wide as free ones, coarse weights unbounded, fine clusters of one
+    # radius and free samples in front of hits whatever the noise, as every map of format 12
+    # learned.
     then = small_map.config.replace(
         occupied_length_scale=small_map.config.length_scale,
         coarse_free_only=False,
         hits_per_radius=0.0,
+        noise_clearance=0.0,
     )
     assert loaded.config.keep_evidence and loaded.config == then
     evidence = loaded.model_.memory.samples()

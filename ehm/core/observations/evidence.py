@@ -38,6 +38,7 @@ from ehm.core.observations.samples import (
     ScanRays,
     TrainingSamples,
     free_sample_counts,
+    front_clearances,
     front_depth,
     front_stretches,
     learn_box,
@@ -160,6 +161,7 @@ def gather_kernel(
     margin,
     front_reach,
     front_stretch,
+    front_clearance,
     sides,
     behind_kind,
     bits,
@@ -179,9 +181,10 @@ def gather_kernel(
     behind the hit, depth in front, offset of the free samples
     (ehm.core.observations.samples.ray_randoms); box (2, d), or (0, d) for none: samples around
     hits outside it are left out; front_stretch (n,): how many times as far along its ray each
-    hit's free sample lies (ehm.core.observations.samples.front_stretches); sides (4,)
-    metres: the cell side of each kind (kind_sides); behind_kind: the kind of the occupied
-    sample behind each hit (OCCUPIED or OCCUPIED_BEHIND); bits: bits per axis of a key;
+    hit's free sample lies (ehm.core.observations.samples.front_stretches); front_clearance
+    (n,) metres: how much farther still (ehm.core.observations.samples.front_clearances);
+    sides (4,) metres: the cell side of each kind (kind_sides); behind_kind: the kind of the
+    occupied sample behind each hit (OCCUPIED or OCCUPIED_BEHIND); bits: bits per axis of a key;
     band: metres, free samples along a ray with a hit that lie within it before the hit are of
     the kind FREE_AT_SURFACE (`fine_free_band`).
 
@@ -213,6 +216,7 @@ def gather_kernel(
                     depth, kind = lengths[r] + occupied_depth * random[r, 0], behind_kind
                 else:
                     front = front_stretch[r] * _front_depth(margin, front_reach, random[r, 1])
+                    front += front_clearance[r]
                     depth, kind = lengths[r] - min(front, lengths[r]), FREE_AT_SURFACE
             elif j < around_hit + far_counts[r]:
                 k = j - around_hit
@@ -326,6 +330,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         config.surface_margin,
         config.front_reach,
         front_stretches(rays, config),
+        front_clearances(rays, config),
         sides,
         behind_kind(config),
         bits,

@@ -8,6 +8,8 @@ than LINEAR_SPREAD of the largest (a post's points, or one ring of a LiDAR's, li
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
@@ -25,25 +27,53 @@ LINEAR_SPREAD = 0.1
 CHUNK = 1024
 
 
-def hit_plane_normals(hit_points: np.ndarray, side: float) -> np.ndarray:
-    """(n, d): for each of a batch's hits (n, d), metres, the unit normal of the plane the
-    batch's hits in its cell of `side` metres lie on (PLANE_HITS, HIT_PLANAR_SPREAD), NaN where
-    they lie on none. Where that cell holds too few hits, or hits on a line (a LiDAR's rings a
-    few centimetres apart on a wall a few metres away), the cell of twice the side decides."""
-    if len(hit_points) == 0:
-        return np.full(hit_points.shape, np.nan)
-    normals, sparse = cell_planes(hit_points, side)
+@dataclass(frozen=True)
+class HitPlanes:
+    """The planes of a batch's n hits, each from the hits in its cell. normals (n, d): the
+    unit normal of the plane they lie on (PLANE_HITS, HIT_PLANAR_SPREAD), NaN where they lie
+    on none; where the cell holds too few hits, or hits on a line, the cell of twice the side
+    decides. spreads (n,) metres and axes (n, d) unit: the standard deviation of the cell's
+    hits along their axis of least spread, and that axis, in any cell of at least PLANE_HITS
+    hits not on a line (planar or not), NaN elsewhere."""
+
+    normals: np.ndarray
+    spreads: np.ndarray
+    axes: np.ndarray
+
+
+def hit_planes(hit_points: np.ndarray, side: float) -> HitPlanes:
+    """The HitPlanes of a batch's hits (n, d), metres, in cells of `side` metres. Where hits
+    lie on a line (a LiDAR's rings a few centimetres apart on a wall a few metres away), the
+    cell of twice the side may hold a plane."""
+    planes = cell_planes(hit_points, side)
+    sparse = planes.sparse
     if sparse.any():
-        normals[sparse] = cell_planes(hit_points, 2.0 * side)[0][sparse]
-    return normals
+        planes.normals[sparse] = cell_planes(hit_points, 2.0 * side).normals[sparse]
+    return HitPlanes(planes.normals, planes.spreads, planes.axes)
 
 
-def cell_planes(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
-    """For each of the hits (n, d), metres: the normal of the plane its cell's hits lie on
-    (n, d; NaN: none) and whether they are too few or on a line for one (n,) bool."""
+@dataclass(frozen=True)
+class CellPlanes:
+    """For each of n hits, from the hits in its cell: normals (n, d), NaN where they lie on
+    no plane; sparse (n,) bool, too few of them or on a line for one; spreads (n,) metres and
+    axes (n, d), their least spread and its axis, NaN where sparse."""
+
+    normals: np.ndarray
+    sparse: np.ndarray
+    spreads: np.ndarray
+    axes: np.ndarray
+
+
+def cell_planes(hit_points: np.ndarray, side: float) -> CellPlanes:
+    """The CellPlanes of hits (n, d), metres, in cells of `side` metres."""
     n = len(hit_points)
+    if n == 0:
+        empty = np.full(hit_points.shape, np.nan)
+        return CellPlanes(empty, np.zeros(0, dtype=bool), np.zeros(0), empty.copy())
     keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
-    return _cell_planes_kernel(hit_points, keys, PLANE_HITS, HIT_PLANAR_SPREAD, LINEAR_SPREAD)
+    return CellPlanes(
+        *_cell_planes_kernel(hit_points, keys, PLANE_HITS, HIT_PLANAR_SPREAD, LINEAR_SPREAD)
+    )
 
 
 @numba.njit(cache=True, parallel=True)
@@ -53,7 +83,8 @@ def _cell_planes_kernel(points, keys, min_hits, planar, linear):  # pragma: no c
     first point summed with their outer products in one pass; where a cell holds at least
     `min_hits`, the eigen decomposition of its scatter gives its unit normal where the least
     spread is at most `planar` of the next, and it lies on a line where the middle spread is
-    at most `linear` of the largest."""
+    at most `linear` of the largest; elsewhere, its least spread (standard deviation) and axis.
+    Returns per point (normals, sparse, spreads, axes)."""
     n, d = points.shape
     table = np.full(table_size(n), EMPTY_KEY, dtype=np.int64)
     rows = np.zeros(len(table), dtype=np.int64)
@@ -82,6 +113,8 @@ def _cell_planes_kernel(points, keys, min_hits, planar, linear):  # pragma: no c
             for b in range(d):
                 outer[c, a, b] += offset[a] * offset[b]
     normals = np.full((cells, d), np.nan)
+    least = np.full((cells, d), np.nan)
+    spreads = np.full(cells, np.nan)
     sparse = np.zeros(cells, dtype=np.bool_)
     for chunk in numba.prange((cells + CHUNK - 1) // CHUNK):
         scatter, spread, axes = np.empty((d, d)), np.empty(d), np.empty((d, d))
@@ -96,19 +129,28 @@ def _cell_planes_kernel(points, keys, min_hits, planar, linear):  # pragma: no c
             eigen_in_place(scatter, spread, axes)
             if spread[1] <= linear * spread[d - 1]:
                 sparse[c] = True
-            elif spread[0] <= planar * spread[1]:
+                continue
+            spreads[c] = np.sqrt(max(spread[0], 0.0) / count[c])
+            for a in range(d):
+                least[c, a] = axes[a, 0]
+            if spread[0] <= planar * spread[1]:
                 for a in range(d):
                     normals[c, a] = axes[a, 0]
     hit_normals = np.empty((n, d))
+    hit_axes = np.empty((n, d))
+    hit_spreads = np.empty(n)
     hit_sparse = np.empty(n, dtype=np.bool_)
     for i in numba.prange(n):
-        hit_sparse[i] = sparse[cell[i]]
+        c = cell[i]
+        hit_sparse[i] = sparse[c]
+        hit_spreads[i] = spreads[c]
         for a in range(d):
-            hit_normals[i, a] = normals[cell[i], a]
-    return hit_normals, hit_sparse
+            hit_normals[i, a] = normals[c, a]
+            hit_axes[i, a] = least[c, a]
+    return hit_normals, hit_sparse, hit_spreads, hit_axes
 
 
-def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray]:
+def cell_planes_reference(hit_points: np.ndarray, side: float) -> CellPlanes:
     """Plain NumPy twin of `cell_planes`."""
     n = len(hit_points)
     keys = packed_cell_keys(hit_points, np.full(n, side), np.zeros(n, dtype=np.int64), 0)
@@ -117,7 +159,10 @@ def cell_planes_reference(hit_points: np.ndarray, side: float) -> tuple[np.ndarr
     sparse = (counts < PLANE_HITS) | _on_a_line(spread)
     normals = plane_normals(spread, axes, HIT_PLANAR_SPREAD)
     normals[sparse] = np.nan
-    return normals[cell], sparse[cell]
+    least = np.sqrt(np.maximum(spread[:, 0], 0.0) / counts)
+    least[sparse] = np.nan
+    least_axes = np.where(sparse[:, None], np.nan, axes[:, :, 0])
+    return CellPlanes(normals[cell], sparse[cell], least[cell], least_axes[cell])
 
 
 def group_spreads(

@@ -9,7 +9,8 @@ from functools import cached_property
 import numpy as np
 
 from ehm.config import MapConfig
-from ehm.core.observations.planes import hit_plane_normals
+from ehm.core.observations.planes import HitPlanes, hit_planes
+from ehm.core.observations.range_noise import range_noise
 from ehm.core.sensor.boxes import points_in_box, ray_box_intervals
 from ehm.core.sensor.ray_spacing import angular_spacing
 from ehm.core.sensor.scan import Scan
@@ -139,15 +140,36 @@ class ScanRays:
         return self.origins + self.directions * self.lengths[:, None]
 
     @cached_property
-    def hit_normals(self) -> np.ndarray:
-        """(n, d) the unit normal of the plane the rays' hits lie on around each ray's hit
-        (ehm.core.observations.planes.hit_plane_normals, cells of `plane_side`), NaN for rays
-        without a hit and hits on no plane; found once."""
-        normals = np.full(self.directions.shape, np.nan)
+    def hit_planes(self) -> HitPlanes:
+        """The planes of the rays' hits, one row per ray (ehm.core.observations.planes.
+        hit_planes, cells of `plane_side`), NaN for rays without a hit; found once."""
+        n, d = self.directions.shape
+        planes = HitPlanes(np.full((n, d), np.nan), np.full(n, np.nan), np.full((n, d), np.nan))
         hits = self.hits
         if hits.any():
-            normals[hits] = hit_plane_normals(self.ends[hits], self.plane_side)
-        return normals
+            of_hits = hit_planes(self.ends[hits], self.plane_side)
+            planes.normals[hits] = of_hits.normals
+            planes.spreads[hits] = of_hits.spreads
+            planes.axes[hits] = of_hits.axes
+        return planes
+
+    @property
+    def hit_normals(self) -> np.ndarray:
+        """(n, d) the unit normal of the plane the rays' hits lie on around each ray's hit
+        (`hit_planes`), NaN for rays without a hit and hits on no plane."""
+        return self.hit_planes.normals
+
+    @cached_property
+    def hit_noise(self) -> np.ndarray:
+        """(n,) metres, the batch's range noise at each hit's range
+        (ehm.core.observations.range_noise), 0 for rays without a hit; found once."""
+        noise = np.zeros(len(self))
+        hits = self.hits
+        planes = self.hit_planes
+        noise[hits] = range_noise(
+            self.lengths[hits], self.directions[hits], planes.spreads[hits], planes.axes[hits]
+        )
+        return noise
 
 
 def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
@@ -235,6 +257,16 @@ def front_stretches(rays: ScanRays, config: MapConfig) -> np.ndarray:
     return stretch
 
 
+def front_clearances(rays: ScanRays, config: MapConfig) -> np.ndarray:
+    """(n,) metres each hit's free sample lies farther in front of it: `noise_clearance` times
+    the batch's range noise at its range (ScanRays.hit_noise), so that it lies in front of the
+    band the noise spreads a surface's hits over, where the other hits read it occupied. Zeros
+    with `noise_clearance` 0."""
+    if config.noise_clearance == 0:
+        return np.zeros(len(rays))
+    return config.noise_clearance * rays.hit_noise
+
+
 # Free samples along a ray farther than FAR_REACH free cluster radii from its hit, and all along
 # a ray without one, lie MapConfig.free_thinning times as far apart, each standing for as
 # many: where rays spread apart, each of them makes a cell of its own.
@@ -300,8 +332,10 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
     hit_dirs = rays.directions[hits]
     behind = hit_points + hit_dirs * (config.occupied_depth * randoms[hits, 0])[:, None]
     stretch = front_stretches(rays, config)[hits]
+    clearance = front_clearances(rays, config)[hits]
     in_front_depth = np.minimum(
-        stretch * front_depth(config.surface_margin, config.front_reach, randoms[hits, 1]),
+        stretch * front_depth(config.surface_margin, config.front_reach, randoms[hits, 1])
+        + clearance,
         rays.lengths[hits],
     )
     in_front = hit_points - hit_dirs * in_front_depth[:, None]

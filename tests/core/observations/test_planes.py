@@ -1,17 +1,17 @@
-"""Planes of a batch's hits: the normals found by cells, the wider cell for hits on lines, and
-the compiled fit against its NumPy twin."""
+"""Planes of a batch's hits: the normals found by cells, the wider cell for hits on lines, the
+least spread of cells planar or not, and the compiled fit against its NumPy twin."""
 
 import numpy as np
 import pytest
 from plane_points import assert_same_normals, planar_patches
 
-from ehm.core.observations.planes import cell_planes, cell_planes_reference, hit_plane_normals
+from ehm.core.observations.planes import cell_planes, cell_planes_reference, hit_planes
 
 
 def test_hits_on_a_plane_have_its_normal_and_scattered_ones_none(rng):
     floor = np.column_stack([rng.uniform(0.01, 0.19, (20, 2)), np.full(20, 0.05)])
     scattered = rng.uniform(1.01, 1.19, (20, 3))
-    normals = hit_plane_normals(np.vstack([floor, scattered]), 0.2)
+    normals = hit_planes(np.vstack([floor, scattered]), 0.2).normals
     np.testing.assert_allclose(np.abs(normals[:20]), np.tile([0.0, 0.0, 1.0], (20, 1)), atol=1e-9)
     assert np.isnan(normals[20:]).all()
 
@@ -20,7 +20,8 @@ def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
     """A wall (x = 1 m) hit along two LiDAR rings 9 cm apart: each 10 cm cell holds one ring,
     a line, and the 20 cm cell around both finds the wall's plane. A wall hit densely with
     1.5 cm of range noise is no plane in its 10 cm cells (least spread 0.27 of the next), and
-    is not given the plane its 20 cm cell would find (0.07)."""
+    is not given the plane its 20 cm cell would find (0.07), but its least spread reads the
+    noise, along the wall's normal."""
     y = np.arange(0.005, 0.2, 0.01)
     rings = np.column_stack([np.ones(40), np.tile(y, 2), np.repeat([0.02, 0.11], 20)])
     noisy = np.column_stack(
@@ -29,10 +30,14 @@ def test_hits_on_rings_far_apart_find_their_plane_in_a_wider_cell(rng):
             rng.uniform(0.0, 0.2, (800, 2)) + np.array([0.0, 0.2]),
         ]
     )
-    normals = hit_plane_normals(np.vstack([rings, noisy]), 0.1)
+    planes = hit_planes(np.vstack([rings, noisy]), 0.1)
+    normals = planes.normals
     np.testing.assert_allclose(np.abs(normals[:40]), np.tile([1.0, 0.0, 0.0], (40, 1)), atol=1e-9)
     assert np.isnan(normals[40:]).all()
-    wide = hit_plane_normals(noisy, 0.2)
+    assert np.isnan(planes.spreads[:40]).all()  # lines: no least spread of their own
+    assert np.all(np.abs(planes.spreads[40:] - 0.015) < 0.002)  # the noise's std
+    assert np.all(np.abs(planes.axes[40:, 0]) > 0.99)
+    wide = hit_planes(noisy, 0.2).normals
     np.testing.assert_allclose(np.abs(wide[:, 0]), 1.0, atol=0.01)
 
 
@@ -45,6 +50,12 @@ def test_cell_planes_agree_with_their_numpy_twin(rng, dim):
     )
     compiled = cell_planes(points, 0.2)
     reference = cell_planes_reference(points, 0.2)
-    np.testing.assert_array_equal(compiled[1], reference[1])
-    planar = assert_same_normals(compiled[0], reference[0])
-    assert planar.sum() > 100 and compiled[1].sum() > 300
+    np.testing.assert_array_equal(compiled.sparse, reference.sparse)
+    planar = assert_same_normals(compiled.normals, reference.normals)
+    assert planar.sum() > 100 and compiled.sparse.sum() > 300
+    np.testing.assert_allclose(compiled.spreads, reference.spreads, rtol=1e-6, atol=1e-12)
+    measured = ~compiled.sparse
+    assert measured.sum() > planar.sum()  # planar cells and others
+    # Axes of least spread agree up to sign where that spread stands apart from the next.
+    dot = np.abs(np.einsum("nd,nd->n", compiled.axes[planar], reference.axes[planar]))
+    np.testing.assert_allclose(dot, 1.0, atol=1e-6)

@@ -1,0 +1,41 @@
+"""How far a batch's range noise spreads its hits along their rays, read off the hits.
+
+Hits of one surface lie spread about it by the sensor's range noise. Where the hits of a cell
+of a cluster radius lie on a surface, they spread about it by sigma_n along its normal (their
+least spread, ehm.core.observations.planes.cell_planes), which is the noise along the rays
+times the cosine between ray and normal: sigma_n / cos measures the noise along the rays.
+At corners, edges and clutter the least spread is the shape's, not the noise's, so a batch
+takes the median over its hits in each of RANGE_BANDS bands of range (as many hits in each):
+a depth camera's noise grows with range and a LiDAR's stays as it is, and rendered depth
+without noise reads about 0.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Bands of range, as many measured hits in each, whose median noise each hit's range reads
+# between (linearly, the nearest band's beyond the first and last).
+RANGE_BANDS = 8
+# Least cosine between a ray and the normal its noise is measured along: at grazing angles a
+# cell's spread says little of the noise along the rays.
+NOISE_COS_FLOOR = 0.3
+
+
+def range_noise(
+    ranges: np.ndarray, directions: np.ndarray, spreads: np.ndarray, axes: np.ndarray
+) -> np.ndarray:
+    """(n,) metres, the standard deviation of the range noise at each of n hits' range:
+    ranges (n,) metres; directions (n, d) unit, their rays'; spreads (n,) metres and axes
+    (n, d) unit, the least spread of the hits of each one's cell and its axis, NaN where the
+    cell measures none. Zeros when fewer hits than RANGE_BANDS measure it."""
+    cosine = np.abs(np.einsum("nd,nd->n", directions, axes))
+    noise = spreads / np.maximum(cosine, NOISE_COS_FLOOR)
+    measured = np.flatnonzero(np.isfinite(noise))
+    if len(measured) < RANGE_BANDS:
+        return np.zeros(len(ranges))
+    order = measured[np.argsort(ranges[measured], kind="stable")]
+    bands = np.array_split(order, RANGE_BANDS)
+    band_ranges = np.array([np.median(ranges[band]) for band in bands])
+    band_noise = np.array([np.median(noise[band]) for band in bands])
+    return np.interp(ranges, band_ranges, band_noise)
