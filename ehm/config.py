@@ -111,7 +111,7 @@ class MapConfig:
     normal as far along the ray (the cosine floored at 0.3;
     ehm.core.observations.samples.front_stretches). On: ground and walls seen at grazing
     angles read thinner, where rays otherwise leave them thick."""
-    noise_clearance: float = setting(4.0, "sampling", low=0.0)
+    noise_clearance: float = setting(2.0, "sampling", low=0.0)
     """A hit's free sample lies this many standard deviations of the range noise farther in
     front of it, the noise read off the batch's own hits at the hit's range (their spread
     about the planes they lie on, ehm.core.observations.range_noise): in front of the band

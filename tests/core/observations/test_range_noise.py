@@ -52,6 +52,6 @@ def test_free_samples_in_front_of_noisy_hits_move_clear_of_the_noise(rng):
     scan = _walls(rng, 0.0005)
     config = MapConfig()
     rays = scan_rays([scan], config)
-    np.testing.assert_allclose(front_clearances(rays, config), 4.0 * rays.hit_noise)
-    assert config.noise_clearance == 4.0
+    np.testing.assert_allclose(front_clearances(rays, config), 2.0 * rays.hit_noise)
+    assert config.noise_clearance == 2.0
     assert not front_clearances(rays, config.replace(noise_clearance=0.0)).any()
