@@ -6,8 +6,8 @@ least spread, ehm.core.observations.planes.cell_planes), which is the noise alon
 times the cosine between ray and normal: sigma_n / cos measures the noise along the rays.
 At corners, edges and clutter the least spread is the shape's, not the noise's, so a batch
 takes the median over its hits in each of RANGE_BANDS bands of range (as many hits in each):
-a depth camera's noise grows with range and a LiDAR's stays as it is, and rendered depth
-without noise reads about 0.
+a depth camera's noise grows with range and a LiDAR's stays as it is, and exact ranges on
+planes read 0.
 """
 
 from __future__ import annotations
