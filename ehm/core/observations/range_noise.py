@@ -7,7 +7,8 @@ times the cosine between ray and normal: sigma_n / cos measures the noise along 
 At corners, edges and clutter the least spread is the shape's, not the noise's, so a batch
 takes the median over its hits in each of RANGE_BANDS bands of range (as many hits in each):
 a depth camera's noise grows with range and a LiDAR's stays as it is, and exact ranges on
-planes read 0.
+planes read 0. A surface lying on a face of the cells has its band cut in two and reads less:
+a wall with 1 cm of noise on a face reads about half of it, in the middle of its cells 0.9-1.
 """
 
 from __future__ import annotations
