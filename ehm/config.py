@@ -154,6 +154,12 @@ class MapConfig:
     """Lloyd iterations refining quick-means centres (0 = use quick-means as it is)."""
     cluster_free_apart: bool = setting(True, "clustering")
     """Cluster occupied and free samples separately (True) or together (False)."""
+    cluster_behind_apart: bool = setting(False, "clustering")
+    """With `cluster_free_apart`, the occupied samples behind hits are clustered apart from the
+    hits, each needing half of `min_cluster_size`: a surface's kernels then lie on it, as
+    thin as its hits, and the solid behind it has kernels of its own. Off: one cluster of
+    both, centred behind the surface and as deep as `occupied_depth`, whose kernel reaches
+    farther in front of it."""
     merge_coplanar: bool = setting(False, "clustering")
     """Orientation clustering (Eq. 14-15): after each update, planar clusters it touched merge
     with planar neighbours of the same scale and label whose normals and positions agree,

@@ -79,7 +79,10 @@ SENSOR_PATH = "sensor_path"
 # without either, and learn on so.
 # Version 21 maps place hits' free samples clear of the range noise (MapConfig.noise_clearance);
 # older files learned without, and learn on so.
-FORMAT_VERSION = 21
+# Version 22 maps cluster the samples behind hits apart from the hits and keep them in the past
+# evidence as a kind of their own (MapConfig.cluster_behind_apart); older files kept them as
+# hits, and learn on with both in one cluster.
+FORMAT_VERSION = 22
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -237,6 +240,8 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         settings = {**settings, "coarse_free_only": False, "hits_per_radius": 0.0}
     if version < 21:
         settings = {**settings, "noise_clearance": 0.0}
+    if version < 22:
+        settings = {**settings, "cluster_behind_apart": False}
     config = MapConfig.from_dict(settings)
     if kept is not None:
         memory = EvidenceMemory.of_samples(dim, config, *kept)

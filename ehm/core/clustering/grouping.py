@@ -55,35 +55,43 @@ class SampleGroups:
     in_cluster: np.ndarray
 
 
+@dataclass(frozen=True)
+class _Part:
+    """Samples clustered on their own: their rows, inner radius (metres), the least weight of
+    a cluster and whether their clusters are coarse."""
+
+    rows: np.ndarray
+    radius: float
+    min_size: float
+    coarse: bool = False
+
+
 def _cluster_part(
-    samples: TrainingSamples,
-    part: tuple[np.ndarray, float, bool],
-    order: np.ndarray,
-    config: MapConfig,
+    samples: TrainingSamples, part: _Part, order: np.ndarray, config: MapConfig
 ) -> QuickMeansResult:
-    """Quick-means (and k-means refinement) of the samples at rows `part[0]`, with inner
-    radius `part[1]`, seeds drawn in `order`."""
-    rows, radius, _ = part
-    points = samples.points[rows]
-    weights = samples.weight[rows]
-    scatter = None if samples.scatter is None else samples.scatter[rows]
-    outer = radius * config.outer_radius_factor
+    """Quick-means (and k-means refinement) of the samples of `part`, seeds drawn in
+    `order`."""
+    points = samples.points[part.rows]
+    weights = samples.weight[part.rows]
+    scatter = None if samples.scatter is None else samples.scatter[part.rows]
+    outer = part.radius * config.outer_radius_factor
     result = quick_means_in_order(
-        points, radius, outer, config.min_cluster_size, order, weights, scatter
+        points, part.radius, outer, part.min_size, order, weights, scatter
     )
     return kmeans_refine(points, result, config.kmeans_iterations, weights, scatter)
 
 
 def _fine_parts(
-    kinds: list[np.ndarray], levels: np.ndarray | None, radius: float
-) -> list[tuple[np.ndarray, float, bool]]:
-    """The parts of fine samples clustered apart: each of `kinds` (n,) bool, level by level
-    (its samples of level l with 2^l times `radius`), for the levels some sample has."""
+    kinds: list[tuple[np.ndarray, float]], levels: np.ndarray | None, radius: float
+) -> list[_Part]:
+    """The parts of fine samples clustered apart: each of `kinds` ((n,) bool, the least weight
+    of its clusters), level by level (its samples of level l with 2^l times `radius`), for the
+    levels some sample has."""
     if levels is None or not levels.any():
-        return [(np.flatnonzero(kind), radius, False) for kind in kinds]
+        return [_Part(np.flatnonzero(kind), radius, min_size) for kind, min_size in kinds]
     return [
-        (np.flatnonzero(kind & (levels == level)), radius * 2.0**level, False)
-        for kind in kinds
+        _Part(np.flatnonzero(kind & (levels == level)), radius * 2.0**level, min_size)
+        for kind, min_size in kinds
         for level in np.unique(levels)
     ]
 
@@ -96,15 +104,25 @@ def group_samples(
 ) -> SampleGroups:
     """Quick-means over the samples. With `cluster_free_apart`, occupied samples, free samples
     around hits (both fine, `cluster_radius`) and free samples along rays (coarse,
-    `free_cluster_radius`) are clustered each on their own; otherwise all at once (fine).
+    `free_cluster_radius`) are clustered each on their own, and with `cluster_behind_apart`
+    the occupied samples behind hits apart from the rest; otherwise all at once (fine).
     levels: (n,) int64, fine samples of level l are clustered apart, with 2^l times the
     radius (ehm.core.clustering.footprints); None: all of level 0."""
+    least = config.min_cluster_size
     if config.cluster_free_apart:
         free = ~samples.occupied
-        fine = [samples.occupied, free & samples.at_surface]
-        coarse = [(np.flatnonzero(free & ~samples.at_surface), config.free_cluster_radius, True)]
+        if config.cluster_behind_apart:
+            # Hits and the samples behind them come in pairs: each half of a cluster the two
+            # made together needs half its weight.
+            hits = samples.occupied & ~samples.behind
+            occupied = [(hits, least / 2.0), (samples.behind, least / 2.0)]
+        else:
+            occupied = [(samples.occupied, least)]
+        fine = [*occupied, (free & samples.at_surface, least)]
+        along_rays = np.flatnonzero(free & ~samples.at_surface)
+        coarse = [_Part(along_rays, config.free_cluster_radius, least, coarse=True)]
     else:
-        fine, coarse = [np.ones(len(samples), dtype=bool)], []
+        fine, coarse = [(np.ones(len(samples), dtype=bool), least)], []
     parts = _fine_parts(fine, levels, config.cluster_radius) + coarse
     group_of_point = np.empty(len(samples), dtype=np.int64)
     in_cluster = np.empty(len(samples), dtype=bool)
@@ -115,14 +133,15 @@ def group_samples(
     # kind starts first: the others follow one another on the other thread (the warehouse's
     # free samples along rays are half its samples; started last, they kept one thread busy
     # alone for most of the stage).
-    orders = [rng.permutation(len(rows)) for rows, _, _ in parts]
+    orders = [rng.permutation(len(part.rows)) for part in parts]
     with ThreadPoolExecutor(min(len(parts), numba.get_num_threads())) as pool:
         started = {
             kind: pool.submit(_cluster_part, samples, parts[kind], orders[kind], config)
-            for kind in sorted(range(len(parts)), key=lambda kind: -len(parts[kind][0]))
+            for kind in sorted(range(len(parts)), key=lambda kind: -len(parts[kind].rows))
         }
         results = [started[kind].result() for kind in range(len(parts))]
-        for (rows, _, is_coarse), result in zip(parts, results, strict=True):
+        for part, result in zip(parts, results, strict=True):
+            rows = part.rows
             weights = samples.weight[rows]
             group_of_point[rows] = result.owner + n_groups
             in_cluster[rows] = result.kept[result.owner]
@@ -131,7 +150,7 @@ def group_samples(
             means.append(result.means[result.kept])
             covariances.append(result.covariances[result.kept])
             counts.append(result.counts[result.kept])
-            coarse.append(np.full(int(result.kept.sum()), is_coarse))
+            coarse.append(np.full(int(result.kept.sum()), part.coarse))
             # Label: the majority of the samples each seed took out of the pool.
             n_seeds = len(result.means)
             n_occupied = np.bincount(result.owner, weights * samples.occupied[rows], n_seeds)

@@ -51,9 +51,9 @@ from ehm.core.sensor.boxes import points_in_box
 from ehm.errors import InputError
 
 # Kinds of samples, in the order the compiled pass numbers them: free samples along rays (in
-# coarse cells), free samples in front of hits, occupied samples (hits, in fine cells) and,
-# with `surface_pooling` above 1, occupied samples behind hits in cells of their own (the
-# kinds OCCUPIED_BEHIND and OCCUPIED are one kind of sample, in cells of two sides).
+# coarse cells), free samples in front of hits, occupied samples (hits, in fine cells) and
+# occupied samples behind hits in cells of their own where they are clustered apart or pooled
+# in wider cells (behind_kind; otherwise in the hits' cells, of the kind OCCUPIED).
 FREE_ALONG_RAY, FREE_AT_SURFACE, OCCUPIED, OCCUPIED_BEHIND = 0, 1, 2, 3
 # Bits of a cell key that hold the kind, and their mask.
 KIND_BITS = 2
@@ -297,9 +297,11 @@ def kind_sides(config: MapConfig) -> np.ndarray:
 
 
 def behind_kind(config: MapConfig) -> int:
-    """The kind of the occupied samples behind hits: OCCUPIED, in the hits' cells, unless
-    `surface_pooling` gathers them in wider cells of their own."""
-    return OCCUPIED if config.surface_pooling == 1 else OCCUPIED_BEHIND
+    """The kind of the occupied samples behind hits: OCCUPIED, in the hits' cells, unless they
+    are clustered apart (`cluster_behind_apart`) or `surface_pooling` gathers them in wider
+    cells of their own."""
+    apart = config.cluster_behind_apart or config.surface_pooling > 1
+    return OCCUPIED_BEHIND if apart else OCCUPIED
 
 
 def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator) -> TrainingSamples:
@@ -360,8 +362,7 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         ]
         list(run(_cell_samples_of, tables, kept, outputs, repeat((sides, bits))))
     keys = [table.key[: table.used][rows] for table, rows in zip(tables, kept, strict=True)]
-    occupied, at_surface = sample_flags(np.concatenate(keys) & KIND_MASK)
-    return TrainingSamples(points, occupied, at_surface, weight, scatter)
+    return samples_of_kinds(points, np.concatenate(keys) & KIND_MASK, weight, scatter)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -443,11 +444,20 @@ def sample_flags(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return kinds >= OCCUPIED, kinds != FREE_ALONG_RAY
 
 
+def samples_of_kinds(
+    points: np.ndarray, kinds: np.ndarray, weight: np.ndarray, scatter: np.ndarray | None = None
+) -> TrainingSamples:
+    """Training samples at `points` (n, d), metres, of `kinds` (n,) int64, with `weight` (n,)
+    and `scatter` (n, d, d) m^2 or None."""
+    occupied, at_surface = sample_flags(kinds)
+    return TrainingSamples(points, occupied, at_surface, weight, scatter, kinds == OCCUPIED_BEHIND)
+
+
 def kinds_of(samples: TrainingSamples) -> np.ndarray:
     """(n,) int64 kind of each sample, from its flags."""
-    return np.where(
-        samples.occupied, OCCUPIED, np.where(samples.at_surface, FREE_AT_SURFACE, FREE_ALONG_RAY)
-    ).astype(np.int64)
+    occupied = np.where(samples.behind, OCCUPIED_BEHIND, OCCUPIED)
+    free = np.where(samples.at_surface, FREE_AT_SURFACE, FREE_ALONG_RAY)
+    return np.where(samples.occupied, occupied, free).astype(np.int64)
 
 
 def _check_reach(rays: ScanRays, config: MapConfig, side: float, bits: int) -> None:
@@ -503,5 +513,4 @@ def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -
     ).reshape(-1, dim, dim)
     first = np.zeros(len(weight), dtype=np.int64)
     first[cell] = np.arange(len(cell))
-    occupied, at_surface = sample_flags(kind[first])
-    return TrainingSamples(means, occupied, at_surface, weight, scatter)
+    return samples_of_kinds(means, kind[first], weight, scatter)

@@ -41,6 +41,7 @@ from ehm.core.observations.evidence import (
     cell_sides,
     kinds_of,
     sample_flags,
+    samples_of_kinds,
 )
 from ehm.core.observations.memory_keys import (
     REGION_BITS,
@@ -543,7 +544,9 @@ class EvidenceMemory:
             drawn, weight = threshold_draw(weight, max(1, int(cap * len(samples))), rng)
             kept = kept[drawn]
         replayed = self._samples_at(near[kept], visit.memory_keys)
-        return TrainingSamples(replayed.points, replayed.occupied, replayed.at_surface, weight)
+        return TrainingSamples(
+            replayed.points, replayed.occupied, replayed.at_surface, weight, None, replayed.behind
+        )
 
     def insert(self, visit: Visit, clustered: np.ndarray, time: float = np.nan) -> None:
         """Add the visit's samples to the memory; clustered: (n,) bool, each formed part of a
@@ -626,7 +629,7 @@ class EvidenceMemory:
         regions = sorted_distinct(np.searchsorted(first, entries, side="right") - 1)
         sizes = self.region_sizes[regions].astype(np.int64)
         rows = np.repeat(first[regions] - np.cumsum(sizes) + sizes, sizes) + np.arange(sizes.sum())
-        return rows[self.cells[rows] >> SUB_BITS == OCCUPIED]
+        return rows[self.cells[rows] >> SUB_BITS >= OCCUPIED]
 
     def points_at(self, entries: np.ndarray) -> np.ndarray:
         """(k, d) float64 metres, world frame: the mean of each of `entries` (k,) int64."""
@@ -659,9 +662,9 @@ class EvidenceMemory:
         """The entries (e,) int64 as weighted samples; memory_keys: (n,) the key of every
         entry."""
         keys = memory_keys[entries]
-        occupied, at_surface = sample_flags((keys >> SUB_BITS) & (2**KIND_BITS - 1))
+        kinds = (keys >> SUB_BITS) & (2**KIND_BITS - 1)
         weight = self.weight[entries].astype(np.float64)
-        return TrainingSamples(self._means(entries, keys), occupied, at_surface, weight)
+        return samples_of_kinds(self._means(entries, keys), kinds, weight)
 
     # ------------------------------------------------------------ persistence
     @classmethod

@@ -184,7 +184,7 @@ def _layout_kernel(
     for r in numba.prange(n_regions):
         if regions[r] & 1 == 0:
             for e in range(region_first[r], region_first[r] + region_sizes[r]):
-                starts[r + 1] += cells[e] >> SUB_BITS == OCCUPIED
+                starts[r + 1] += cells[e] >> SUB_BITS >= OCCUPIED
     for r in range(n_regions):
         starts[r + 1] += starts[r]
     entries = np.empty(starts[n_regions], dtype=np.int64)
@@ -201,7 +201,7 @@ def _layout_kernel(
                 packed >>= bits
             k = starts[r]
             for e in range(region_first[r], region_first[r] + region_sizes[r]):
-                if cells[e] >> SUB_BITS == OCCUPIED:
+                if cells[e] >> SUB_BITS >= OCCUPIED:
                     entries[k] = e
                     _entry_position(region, cells[e], place[e], fine_side, positions[k])
                     k += 1

@@ -27,7 +27,8 @@ class TrainingSamples:
     weight: (n,) float64, how many drawn samples each stands for in the loss (None gives
     ones). scatter: (n, d, d) float64, m^2, the scatter of those samples about the point, for
     a point that is their mean (ehm.core.observations.evidence), or None: none (zero) for
-    every sample.
+    every sample. behind: (n,) bool, True for the occupied samples drawn behind hits (None
+    gives none).
     """
 
     points: np.ndarray
@@ -35,10 +36,13 @@ class TrainingSamples:
     at_surface: np.ndarray
     weight: np.ndarray = None  # type: ignore[assignment]
     scatter: np.ndarray | None = None
+    behind: np.ndarray = None  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         if self.weight is None:
             object.__setattr__(self, "weight", np.ones(len(self.points)))
+        if self.behind is None:
+            object.__setattr__(self, "behind", np.zeros(len(self.points), dtype=bool))
 
     def __len__(self) -> int:
         return len(self.points)
@@ -58,13 +62,16 @@ class TrainingSamples:
                     self.at_surface,
                     self.weight,
                     self.scatter,
+                    self.behind,
                 )
             )
         )
 
     def without_scatter(self) -> TrainingSamples:
         """The same samples with no scatter (learning needs none, clustering does)."""
-        return TrainingSamples(self.points, self.occupied, self.at_surface, self.weight)
+        return TrainingSamples(
+            self.points, self.occupied, self.at_surface, self.weight, None, self.behind
+        )
 
     def __add__(self, other: TrainingSamples) -> TrainingSamples:
         """This set's samples followed by `other`'s."""
@@ -83,6 +90,7 @@ class TrainingSamples:
             np.concatenate([p.at_surface for p in parts]),
             np.concatenate([p.weight for p in parts]),
             _scatter_of(parts),
+            np.concatenate([p.behind for p in parts]),
         )
 
 
@@ -358,13 +366,15 @@ def samples_of_rays(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -> T
     n_surface = len(surface)
     occupied = np.zeros(len(points), dtype=bool)
     occupied[:n_surface] = np.tile([True, True, False], len(hit_points))
+    behind_hit = np.zeros(len(points), dtype=bool)
+    behind_hit[:n_surface] = np.tile([False, True, False], len(hit_points))
     around_hit = np.zeros(len(points), dtype=bool)
     around_hit[:n_surface] = True
     at_surface = around_hit.copy()
     at_surface[n_surface:] = np.concatenate(near_hit)  # within fine_free_band of their hit
     weight = np.ones(len(points))
     weight[n_surface : n_surface + len(along[0])] = config.free_thinning
-    samples = TrainingSamples(points, occupied, at_surface, weight)
+    samples = TrainingSamples(points, occupied, at_surface, weight, None, behind_hit)
     if config.learn_box:  # the samples around hits outside the box
         box = learn_box(config, rays.origins.shape[1])
         return samples.subset(~around_hit | points_in_box(points, box))

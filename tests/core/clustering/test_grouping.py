@@ -6,15 +6,18 @@ from ehm.config import MapConfig
 from ehm.core.clustering import grouping
 from ehm.core.clustering.grouping import group_samples
 from ehm.core.observations.samples import TrainingSamples, training_samples
+from ehm.core.sensor.scan import Scan
 
 
 def test_samples_of_each_kind_are_clustered_apart(room):
     scan = room.scans[0].subset(np.arange(len(room.scans[0])) % 8 == 0)
-    config = MapConfig()
+    config = MapConfig(cluster_behind_apart=True)
     samples = training_samples(scan, config, np.random.default_rng(0))
     grouped = group_samples(samples, config, np.random.default_rng(0))
     groups, clusters = grouped.groups, grouped.clusters
-    kind = 2 * samples.occupied + samples.at_surface  # occupied, free at surface, free on rays
+    # Behind hits, hits, free at surface, free along rays.
+    kind = np.where(samples.behind, 4, 2 * samples.occupied + samples.at_surface)
+    assert samples.behind.sum() == (samples.occupied & ~samples.behind).sum() > 0
     # No group mixes kinds of sample, and coarse groups hold the free samples along rays.
     for group in np.unique(groups.group_of_point):
         assert len(np.unique(kind[groups.group_of_point == group])) == 1
@@ -29,7 +32,39 @@ def test_samples_of_each_kind_are_clustered_apart(room):
     assert len(clusters) < len(groups.centres)
     assert clusters.coarse.any() and (~clusters.coarse).any()
     assert not clusters.occupied[clusters.coarse].any()
-    assert np.all(clusters.counts >= config.min_cluster_size)
+    # Hits and the samples behind them each need half the weight of a cluster.
+    assert np.all(clusters.counts[~clusters.occupied] >= config.min_cluster_size)
+    assert np.all(clusters.counts[clusters.occupied] >= config.min_cluster_size / 2)
+    assert clusters.counts[clusters.occupied].min() < config.min_cluster_size
+
+
+def test_a_walls_kernels_lie_on_it_with_the_solid_behind_apart():
+    """A wall at x = 3 m seen head-on: clustered apart, the hits' clusters are as thin as the
+    wall along its normal and those of the samples behind it lie behind it; clustered
+    together, each cluster is centred behind the wall and as thick as the samples behind."""
+    angles = np.linspace(-0.5, 0.5, 2000)
+    ends = np.column_stack([np.full_like(angles, 3.0), 3.0 * np.tan(angles)])
+    scan = Scan(ends, np.zeros(2))
+    spreads = {}
+    for apart in (True, False):
+        config = MapConfig(cluster_behind_apart=apart)
+        samples = training_samples(scan, config, np.random.default_rng(0))
+        clusters = group_samples(samples, config, np.random.default_rng(0)).clusters
+        wall = clusters.occupied & (clusters.means[:, 0] < 3.0 + 1e-9)
+        behind = clusters.occupied & ~wall
+        spreads[apart] = np.sqrt(clusters.covariances[clusters.occupied, 0, 0])
+        if apart:
+            np.testing.assert_allclose(clusters.means[wall, 0], 3.0, atol=1e-9)
+            assert spreads[apart][wall[clusters.occupied]].max() < 1e-6
+            depth = clusters.means[behind, 0] - 3.0
+            assert 0.5 * config.occupied_depth * 0.8 < np.median(depth) < config.occupied_depth
+        else:
+            depth = clusters.means[clusters.occupied, 0] - 3.0
+            assert np.median(depth) > 0.2 * config.occupied_depth
+            # Half of the samples at the wall, half uniform up to occupied_depth behind it.
+            d = config.occupied_depth
+            mixture = np.sqrt(0.5 * d**2 / 3 - (d / 4) ** 2)
+            assert np.median(spreads[apart]) > 0.7 * mixture
 
 
 def test_samples_clustered_together_take_the_majority_label():

@@ -6,17 +6,21 @@ import pytest
 
 from ehm.config import MapConfig
 from ehm.core.observations import passes as passes_module
-from ehm.core.observations.evidence import FREE_AT_SURFACE, OCCUPIED, sample_flags
+from ehm.core.observations.evidence import (
+    FREE_AT_SURFACE,
+    OCCUPIED,
+    OCCUPIED_BEHIND,
+    samples_of_kinds,
+)
 from ehm.core.observations.memory import EvidenceMemory
 from ehm.core.observations.passes import occupied_passes, occupied_passes_reference
-from ehm.core.observations.samples import ScanRays, TrainingSamples
+from ehm.core.observations.samples import ScanRays
 
 
 def memory_of(points: np.ndarray, kinds: np.ndarray) -> EvidenceMemory:
     """A memory of fine cells of 5 cm (regions of 20 cm) holding one entry per point."""
     memory = EvidenceMemory(points.shape[1], True, (0.05, 0.3))
-    occupied, at_surface = sample_flags(kinds)
-    samples = TrainingSamples(points, occupied, at_surface)
+    samples = samples_of_kinds(points, kinds, np.ones(len(points)))
     memory.insert(memory.visit(samples), np.ones(len(points), dtype=bool))
     return memory
 
@@ -63,7 +67,7 @@ def test_passes_agree_with_their_numpy_twin(rng, monkeypatch, dim, parallel):
     if parallel:
         monkeypatch.setattr(passes_module, "PARALLEL_MIN_RAYS", 10)
     points = rng.uniform(-2.0, 2.0, (600, dim))
-    kinds = rng.choice([OCCUPIED, FREE_AT_SURFACE], 600, p=[0.8, 0.2])
+    kinds = rng.choice([OCCUPIED, OCCUPIED_BEHIND, FREE_AT_SURFACE], 600, p=[0.5, 0.3, 0.2])
     memory = memory_of(points, kinds)
     origins = rng.uniform(-3.0, 3.0, (300, dim))
     ends = rng.uniform(-3.0, 3.0, (300, dim))
@@ -88,10 +92,11 @@ def test_passes_of_sparse_evidence_agree_with_their_numpy_twin(rng, dim):
 @pytest.mark.parametrize("dim", [2, 3])
 def test_occupied_layout_holds_each_regions_occupied_entries_in_order(rng, dim):
     points = rng.uniform(-2.0, 2.0, (800, dim))
-    kinds = rng.choice([OCCUPIED, FREE_AT_SURFACE], 800, p=[0.6, 0.4])
+    kinds = rng.choice([OCCUPIED, OCCUPIED_BEHIND, FREE_AT_SURFACE], 800, p=[0.4, 0.2, 0.4])
     memory = memory_of(points, kinds)
     starts, entries, positions = passes_module.occupied_layout(memory)
-    occupied = np.flatnonzero(memory.samples().occupied)
+    occupied = np.flatnonzero(memory.samples().occupied)  # hits and the samples behind them
+    assert memory.samples().behind[occupied].mean() > 0.2
     np.testing.assert_array_equal(entries, occupied)
     np.testing.assert_allclose(positions, memory.points_at(occupied), atol=1e-12)
     region = np.searchsorted(memory.region_first(), occupied, side="right") - 1
