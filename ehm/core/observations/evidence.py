@@ -362,7 +362,8 @@ def gather_evidence(rays: ScanRays, config: MapConfig, rng: np.random.Generator)
         ]
         list(run(_cell_samples_of, tables, kept, outputs, repeat((sides, bits))))
     keys = [table.key[: table.used][rows] for table, rows in zip(tables, kept, strict=True)]
-    return samples_of_kinds(points, np.concatenate(keys) & KIND_MASK, weight, scatter)
+    kinds = np.concatenate(keys) & KIND_MASK
+    return samples_of_kinds(points, kinds, weight, scatter, config.cluster_behind_apart)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -445,12 +446,19 @@ def sample_flags(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def samples_of_kinds(
-    points: np.ndarray, kinds: np.ndarray, weight: np.ndarray, scatter: np.ndarray | None = None
+    points: np.ndarray,
+    kinds: np.ndarray,
+    weight: np.ndarray,
+    scatter: np.ndarray | None = None,
+    behind_apart: bool = True,
 ) -> TrainingSamples:
     """Training samples at `points` (n, d), metres, of `kinds` (n,) int64, with `weight` (n,)
-    and `scatter` (n, d, d) m^2 or None."""
+    and `scatter` (n, d, d) m^2 or None. Those of the kind OCCUPIED_BEHIND are flagged behind
+    where `behind_apart` (MapConfig.cluster_behind_apart); otherwise they are hits gathered in
+    wider cells (`surface_pooling`), and the memory keeps them with the hits."""
     occupied, at_surface = sample_flags(kinds)
-    return TrainingSamples(points, occupied, at_surface, weight, scatter, kinds == OCCUPIED_BEHIND)
+    behind = (kinds == OCCUPIED_BEHIND) & behind_apart
+    return TrainingSamples(points, occupied, at_surface, weight, scatter, behind)
 
 
 def kinds_of(samples: TrainingSamples) -> np.ndarray:
@@ -513,4 +521,4 @@ def evidence_reference(rays: ScanRays, randoms: np.ndarray, config: MapConfig) -
     ).reshape(-1, dim, dim)
     first = np.zeros(len(weight), dtype=np.int64)
     first[cell] = np.arange(len(cell))
-    return samples_of_kinds(means, kind[first], weight, scatter)
+    return samples_of_kinds(means, kind[first], weight, scatter, config.cluster_behind_apart)

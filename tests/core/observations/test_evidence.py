@@ -33,10 +33,17 @@ def _sorted(samples):
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("box", [False, True])
 @pytest.mark.parametrize(
-    "thinning, front_reach, pooling, band",
-    [(1, 1.0, 1, 0.0), (3, 2.0, 1, 0.0), (1, 1.0, 2, 0.5), (2, 2.0, 3, 0.25)],
+    "thinning, front_reach, pooling, band, apart",
+    [
+        (1, 1.0, 1, 0.0, False),
+        (3, 2.0, 1, 0.0, True),
+        (1, 1.0, 2, 0.5, False),
+        (2, 2.0, 3, 0.25, True),
+    ],
 )
-def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reach, pooling, band):
+def test_compiled_evidence_matches_reference(
+    rng, dim, box, thinning, front_reach, pooling, band, apart
+):
     config = MapConfig(
         free_spacing=0.3,
         max_free_samples=12,
@@ -44,6 +51,7 @@ def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reac
         front_reach=front_reach,
         surface_pooling=pooling,
         fine_free_band=band,
+        cluster_behind_apart=apart,
     )
     if box:
         config = config.replace(learn_box=(-2.0,) * dim + (3.0,) * dim)
@@ -59,6 +67,8 @@ def test_compiled_evidence_matches_reference(rng, dim, box, thinning, front_reac
     np.testing.assert_allclose(got.scatter, want.scatter, atol=1e-9)
     np.testing.assert_array_equal(got.occupied, want.occupied)
     np.testing.assert_array_equal(got.at_surface, want.at_surface)
+    np.testing.assert_array_equal(got.behind, want.behind)
+    assert got.behind.any() == apart
 
 
 def test_compiled_evidence_matches_reference_where_hits_are_noisy(rng):
@@ -93,21 +103,30 @@ def test_compiled_evidence_matches_reference_where_hits_are_noisy(rng):
     assert stayed - moved == pytest.approx(np.median(clearance), rel=0.3)
 
 
-@pytest.mark.parametrize("pooling", [1, 2])
-def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng, pooling):
+@pytest.mark.parametrize("pooling, apart", [(1, False), (2, False), (1, True), (2, True)])
+def test_evidence_keeps_the_number_mean_and_scatter_of_every_kind(rng, pooling, apart):
     """Per kind, the weights add up to those of the samples drawn, and their weighted means
-    and scatter are the samples' own, with surface_pooling as without."""
-    config = MapConfig(surface_pooling=pooling)
+    and scatter are the samples' own, with surface_pooling as without; the samples behind hits
+    are a kind of their own where they are clustered apart, hits otherwise."""
+    config = MapConfig(surface_pooling=pooling, cluster_behind_apart=apart)
     scan = _scan(rng, 3000, 3, spread=2.0)
     rays = scan_rays([scan], config)
     randoms = ray_randoms(len(rays), np.random.default_rng(2))
     samples = samples_of_rays(rays, randoms, config)
     evidence = gather_evidence(scan_rays([scan], config), config, np.random.default_rng(2))
     assert len(evidence) < 0.7 * len(samples)
-    for occupied, at_surface in ((True, True), (False, True), (False, False)):
-        drawn = samples.subset((samples.occupied == occupied) & (samples.at_surface == at_surface))
+    behind = samples.behind & apart
+    kinds = [(True, True, False), (False, True, False), (False, False, False)]
+    for occupied, at_surface, is_behind in kinds + [(True, True, True)] * apart:
+        drawn = samples.subset(
+            (samples.occupied == occupied)
+            & (samples.at_surface == at_surface)
+            & (behind == is_behind)
+        )
         cells = evidence.subset(
-            (evidence.occupied == occupied) & (evidence.at_surface == at_surface)
+            (evidence.occupied == occupied)
+            & (evidence.at_surface == at_surface)
+            & (evidence.behind == is_behind)
         )
         assert cells.weight.sum() == drawn.weight.sum()
         mean = drawn.weight @ drawn.points / drawn.weight.sum()
