@@ -21,6 +21,10 @@ RANGE_BANDS = 8
 # Least cosine between a ray and the normal its noise is measured along: at grazing angles a
 # cell's spread says little of the noise along the rays.
 NOISE_COS_FLOOR = 0.3
+# Most measured hits the bands' medians are taken over, evenly spaced among them: a band's
+# median of 2,048 hits has a standard error of about 3 % of the noise, and a depth frame's
+# 300,000 hits sorted cost more than the rest of the reading.
+MOST_MEASURED = RANGE_BANDS * 2048
 
 
 def range_noise(
@@ -30,13 +34,15 @@ def range_noise(
     ranges (n,) metres; directions (n, d) unit, their rays'; spreads (n,) metres and axes
     (n, d) unit, the least spread of the hits of each one's cell and its axis, NaN where the
     cell measures none. Zeros when fewer hits than RANGE_BANDS measure it."""
-    cosine = np.abs(np.einsum("nd,nd->n", directions, axes))
-    noise = spreads / np.maximum(cosine, NOISE_COS_FLOOR)
-    measured = np.flatnonzero(np.isfinite(noise))
+    measured = np.flatnonzero(np.isfinite(spreads))
     if len(measured) < RANGE_BANDS:
         return np.zeros(len(ranges))
-    order = measured[np.argsort(ranges[measured], kind="stable")]
+    if len(measured) > MOST_MEASURED:
+        measured = measured[np.linspace(0, len(measured) - 1, MOST_MEASURED).astype(np.int64)]
+    cosine = np.abs(np.einsum("nd,nd->n", directions[measured], axes[measured]))
+    noise = spreads[measured] / np.maximum(cosine, NOISE_COS_FLOOR)
+    order = np.argsort(ranges[measured], kind="stable")
     bands = np.array_split(order, RANGE_BANDS)
-    band_ranges = np.array([np.median(ranges[band]) for band in bands])
+    band_ranges = np.array([np.median(ranges[measured[band]]) for band in bands])
     band_noise = np.array([np.median(noise[band]) for band in bands])
     return np.interp(ranges, band_ranges, band_noise)
