@@ -5,10 +5,11 @@ of a cluster radius lie on a surface, they spread about it by sigma_n along its 
 least spread, ehm.core.observations.planes.cell_planes), which is the noise along the rays
 times the cosine between ray and normal: sigma_n / cos measures the noise along the rays.
 At corners, edges and clutter the least spread is the shape's, not the noise's, so a batch
-takes the median over its hits in each of RANGE_BANDS bands of range (as many hits in each):
-a depth camera's noise grows with range and a LiDAR's stays as it is, and exact ranges on
-planes read 0. A surface lying on a face of the cells has its band cut in two and reads less:
-a wall with 1 cm of noise on a face reads about half of it, in the middle of its cells 0.9-1.
+takes the median over its hits (at most MOST_MEASURED of them) in each of RANGE_BANDS bands
+of range (as many hits in each): a depth camera's noise grows with range and a LiDAR's stays
+as it is, and exact ranges on planes read 0. A surface lying on a face of the cells has its
+band cut in two and reads less: a wall with 1 cm of noise on a face reads about half of it, in
+the middle of its cells 0.9-1.
 """
 
 from __future__ import annotations
@@ -22,8 +23,8 @@ RANGE_BANDS = 8
 # cell's spread says little of the noise along the rays.
 NOISE_COS_FLOOR = 0.3
 # Most measured hits the bands' medians are taken over, evenly spaced among them: a band's
-# median of 2,048 hits has a standard error of about 3 % of the noise, and a depth frame's
-# 300,000 hits sorted cost more than the rest of the reading.
+# median of 2,048 hits has a standard error of about 3 % of the noise, and sorting every hit of
+# a depth frame was most of the reading's cost.
 MOST_MEASURED = RANGE_BANDS * 2048
 
 
