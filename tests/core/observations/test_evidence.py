@@ -26,8 +26,24 @@ def _scan(rng, n, dim, hits=0.7, spread=8.0):
 
 
 def _sorted(samples):
-    order = np.lexsort((*np.round(samples.points.T, 9), samples.occupied, samples.at_surface))
-    return samples.subset(order)
+    flags = (samples.occupied, samples.at_surface, samples.behind)
+    return samples.subset(np.lexsort((*np.round(samples.points.T, 9), *flags)))
+
+
+def _evidence_and_twin(rays, config):
+    """The compiled pass's evidence of `rays`, sorted, after asserting that its NumPy twin
+    holds the same cells: points, weights, scatter and flags."""
+    got = _sorted(gather_evidence(rays, config, np.random.default_rng(5)))
+    want = _sorted(
+        evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(5)), config)
+    )
+    assert len(got) == len(want) > 100
+    np.testing.assert_allclose(got.points, want.points, atol=1e-9)
+    np.testing.assert_allclose(got.weight, want.weight)
+    np.testing.assert_allclose(got.scatter, want.scatter, atol=1e-9)
+    for flag in ("occupied", "at_surface", "behind"):
+        np.testing.assert_array_equal(getattr(got, flag), getattr(want, flag))
+    return got
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -56,18 +72,7 @@ def test_compiled_evidence_matches_reference(
     if box:
         config = config.replace(learn_box=(-2.0,) * dim + (3.0,) * dim)
     scans = [_scan(rng, 1500, dim), _scan(rng, 700, dim)]
-    rays = scan_rays(scans, config)
-    got = _sorted(gather_evidence(scan_rays(scans, config), config, np.random.default_rng(5)))
-    want = _sorted(
-        evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(5)), config)
-    )
-    assert len(got) == len(want) > 100
-    np.testing.assert_allclose(got.points, want.points, atol=1e-9)
-    np.testing.assert_allclose(got.weight, want.weight)
-    np.testing.assert_allclose(got.scatter, want.scatter, atol=1e-9)
-    np.testing.assert_array_equal(got.occupied, want.occupied)
-    np.testing.assert_array_equal(got.at_surface, want.at_surface)
-    np.testing.assert_array_equal(got.behind, want.behind)
+    got = _evidence_and_twin(scan_rays(scans, config), config)
     assert got.behind.any() == apart
 
 
@@ -85,15 +90,7 @@ def test_compiled_evidence_matches_reference_where_hits_are_noisy(rng):
     rays = scan_rays([scan], config)
     clearance = front_clearances(rays, config)
     assert 0.015 < np.median(clearance) < 0.025
-    got = _sorted(gather_evidence(rays, config, np.random.default_rng(5)))
-    want = _sorted(
-        evidence_reference(rays, ray_randoms(len(rays), np.random.default_rng(5)), config)
-    )
-    assert len(got) == len(want) > 100
-    np.testing.assert_allclose(got.points, want.points, atol=1e-9)
-    np.testing.assert_allclose(got.weight, want.weight)
-    np.testing.assert_allclose(got.scatter, want.scatter, atol=1e-9)
-    np.testing.assert_array_equal(got.occupied, want.occupied)
+    got = _evidence_and_twin(rays, config)
     # The free samples in front of hits lie about the clearance farther from the wall.
     unclear = gather_evidence(rays, config.replace(noise_clearance=0.0), np.random.default_rng(5))
     in_front = got.at_surface & ~got.occupied
