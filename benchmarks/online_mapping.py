@@ -7,12 +7,14 @@
 For each data set, train fraction and seed, one held-out-rays split (DESIGN.md) serves the four
 methods (`ehm` scan by scan, `ehm-alone` without the sample memory, `ehm-batch` in one
 batch, OctoMap): held-out F1 of the occupied class at p = 0.5, every method at the data set's
-resolution (0.05 m; on the street 0.2 m, on the outdoor LiDAR scans and the hillside 0.1 m).
+resolution (0.05 m; on the street 0.2 m, on the outdoor LiDAR scans, the hillside and the
+power lines 0.1 m).
 On the simulated scenes the same maps are also scored against the exact occupancy at points
 near surfaces: uniform in balls of 0.3 m around training hits (both sides of each surface),
 kept where some training ray reached; precision, recall and F1 of the occupied class there; and
-where the scene has thin solids (posts at most 0.1 m across), the share of points inside them
-within 0.1 m of a training hit that read occupied (thin recall). `--set name=value` overrides
+where the scene has thin solids (posts, rails and wires: at most 0.1 m across along two axes),
+the share of points inside them within 0.1 m of a training hit that read occupied (thin
+recall). `--set name=value` overrides
 a MapConfig setting of the EHM methods (as often as wanted). Each method maps two small scans
 first, untimed, so compilation is not timed. Prints markdown tables, mean ± standard deviation
 over seeds.
@@ -46,6 +48,7 @@ from ehm.eval.datasets import (
     hillside,
     load_dataset,
     outdoor_lidar,
+    power_lines,
     street,
     virtual_room,
     warehouse,
@@ -62,14 +65,17 @@ SIMULATED = {
     "street": street,
     "outdoor_lidar": outdoor_lidar,
     "hillside": hillside,
+    "power_lines": power_lines,
     "dense_room": dense_room,
     "dense_room_noisy": lambda: dense_room(noise_std=0.01),
 }
 DATASETS = (*SIMULATED, "tum_fr2_pioneer_slam2", "pcl_room", "intel_lab", "octomap_scan")
 # Test points near surfaces: uniform in balls of this radius around training hits, metres.
 NEAR = 0.3
-# Solids at most this wide across in every horizontal direction are thin (posts), metres.
+# Solids at most this wide across along two axes are thin (posts, rails, wires), metres.
 THIN = 0.1
+# Test points drawn inside each thin solid: per metre of its length, and at least.
+THIN_POINTS_PER_METRE, THIN_POINTS_LEAST = 100, 400
 
 
 def near_surface_test_points(scans: Sequence[Scan], n: int, rng: np.random.Generator) -> np.ndarray:
@@ -100,17 +106,21 @@ def near_surface_points_and_ranges(
 def thin_solid_test_points(
     scene: Scene, scans: Sequence[Scan], rng: np.random.Generator
 ) -> np.ndarray:
-    """(m, d) points uniform inside the scene's thin boxes (at most THIN metres across in
-    every horizontal direction: posts, poles), 400 per box, kept within 0.1 m of a hit of
-    `scans`; (0, d) when the scene has none."""
+    """(m, d) points uniform inside the scene's thin boxes (at most THIN metres across along
+    two axes: posts, rails, wires), THIN_POINTS_PER_METRE of their length and at least
+    THIN_POINTS_LEAST per box, kept within 0.1 m of a hit of `scans`; (0, d) when the scene
+    has none."""
     size = scene.box_max - scene.box_min
-    thin = np.all(size[:, :2] <= THIN, axis=1)
+    thin = np.sort(size, axis=1)[:, 1] <= THIN
     if not thin.any():
         return np.zeros((0, scene.dim))
+    counts = np.maximum(THIN_POINTS_LEAST, THIN_POINTS_PER_METRE * size.max(axis=1)).astype(int)
     points = np.concatenate(
         [
-            rng.uniform(low, high, (400, scene.dim))
-            for low, high in zip(scene.box_min[thin], scene.box_max[thin], strict=True)
+            rng.uniform(low, high, (count, scene.dim))
+            for low, high, count in zip(
+                scene.box_min[thin], scene.box_max[thin], counts[thin], strict=True
+            )
         ]
     )
     hits = np.concatenate([s.points_world[s.hit_mask] for s in scans])

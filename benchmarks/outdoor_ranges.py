@@ -1,7 +1,7 @@
 """Outdoor scenes near surfaces by range: precision and recall of EHM and the peers, 0.1 and 0.2 m.
 
     python benchmarks/outdoor_ranges.py [--seeds 0,1,2] [--fractions 0.8]
-                                        [--datasets street,outdoor_lidar,hillside]
+                                        [--datasets street,outdoor_lidar,hillside,power_lines]
                                         [--resolutions 0.1,0.2] [--set name=value ...]
 
 For each simulated outdoor scene, map detail and held-out-rays split (DESIGN.md), EHM (both
@@ -31,7 +31,7 @@ from results_file import run_recorded
 from ehm.eval.metrics import precision_recall
 from ehm.eval.protocol import held_out_rays
 
-OUTDOOR = ("street", "outdoor_lidar", "hillside")
+OUTDOOR = ("street", "outdoor_lidar", "hillside", "power_lines")
 METHODS = ("ehm", "ehm-realtime", "octomap", "wavemap")
 # Range bins, metres from the sensor: [edge, next edge).
 RANGE_EDGES = (0.0, 5.0, 10.0, 20.0, 40.0)

@@ -6,6 +6,7 @@ from ehm.core.sensor.scan import Scan
 from ehm.errors import InputError
 from ehm.eval.datasets.depth_camera import dense_room
 from ehm.eval.datasets.outdoor import hillside
+from ehm.eval.datasets.power_lines import power_lines
 from ehm.eval.datasets.real import REAL_DATASETS, DataMissingError
 from ehm.eval.datasets.scene import Scene
 from ehm.eval.datasets.simulated import (
@@ -46,6 +47,7 @@ __all__ = [
     "hillside",
     "load_dataset",
     "outdoor_lidar",
+    "power_lines",
     "street",
     "virtual_room",
     "warehouse",
