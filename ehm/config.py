@@ -245,6 +245,12 @@ class MapConfig:
     """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0: the log-odds
     variance of never-observed space (occupancy std 0.21 at 1; ehm.core.weights.uncertainty), and
     under 'posterior' the prior the first update starts from."""
+    initial_weight: float = setting(2.0, "learning", low=0.0)
+    """Log-odds weight a new fine cluster joins with, then learned: + for clusters of hits,
+    - for free ones around hits; coarse clusters (open space along rays) join at 0. A fine
+    cluster few samples train (far, sparse hits; a wire a few rays met) stays near where its
+    first steps leave it: from 0, the free kernels around read its hits free. 0: every new
+    cluster at 0, no prior knowledge of its occupancy."""
     coarse_free_only: bool = setting(True, "learning")
     """Hold the weights of coarse clusters (open free space, from free samples along rays) at
     or below 0, so they only ever read space free. Unconstrained, SGD gives some of them

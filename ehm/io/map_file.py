@@ -82,7 +82,9 @@ SENSOR_PATH = "sensor_path"
 # Version 22 maps cluster the samples behind hits apart from the hits and keep them in the past
 # evidence as a kind of their own (MapConfig.cluster_behind_apart); older files kept them as
 # hits, and learn on with both in one cluster.
-FORMAT_VERSION = 22
+# Version 23 maps start new clusters at the weight of their label (MapConfig.initial_weight);
+# older files started them at 0, and learn on so.
+FORMAT_VERSION = 23
 OLDEST_READABLE_VERSION = 3
 _PREAMBLE = struct.Struct("<8sIQ")
 _CRC = struct.Struct("<I")
@@ -242,6 +244,8 @@ def _map_state(data: bytes, header: dict, payload_start: int, version: int) -> M
         settings = {**settings, "noise_clearance": 0.0}
     if version < 22:
         settings = {**settings, "cluster_behind_apart": False}
+    if version < 23:
+        settings = {**settings, "initial_weight": 0.0}
     config = MapConfig.from_dict(settings)
     if kept is not None:
         memory = EvidenceMemory.of_samples(dim, config, *kept)

@@ -164,13 +164,14 @@ def test_maps_of_format_3_load_and_answer_as_they_did(name):
 
 def rebuild_v3_map(name: str) -> ehm.HilbertMap:
     """The map the format-3 file `name` holds, built again from its scans."""
-    settings_then = {  # formats 9, 17, 20, 21 and 22
+    settings_then = {  # formats 9, 17, 20, 21, 22 and 23
         "batch_rays": 0,
         "occupied_length_scale": 3.0,
         "coarse_free_only": False,
         "hits_per_radius": 0.0,
         "noise_clearance": 0.0,
         "cluster_behind_apart": False,
+        "initial_weight": 0.0,
     }
     if name == "plan":
         hilbert_map = ehm.HilbertMap(
@@ -264,13 +265,14 @@ def test_maps_of_format_12_load_their_kept_samples_as_evidence(small_map, tmp_pa
     loaded = ehm.load(tmp_path / "old.ehm")
     # Occupied kernels as wide as free ones, coarse weights unbounded, fine clusters of one
     # radius, free samples in front of hits whatever the noise and the samples behind hits
-    # clustered with them, as every map of format 12 learned.
+    # clustered with them, new clusters at weight 0, as every map of format 12 learned.
     then = small_map.config.replace(
         occupied_length_scale=small_map.config.length_scale,
         coarse_free_only=False,
         hits_per_radius=0.0,
         noise_clearance=0.0,
         cluster_behind_apart=False,
+        initial_weight=0.0,
     )
     assert loaded.config.keep_evidence and loaded.config == then
     evidence = loaded.model_.memory.samples()

@@ -1,6 +1,6 @@
 """How a batch's new clusters join the map (Alg. 2 lines 4-21): each merges into the map's
 nearest cluster of its scale and label when their anisotropic distance (Eq. 14) is below the
-threshold, or joins with weight 0."""
+threshold, or joins with the weight its label gives it (MapConfig.initial_weight)."""
 
 from __future__ import annotations
 
@@ -32,8 +32,9 @@ def absorb_clusters(
     clusters: ClusterSet, candidates: MergeCandidates, new: NewClusters, config: MapConfig
 ) -> Absorbed:
     """Merge each new cluster into one of its `candidates` among `clusters` (the map's before
-    this batch) or append it with weight 0 and the prior precision, with `config.merge_rule`;
-    the kernels of every changed cluster are refreshed. In place."""
+    this batch) or append it with the prior precision and, fine, `config.initial_weight` of its
+    label's sign (coarse: 0), with `config.merge_rule`; the kernels of every changed cluster are
+    refreshed. In place."""
     new_eigen = symmetric_eigen(new.covariances)
     targets = match_new_clusters(clusters, candidates, new, new_eigen, config)
     merging = targets >= 0
@@ -50,6 +51,7 @@ def absorb_clusters(
         added.coarse,
         added.occupied,
         config.prior_precision,
+        config.initial_weight,
     )
     merged, appended = sorted_distinct(targets[merging]), np.arange(start, len(clusters))
     clusters.refresh(merged, config)

@@ -100,20 +100,23 @@ class ClusterSet:
         coarse: np.ndarray,
         occupied: np.ndarray,
         precision: float = 0.0,
+        initial_weight: float = 0.0,
     ) -> None:
-        """Add clusters with weight 0 (no prior knowledge of their occupancy), posterior
-        `precision` and no time seen; `refresh` them before use."""
+        """Add clusters with posterior `precision`, no time seen and weight +initial_weight
+        where `occupied`, -initial_weight where fine and free, 0 where `coarse` (no prior
+        knowledge of their occupancy); `refresh` them before use."""
         n = len(means)
+        coarse, occupied = np.asarray(coarse, dtype=bool), np.asarray(occupied, dtype=bool)
         added = {
             "means": means,
             "covariances": covariances,
             "counts": counts,
-            "weights": np.zeros(n),
+            "weights": np.where(coarse, 0.0, np.where(occupied, initial_weight, -initial_weight)),
             "grad_sq": np.zeros(n),
             "precision": np.full(n, float(precision)),
             "transforms": np.zeros((n,) + means.shape[1:] * 2),
-            "coarse": np.asarray(coarse, dtype=bool),
-            "occupied": np.asarray(occupied, dtype=bool),
+            "coarse": coarse,
+            "occupied": occupied,
             "planar": np.zeros(n, dtype=bool),
             "planar_kernel": np.zeros(n, dtype=bool),
             "seen": np.full(n, np.nan),

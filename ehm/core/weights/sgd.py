@@ -1,7 +1,7 @@
 """Stochastic gradient descent on the regularised logistic loss (Eq. 2-3), with a bias term.
 
 Each weight has its own AdaGrad step size lr / sqrt(sum of its squared gradients), so a cluster
-added with weight 0 learns quickly while well-observed clusters settle. Labels are 1 (occupied)
+just added learns quickly while well-observed clusters settle. Labels are 1 (occupied)
 and 0 (free); p(occupied | x) = sigmoid(w^T phi(x) + b).
 
 A sample that stands for w samples (ehm.core.observations.evidence) is one step: its gradient counts

@@ -151,14 +151,17 @@ def test_absorb_merges_close_clusters_and_adds_the_others(rng, search):
     clusters = _set_from([rng.normal(c, 0.1, (50, 3)) for c in ([0, 0, 0], [2, 0, 0])])
     weights = np.array([1.5, -2.0])
     clusters.weights[:] = weights
-    covariances = np.repeat(clusters.covariances[:1], 3, axis=0)
-    means = np.array([[0.05, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
-    new = _new(means, covariances, np.zeros(3, bool), np.ones(3, bool))
-    absorbed = absorb_clusters(clusters, _candidates(clusters, new, search), new, MapConfig())
-    assert (absorbed.n_new, absorbed.n_merged) == (2, 1)
-    np.testing.assert_array_equal(absorbed.changed, [0, 2, 3])
-    assert len(clusters) == 4 and clusters.counts[0] == 50 + 10
-    # Merged clusters keep their weights; new ones start at 0 with their kernels ready.
-    np.testing.assert_array_equal(clusters.weights, [*weights, 0.0, 0.0])
+    covariances = np.repeat(clusters.covariances[:1], 4, axis=0)
+    means = np.array([[0.05, 0, 0], [1.0, 0, 0], [5.0, 0, 0], [8.0, 0, 0]])
+    coarse = np.array([False, False, False, True])
+    new = _new(means, covariances, coarse, np.array([True, True, False, False]))
+    config = MapConfig(initial_weight=2.5)
+    absorbed = absorb_clusters(clusters, _candidates(clusters, new, search), new, config)
+    assert (absorbed.n_new, absorbed.n_merged) == (3, 1)
+    np.testing.assert_array_equal(absorbed.changed, [0, 2, 3, 4])
+    assert len(clusters) == 5 and clusters.counts[0] == 50 + 10
+    # Merged clusters keep their weights; new fine ones start at their label's initial
+    # weight (occupied +, free -), coarse ones at 0, with their kernels ready.
+    np.testing.assert_array_equal(clusters.weights, [*weights, 2.5, -2.5, 0.0])
     np.testing.assert_allclose(clusters.means[2:], means[1:])
     assert np.all(np.abs(clusters.transforms[2:]).sum(axis=(1, 2)) > 0)
