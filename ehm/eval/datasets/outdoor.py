@@ -20,8 +20,8 @@ from ehm.eval.datasets.scene import Scene
 from ehm.eval.datasets.simulated import (
     SimulatedDataset,
     lidar_directions,
+    lidar_drive,
     scene_of,
-    simulate_scan,
 )
 
 # The road runs along x, its kerbs' inner faces at y = +-ROAD_HALF_WIDTH, metres.
@@ -116,11 +116,8 @@ def hillside(
     """Four scans of a 64-ring LiDAR (rings x azimuths rays, 65,536 by default; elevations -25
     to +15 degrees, 1.8 m up, `max_range` metres) 10 m apart along the road: for maps of 0.1
     m."""
-    scene = hillside_scene()
     directions = lidar_directions(rings, azimuths, 15.0, -25.0)
-    rng = np.random.default_rng(seed)
-    scans = [
-        simulate_scan(scene, np.array([x, 0.0, 1.8]), directions, max_range, noise_std, rng)
-        for x in (-15.0, -5.0, 5.0, 15.0)
-    ]
-    return SimulatedDataset("hillside", scans, scene)
+    stops = (-15.0, -5.0, 5.0, 15.0)
+    return lidar_drive(
+        "hillside", hillside_scene(), directions, stops, 0.0, max_range, noise_std, seed
+    )

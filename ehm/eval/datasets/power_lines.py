@@ -19,8 +19,8 @@ from ehm.eval.datasets.scene import Scene
 from ehm.eval.datasets.simulated import (
     SimulatedDataset,
     lidar_directions,
+    lidar_drive,
     scene_of,
-    simulate_scan,
 )
 
 # The line runs along x at y = LINE_Y, metres; its poles stand POLE_SPACING apart.
@@ -71,11 +71,8 @@ def power_lines(
     """Five scans of a 32-ring LiDAR (rings x azimuths rays; elevations -22.5 to +22.5
     degrees, 1.8 m up, `max_range` metres) 10 m apart down the road under the line: for maps
     of 0.1 m."""
-    scene = power_lines_scene()
     directions = lidar_directions(rings, azimuths, 22.5)
-    rng = np.random.default_rng(seed)
-    scans = [
-        simulate_scan(scene, np.array([x, 0.0, 1.8]), directions, max_range, noise_std, rng)
-        for x in (-20.0, -10.0, 0.0, 10.0, 20.0)
-    ]
-    return SimulatedDataset("power_lines", scans, scene)
+    stops = (-20.0, -10.0, 0.0, 10.0, 20.0)
+    return lidar_drive(
+        "power_lines", power_lines_scene(), directions, stops, 0.0, max_range, noise_std, seed
+    )

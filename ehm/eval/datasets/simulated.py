@@ -6,7 +6,7 @@ All are deterministic for a seed; the seed only draws the range noise.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -227,10 +227,25 @@ def _street_drive(
 ) -> SimulatedDataset:
     """Scans of the street scene along unit `directions` (n, 3), one at each x of `stops`,
     metres, in the south lane 1.8 m up."""
-    scene = street_scene()
+    return lidar_drive(name, street_scene(), directions, stops, -2.0, max_range, noise_std, seed)
+
+
+def lidar_drive(
+    name: str,
+    scene: Scene,
+    directions: np.ndarray,
+    stops: Sequence[float],
+    lane_y: float,
+    max_range: float,
+    noise_std: float,
+    seed: int,
+) -> SimulatedDataset:
+    """Scans of `scene` along unit `directions` (n, 3), one at each x of `stops`, metres, at
+    y = `lane_y`, 1.8 m up, `max_range` metres, range noise of `noise_std` metres drawn from
+    `seed`."""
     rng = np.random.default_rng(seed)
     scans = [
-        simulate_scan(scene, np.array([x, -2.0, 1.8]), directions, max_range, noise_std, rng)
+        simulate_scan(scene, np.array([x, lane_y, 1.8]), directions, max_range, noise_std, rng)
         for x in stops
     ]
     return SimulatedDataset(name, scans, scene)
