@@ -14,10 +14,9 @@ near surfaces: uniform in balls of 0.3 m around training hits (both sides of eac
 kept where some training ray reached; precision, recall and F1 of the occupied class there; and
 where the scene has thin solids (posts, rails and wires: at most 0.1 m across along two axes),
 the share of points inside them within 0.1 m of a training hit that read occupied (thin
-recall). `--set name=value` overrides
-a MapConfig setting of the EHM methods (as often as wanted). Each method maps two small scans
-first, untimed, so compilation is not timed. Prints markdown tables, mean ± standard deviation
-over seeds.
+recall). `--set name=value` overrides a MapConfig setting of the EHM methods (as often as
+wanted). Each method maps two small scans first, untimed, so compilation is not timed. Prints
+markdown tables, mean ± standard deviation over seeds.
 """
 
 from __future__ import annotations

@@ -242,9 +242,10 @@ class MapConfig:
     l2: float = setting(1e-3, "learning", low=0.0)
     """L2 regularisation of the weights (the R(w) of Eq. 2; 'sgd')."""
     prior_precision: float = setting(1.0, "learning", low=0.0, low_open=True)
-    """Precision (1 / variance) of a new weight's Gaussian prior, centred on 0: the log-odds
-    variance of never-observed space (occupancy std 0.21 at 1; ehm.core.weights.uncertainty), and
-    under 'posterior' the prior the first update starts from."""
+    """Precision (1 / variance) of a new weight's Gaussian prior, centred on the weight it joins
+    with (`initial_weight`; 0 for coarse clusters): the log-odds variance of never-observed
+    space (occupancy std 0.21 at 1; ehm.core.weights.uncertainty), and under 'posterior' the
+    prior the first update starts from."""
     initial_weight: float = setting(2.0, "learning", low=0.0)
     """Log-odds weight a new fine cluster joins with, then learned: + for clusters of hits,
     - for free ones around hits; coarse clusters (open space along rays) join at 0. A fine

@@ -6,11 +6,12 @@ For one batch of samples the weights w and the bias b minimise
     J = sum_i c_i loss(y_i, w^T phi_i + b) + 1/2 sum_m lambda_m (w_m - mu_m)^2
         + 1/2 lambda_b (b - mu_b)^2,
 with loss the logistic loss of Eq. 2, c_i the weight of sample i's class, and mu, lambda the
-posterior so far (a new cluster: mean 0, precision `prior_precision`). Coordinate descent
-minimises J: each weight the batch touches takes, in turn, a Newton step along its own axis
-(clipped to MAX_STEP log-odds), with the scores of the samples it touches kept current; then
-the bias, whose precision then grows by the curvature the batch adds. The weights' precisions
-grow as under every update rule (ehm.core.weights.uncertainty.add_curvature).
+posterior so far (a new cluster: mean the weight it joined with, MapConfig.initial_weight,
+precision `prior_precision`). Coordinate descent minimises J: each weight the batch touches
+takes, in turn, a Newton step along its own axis (clipped to MAX_STEP log-odds), with the
+scores of the samples it touches kept current; then the bias, whose precision then grows by the
+curvature the batch adds. The weights' precisions grow as under every update rule
+(ehm.core.weights.uncertainty.add_curvature).
 """
 
 from __future__ import annotations

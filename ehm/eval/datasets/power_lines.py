@@ -37,7 +37,9 @@ CROSSING_X, CROSSING_HEIGHT = 5.0, 5.5
 HOUSE_FRONT_Y = -12.0
 
 
-def _wire(low: list[float], high: list[float], width: float, axis: int) -> tuple:
+def _wire(
+    low: list[float], high: list[float], width: float, axis: int
+) -> tuple[list[float], list[float]]:
     """A box `width` across, its centre line from `low` to `high` along `axis`."""
     lo, hi = np.array(low, dtype=float) - width / 2, np.array(high, dtype=float) + width / 2
     lo[axis], hi[axis] = low[axis], high[axis]
