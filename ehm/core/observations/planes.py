@@ -15,7 +15,7 @@ import numpy as np
 
 from ehm.core.primitives.cells import packed_cell_keys
 from ehm.core.primitives.eigen import eigen_in_place
-from ehm.core.primitives.hashing import EMPTY_KEY, hash_slot, table_size
+from ehm.core.primitives.hashing import EMPTY_KEY, hash_slot, row_table, table_size
 
 # The batch's hits in a cell lie on a plane when there are at least PLANE_HITS of them and their
 # least spread is at most HIT_PLANAR_SPREAD of the next (and not on a line).
@@ -46,10 +46,32 @@ def hit_planes(hit_points: np.ndarray, side: float) -> HitPlanes:
     lie on a line (a LiDAR's rings a few centimetres apart on a wall a few metres away), the
     cell of twice the side may hold a plane."""
     planes = cell_planes(hit_points, side)
-    sparse = planes.sparse
-    if sparse.any():
-        planes.normals[sparse] = cell_planes(hit_points, 2.0 * side).normals[sparse]
+    sparse = np.flatnonzero(planes.sparse)
+    if len(sparse):
+        # The wider cells are decomposed only where they hold a sparse hit, from all of their
+        # hits in the order given: the planes they give are those of the whole batch's.
+        n = len(hit_points)
+        wide = packed_cell_keys(hit_points, np.full(n, 2.0 * side), np.zeros(n, np.int64), 0)
+        deciding = np.flatnonzero(in_cells_of(wide, sparse))
+        wider = cell_planes(hit_points[deciding], 2.0 * side)
+        planes.normals[sparse] = wider.normals[np.searchsorted(deciding, sparse)]
     return HitPlanes(planes.normals, planes.spreads, planes.axes)
+
+
+@numba.njit(cache=True, nogil=True)
+def in_cells_of(keys, rows):  # pragma: no cover - compiled
+    """(n,) bool: whether each of `keys` (n,) int64 >= 0 is the key of one of the `rows`
+    (m,) int64."""
+    table, _ = row_table(keys[rows])
+    inside = np.empty(len(keys), dtype=np.bool_)
+    for i in range(len(keys)):
+        inside[i] = table[hash_slot(table, keys[i])] != EMPTY_KEY
+    return inside
+
+
+def in_cells_of_reference(keys: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Plain NumPy twin of `in_cells_of`."""
+    return np.isin(keys, keys[rows])
 
 
 @dataclass(frozen=True)

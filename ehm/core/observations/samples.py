@@ -152,8 +152,10 @@ class ScanRays:
         """The planes of the rays' hits, one row per ray (ehm.core.observations.planes.
         hit_planes, cells of `plane_side`), NaN for rays without a hit; found once."""
         n, d = self.directions.shape
-        planes = HitPlanes(np.full((n, d), np.nan), np.full(n, np.nan), np.full((n, d), np.nan))
         hits = self.hits
+        if hits.all():  # a depth frame's rays: no rows to pick
+            return hit_planes(self.ends, self.plane_side)
+        planes = HitPlanes(np.full((n, d), np.nan), np.full(n, np.nan), np.full((n, d), np.nan))
         if hits.any():
             of_hits = hit_planes(self.ends[hits], self.plane_side)
             planes.normals[hits] = of_hits.normals
@@ -171,9 +173,11 @@ class ScanRays:
     def hit_noise(self) -> np.ndarray:
         """(n,) metres, the batch's range noise at each hit's range
         (ehm.core.observations.range_noise), 0 for rays without a hit; found once."""
-        noise = np.zeros(len(self))
         hits = self.hits
         planes = self.hit_planes
+        if hits.all():
+            return range_noise(self.lengths, self.directions, planes.spreads, planes.axes)
+        noise = np.zeros(len(self))
         noise[hits] = range_noise(
             self.lengths[hits], self.directions[hits], planes.spreads[hits], planes.axes[hits]
         )
@@ -199,9 +203,10 @@ def scan_rays(scans: list[Scan], config: MapConfig) -> ScanRays:
     offsets = points - origins
     lengths = np.linalg.norm(offsets, axis=1)
     usable = (lengths > 0) & (lengths >= config.min_range)
-    offsets, lengths, hits, origins, scan_of = (
-        a[usable] for a in (offsets, lengths, hits, origins, scan_of)
-    )
+    if not usable.all():
+        offsets, lengths, hits, origins, scan_of = (
+            a[usable] for a in (offsets, lengths, hits, origins, scan_of)
+        )
     if config.max_range > 0:
         hits = hits & (lengths <= config.max_range)
         scale = np.minimum(config.max_range / lengths, 1.0)

@@ -71,17 +71,61 @@ def packed_cell_keys(
 
     InputError when a point lies beyond the cells' reach."""
     bits = (63 - kind_bits) // points.shape[1]
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    keys, inside = _packed_keys(
+        points,
+        np.asarray(side, dtype=np.float64),
+        np.asarray(kind, dtype=np.int64),
+        bits,
+        kind_bits,
+    )
+    if not inside:
+        _refuse_beyond_reach(points, side, bits)
+    return keys
+
+
+def packed_cell_keys_reference(
+    points: np.ndarray, side: np.ndarray, kind: np.ndarray, kind_bits: int
+) -> np.ndarray:
+    """Plain NumPy twin of `packed_cell_keys`."""
+    bits = (63 - kind_bits) // points.shape[1]
     cells = np.floor(points / side[:, None])
     half = 2.0 ** (bits - 1)
     if len(cells) and not (cells.min() >= -half and cells.max() < half):
-        outside = np.any((cells < -half) | (cells >= half), axis=1)
-        far = np.max(np.abs(points[outside]))
-        raise InputError(
-            f"a training sample lies {far:.0f} m from the map's origin, beyond the "
-            f"{half * side.min():.0f} m that cells of {side.min():g} m reach: set max_range "
-            "(ehm map --max-range) to cut rays longer than the sensor's"
-        )
+        _refuse_beyond_reach(points, side, bits)
     keys = np.zeros(len(points), dtype=np.int64)
     for axis in range(points.shape[1]):
         keys = (keys << bits) | (cells[:, axis].astype(np.int64) + int(half))
     return (keys << kind_bits) | kind.astype(np.int64)
+
+
+def _refuse_beyond_reach(points: np.ndarray, side: np.ndarray, bits: int) -> None:
+    """InputError naming how far the farthest of `points` (n, d) lies beyond the reach of
+    cells of `side` (n,) metres keyed with `bits` per axis."""
+    half = 2.0 ** (bits - 1)
+    cells = np.floor(points / side[:, None])
+    outside = np.any((cells < -half) | (cells >= half), axis=1)
+    far = np.max(np.abs(points[outside]))
+    raise InputError(
+        f"a training sample lies {far:.0f} m from the map's origin, beyond the "
+        f"{half * side.min():.0f} m that cells of {side.min():g} m reach: set max_range "
+        "(ehm map --max-range) to cut rays longer than the sensor's"
+    )
+
+
+@numba.njit(cache=True, parallel=True)
+def _packed_keys(points, side, kind, bits, kind_bits):  # pragma: no cover - compiled
+    """(keys (n,) int64 of packed_cell_keys, whether every point lies within the cells'
+    reach); where one does not, its key is meaningless."""
+    n, d = points.shape
+    half = np.int64(1) << (bits - 1)
+    keys = np.empty(n, dtype=np.int64)
+    outside = np.zeros(n, dtype=np.bool_)
+    for i in numba.prange(n):
+        key = np.int64(0)
+        for a in range(d):
+            cell = np.floor(points[i, a] / side[i])
+            outside[i] |= not (-half <= cell < half)
+            key = (key << bits) | (np.int64(cell) + half)
+        keys[i] = (key << kind_bits) | kind[i]
+    return keys, not outside.any()

@@ -5,7 +5,13 @@ import numpy as np
 import pytest
 from plane_points import assert_same_normals, planar_patches
 
-from ehm.core.observations.planes import cell_planes, cell_planes_reference, hit_planes
+from ehm.core.observations.planes import (
+    cell_planes,
+    cell_planes_reference,
+    hit_planes,
+    in_cells_of,
+    in_cells_of_reference,
+)
 
 
 def test_hits_on_a_plane_have_its_normal_and_scattered_ones_none(rng):
@@ -59,3 +65,27 @@ def test_cell_planes_agree_with_their_numpy_twin(rng, dim):
     # Axes of least spread agree up to sign where that spread stands apart from the next.
     dot = np.abs(np.einsum("nd,nd->n", compiled.axes[planar], reference.axes[planar]))
     np.testing.assert_allclose(dot, 1.0, atol=1e-6)
+
+
+def test_wider_cells_give_sparse_hits_the_planes_of_the_whole_batch(rng):
+    """hit_planes decomposes the wider cells of sparse hits from those cells' hits alone:
+    their normals are those the wider cells of every hit give."""
+    line = np.outer(np.linspace(0.0, 0.3, 40), [1.0, 0.0, 0.0]) + np.array([0.01, 2.02, 0.03])
+    points = np.concatenate(
+        [planar_patches(rng, 3, 60, 40, 0.05, 0.002), line, rng.uniform(-1.0, 1.0, (300, 3))]
+    )
+    planes = hit_planes(points, 0.1)
+    narrow = cell_planes(points, 0.1)
+    expected = narrow.normals.copy()
+    expected[narrow.sparse] = cell_planes(points, 0.2).normals[narrow.sparse]
+    assert narrow.sparse.sum() > 200 and np.isfinite(expected[narrow.sparse]).sum() > 10
+    np.testing.assert_array_equal(planes.normals, expected)
+    np.testing.assert_array_equal(planes.spreads, narrow.spreads)
+
+
+def test_cells_of_rows_agree_with_their_numpy_twin(rng):
+    keys = rng.integers(0, 500, 5000)
+    rows = rng.choice(len(keys), 40, replace=False)
+    inside = in_cells_of(keys, rows)
+    np.testing.assert_array_equal(inside, in_cells_of_reference(keys, rows))
+    assert 40 <= inside.sum() < 1000

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from ehm.core.primitives.cells import cell_keys
+from ehm.core.primitives.cells import cell_keys, packed_cell_keys, packed_cell_keys_reference
+from ehm.errors import InputError
 
 
 def test_points_in_one_cell_share_a_key_and_keys_differ_between_cells(rng):
@@ -23,3 +24,22 @@ def test_keys_that_would_overflow_are_refused():
     points = np.array([[0.0, 0.0, 0.0], [1e7, 1e7, 1e7]])
     with pytest.raises(ValueError, match="cell keys overflow"):
         cell_keys(points, 0.01)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_packed_keys_agree_with_their_numpy_twin(rng, dim):
+    points = rng.uniform(-50.0, 50.0, (5000, dim))
+    kind = rng.integers(0, 4, len(points))
+    side = np.array([0.2, 0.03, 0.03, 0.5])[kind]  # one side per kind, as the callers keep
+    compiled = packed_cell_keys(points, side, kind, 2)
+    np.testing.assert_array_equal(compiled, packed_cell_keys_reference(points, side, kind, 2))
+    # Points in one cell of one kind share a key, and no others do.
+    cells = np.column_stack([np.floor(points / side[:, None]), kind])
+    assert len(np.unique(compiled)) == len(np.unique(cells, axis=0))
+
+
+@pytest.mark.parametrize("keys_of", [packed_cell_keys, packed_cell_keys_reference])
+def test_packed_keys_refuse_points_beyond_their_reach(keys_of):
+    points = np.array([[1.0, 2.0, 3.0], [4e9, 0.0, 0.0]])
+    with pytest.raises(InputError, match="lies 4000000000 m from the map's origin"):
+        keys_of(points, np.full(2, 0.05), np.zeros(2, dtype=np.int64), 2)
