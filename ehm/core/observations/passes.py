@@ -38,6 +38,7 @@ from ehm.core.observations.evidence import FINE_CELLS_PER_RADIUS, OCCUPIED
 from ehm.core.observations.memory import OFFSET_STEPS, EvidenceMemory
 from ehm.core.observations.memory_keys import SUB_BITS, region_bits
 from ehm.core.observations.samples import ScanRays
+from ehm.core.primitives.cells import in_neighbour_cells
 from ehm.core.primitives.grid_walk import walk_setup, walk_step
 from ehm.core.primitives.hashing import row_of
 from ehm.core.search.index import PARALLEL_SEARCH_POINTS
@@ -85,6 +86,9 @@ PASS_PARTS = 8
 BITMAP_REGIONS = 1 << 28
 # Regions one thread lays out at a time.
 CHUNK = 1024
+# Cells around an entry `hit_again` marks before it searches only the hits in them: where the
+# entries are so many that their cells would outnumber the hits, it searches all.
+NEIGHBOUR_CELLS = 27
 
 
 @numba.njit(cache=True, nogil=True)
@@ -424,6 +428,11 @@ def hit_again(
     # Only hits within `farthest` of the entries' box can be any entry's nearest.
     low, high = points.min(axis=0) - farthest, points.max(axis=0) + farthest
     near_box = hits & np.all((rays.ends >= low) & (rays.ends <= high), axis=1)
+    if NEIGHBOUR_CELLS * len(points) < near_box.sum():
+        # Few entries (a frame that passes little): only hits in cells of `farthest` beside
+        # theirs can be any one's nearest, and the tree holds those alone.
+        rows = np.flatnonzero(near_box)
+        near_box[rows[~in_neighbour_cells(points, rays.ends[rows], farthest)]] = False
     if not near_box.any():
         return np.zeros(len(entries), dtype=bool)
     origins, hit_points = rays.origins[near_box], rays.ends[near_box]

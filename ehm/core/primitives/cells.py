@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ehm.core.primitives.hashing import EMPTY_KEY, hash_slot, table_size
 from ehm.errors import InputError
 
 
@@ -129,3 +130,56 @@ def _packed_keys(points, side, kind, bits, kind_bits):  # pragma: no cover - com
             key = (key << bits) | (np.int64(cell) + half)
         keys[i] = (key << kind_bits) | kind[i]
     return keys, not outside.any()
+
+
+def in_neighbour_cells(anchors: np.ndarray, points: np.ndarray, side: float) -> np.ndarray:
+    """(n,) bool: whether each of `points` (n, d), metres, lies in the cell of side `side`
+    metres of one of `anchors` (m >= 1, d) or in a cell next to it (touching it at a face, an
+    edge or a corner). Every point within `side` of an anchor does."""
+    anchors = np.ascontiguousarray(anchors, dtype=np.float64)
+    low = anchors.min(axis=0) - 1.5 * side  # the anchors in cells 1 on, their neighbours 0 on
+    extents = np.floor((anchors.max(axis=0) - low) / side).astype(np.int64) + 2
+    strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
+    return _in_neighbour_cells(
+        anchors, np.ascontiguousarray(points, dtype=np.float64), low, float(side), extents, strides
+    )
+
+
+def in_neighbour_cells_reference(
+    anchors: np.ndarray, points: np.ndarray, side: float
+) -> np.ndarray:
+    """Plain NumPy twin of `in_neighbour_cells` (cells counted from the same corner)."""
+    low = anchors.min(axis=0) - 1.5 * side
+    of_anchors = np.floor((anchors - low) / side).astype(np.int64)
+    of_points = np.floor((points - low) / side).astype(np.int64)
+    apart = np.abs(of_points[:, None, :] - of_anchors[None, :, :]).max(axis=2)
+    return (apart <= 1).any(axis=1)
+
+
+@numba.njit(cache=True, nogil=True)
+def _in_neighbour_cells(
+    anchors, points, low, side, extents, strides
+):  # pragma: no cover - compiled
+    """in_neighbour_cells with cells counted from `low` (d,) metres, `extents` (d,) of them
+    along each axis (every anchor's neighbours inside), keyed by `strides` (d,)."""
+    m, d = anchors.shape
+    table = np.full(table_size(m * 3**d), EMPTY_KEY, dtype=np.int64)
+    cell = np.empty(d, dtype=np.int64)
+    for i in range(m):
+        for a in range(d):
+            cell[a] = np.int64(np.floor((anchors[i, a] - low[a]) / side))
+        for neighbour in range(3**d):
+            key, step = np.int64(0), neighbour
+            for a in range(d):
+                key += (cell[a] + step % 3 - 1) * strides[a]
+                step //= 3
+            table[hash_slot(table, key)] = key
+    inside = np.zeros(len(points), dtype=np.bool_)
+    for i in range(len(points)):
+        key, within = np.int64(0), True
+        for a in range(d):
+            c = np.floor((points[i, a] - low[a]) / side)
+            within &= 0.0 <= c < extents[a]
+            key += np.int64(c) * strides[a] if within else 0
+        inside[i] = within and table[hash_slot(table, key)] != EMPTY_KEY
+    return inside

@@ -274,15 +274,34 @@ def test_a_batch_hit_near_an_entry_keeps_it(range_m, kept):
     assert not passes_module.hit_again(memory, np.arange(3), rays, 0.03).any()
 
 
-def test_hits_again_match_every_hit_searched_by_brute_force(rng):
-    """Entries in a 2 m box and hits of rays from one origin spread over a 40 m one, most far
-    from every entry: what keeps an entry is the nearest of all hits, within reach or within
-    the slack of its range, whichever hits the search leaves out."""
-    entry_points = rng.uniform(0.0, 2.0, (300, 3))
-    memory = memory_of(entry_points, np.full(300, OCCUPIED))
-    ends = np.concatenate([rng.uniform(-20.0, 20.0, (3000, 3)), entry_points[:100] + 0.05])
+@pytest.mark.parametrize(
+    "n_entries, spread, n_hits, filtered", [(300, 20.0, 3000, False), (5, 3.0, 20_000, True)]
+)
+def test_hits_again_match_every_hit_searched_by_brute_force(
+    rng, monkeypatch, n_entries, spread, n_hits, filtered
+):
+    """Entries in a 2 m box and hits of rays from one origin spread over a box `spread`
+    metres on each side of it, most far from every entry: what keeps an entry is the nearest
+    of all hits, within reach or within the slack of its range, whichever hits the search
+    leaves out. Five entries among 20,000 hits: only the hits in the cells beside theirs are
+    searched."""
+    calls = []
+    cells = passes_module.in_neighbour_cells
+    monkeypatch.setattr(
+        passes_module, "in_neighbour_cells", lambda *a: calls.append(1) or cells(*a)
+    )
+    entry_points = rng.uniform(0.0, 2.0, (n_entries, 3))
+    memory = memory_of(entry_points, np.full(n_entries, OCCUPIED))
+    ends = np.concatenate(
+        [
+            rng.uniform(1.0 - spread, 1.0 + spread, (n_hits, 3)),
+            entry_points[: max(1, n_entries // 3)] + 0.02,
+        ]
+    )
     origin = np.array([-3.0, 0.5, 1.0])
-    rays = rays_of(np.tile(origin, (len(ends), 1)), ends, rng.random(len(ends)) < 0.9, 0.05)
+    hits = rng.random(len(ends)) < 0.9
+    hits[n_hits:] = True  # the hits beside entries
+    rays = rays_of(np.tile(origin, (len(ends), 1)), ends, hits, 0.05)
     entries = np.arange(len(memory))
     points = memory.points_at(entries)
     hit_points = ends[rays.hits]
@@ -295,6 +314,7 @@ def test_hits_again_match_every_hit_searched_by_brute_force(rng):
     got = passes_module.hit_again(memory, entries, rays, 0.03)
     np.testing.assert_array_equal(got, want)
     assert 0 < got.sum() < len(got)
+    assert bool(calls) == filtered
 
 
 @pytest.mark.parametrize("dim", [2, 3])

@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from ehm.core.primitives.cells import cell_keys, packed_cell_keys, packed_cell_keys_reference
+from ehm.core.primitives.cells import (
+    cell_keys,
+    in_neighbour_cells,
+    in_neighbour_cells_reference,
+    packed_cell_keys,
+    packed_cell_keys_reference,
+)
 from ehm.errors import InputError
 
 
@@ -43,3 +49,15 @@ def test_packed_keys_refuse_points_beyond_their_reach(keys_of):
     points = np.array([[1.0, 2.0, 3.0], [4e9, 0.0, 0.0]])
     with pytest.raises(InputError, match="lies 4000000000 m from the map's origin"):
         keys_of(points, np.full(2, 0.05), np.zeros(2, dtype=np.int64), 2)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_neighbour_cells_agree_with_their_numpy_twin_and_hold_every_near_point(rng, dim):
+    anchors = rng.uniform(-3.0, 3.0, (30, dim))
+    points = rng.uniform(-5.0, 5.0, (4000, dim))
+    inside = in_neighbour_cells(anchors, points, 0.4)
+    np.testing.assert_array_equal(inside, in_neighbour_cells_reference(anchors, points, 0.4))
+    distance = np.linalg.norm(points[:, None, :] - anchors[None, :, :], axis=2).min(axis=1)
+    assert inside[distance <= 0.4].all()
+    assert not inside[distance > 0.4 * 2.0 * np.sqrt(dim)].any()
+    assert 0 < inside.sum() < len(points) // 2
