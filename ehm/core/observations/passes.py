@@ -424,7 +424,11 @@ def hit_again(
     if len(entries) == 0 or not hits.any():
         return np.zeros(len(entries), dtype=bool)
     points = memory.points_at(entries)
-    farthest = REGISTRATION_SLACK * rays.lengths.max() + reach  # entries lie on the rays
+    origin = rays.origins[0]
+    if np.all(rays.origins == origin):  # one origin: no hit farther than the entries' bounds
+        farthest = max(reach, REGISTRATION_SLACK * np.linalg.norm(points - origin, axis=1).max())
+    else:
+        farthest = REGISTRATION_SLACK * rays.lengths.max() + reach  # entries lie on the rays
     # Only hits within `farthest` of the entries' box can be any entry's nearest.
     low, high = points.min(axis=0) - farthest, points.max(axis=0) + farthest
     near_box = hits & np.all((rays.ends >= low) & (rays.ends <= high), axis=1)
@@ -438,7 +442,8 @@ def hit_again(
     origins, hit_points = rays.origins[near_box], rays.ends[near_box]
     tree = cKDTree(hit_points, balanced_tree=False, compact_nodes=False)  # faster to build
     workers = numba.get_num_threads() if len(points) >= PARALLEL_SEARCH_POINTS else 1
-    distance, nearest = tree.query(points, distance_upper_bound=farthest, workers=workers)
+    bound = np.nextafter(farthest, np.inf)  # the search's bound is strict
+    distance, nearest = tree.query(points, distance_upper_bound=bound, workers=workers)
     found = np.flatnonzero(np.isfinite(distance))
     ranges = np.linalg.norm(points[found] - origins[nearest[found]], axis=1)
     near = np.zeros(len(entries), dtype=bool)
