@@ -85,7 +85,7 @@ def _quick_means_kernel(
     sorted_points,
     sorted_index,
     sorted_weights,
-    sorted_scatter,
+    point_scatter,
     order,
     r_inner,
     r_outer,
@@ -97,8 +97,9 @@ def _quick_means_kernel(
     cells (n, d): each point's cell of side `cell` from the corner `low`, keyed by `strides`
     (strides[0] == 1); cell_keys: sorted, one per cell, with the start and size of the cell's
     points in sorted_points (their coordinates, cell by cell), sorted_index (their rows in
-    `points`), sorted_weights (their weights) and sorted_scatter (their own scatter; (0, d, d)
-    for none). Points taken out of the pool leave their cell (sizes and the sorted arrays
+    `points`) and sorted_weights (their weights); point_scatter: each point's own scatter, by
+    its row in `points` ((0, d, d) for none: read only for the points a seed reaches, it is not
+    copied cell by cell). Points taken out of the pool leave their cell (sizes and the sorted arrays
     change in place), so a seed reads only points still available, one after the other in
     memory. Returns (seeds, owner, counts, sums, scatter), sums and scatter about each seed,
     each point's weighing its weight.
@@ -110,7 +111,7 @@ def _quick_means_kernel(
     owner = np.full(n, -1, dtype=np.int64)
     seeds = np.empty(n, dtype=np.int64)
     counts = np.zeros(n)
-    with_scatter = sorted_scatter.shape[0] > 0
+    with_scatter = point_scatter.shape[0] > 0
     sums = np.empty((n, d))  # rows written as seeds are drawn: no pages touched for the rest
     scatter = np.empty((n, d, d))
     ri2 = r_inner * r_inner
@@ -175,7 +176,7 @@ def _quick_means_kernel(
                         if with_scatter:
                             for a in range(d):
                                 for b in range(d):
-                                    scatter[s, a, b] += sorted_scatter[m, a, b]
+                                    scatter[s, a, b] += point_scatter[sorted_index[m], a, b]
                         if dist2 < ri2:
                             p = sorted_index[m]
                             available[p] = False
@@ -189,8 +190,6 @@ def _quick_means_kernel(
                             dist2s[m - first_m] = dist2s[tail - first_m]
                             for a in range(d):
                                 sorted_points[m, a] = sorted_points[tail, a]
-                            if with_scatter:
-                                sorted_scatter[m] = sorted_scatter[tail]
                         else:
                             m += 1
                 slot += 1
@@ -203,9 +202,9 @@ def _cell_hash(
 ) -> tuple[np.ndarray, ...]:
     """Integer cells of side `cell` of (n, d) points, their linear keys (sorted, one per
     cell), where each cell's points start and how many there are, and the points'
-    coordinates, rows, weights (n,) and scatter ((n, d, d), or none) cell by cell (the
-    arguments of _quick_means_kernel from `cells` to `sorted_scatter`), after the cells' lower
-    corner (d,) metres."""
+    coordinates, rows and weights (n,) cell by cell, and the scatter ((n, d, d), or none) as
+    given (the arguments of _quick_means_kernel from `cells` to `point_scatter`), after the
+    cells' lower corner (d,) metres."""
     hashed = cell_keys(points, cell)
     distinct, bounds, sorted_index = group_by_key(hashed.keys)
     starts, sizes = bounds[:-1], np.diff(bounds)
@@ -219,7 +218,7 @@ def _cell_hash(
         points[sorted_index],
         sorted_index,
         weights[sorted_index],
-        np.take(scatter, sorted_index, axis=0) if len(scatter) else scatter,
+        scatter,
     )
 
 
