@@ -111,13 +111,14 @@ def group_samples(
     least = config.min_cluster_size
     if config.cluster_free_apart:
         free = ~samples.occupied
+        hit_least = least if config.min_hit_cluster_size is None else config.min_hit_cluster_size
         if config.cluster_behind_apart:
             # Hits and the samples behind them come in pairs: each half of a cluster the two
             # made together needs half its weight.
             hits = samples.occupied & ~samples.behind
-            occupied = [(hits, least / 2.0), (samples.behind, least / 2.0)]
+            occupied = [(hits, hit_least / 2.0), (samples.behind, hit_least / 2.0)]
         else:
-            occupied = [(samples.occupied, least)]
+            occupied = [(samples.occupied, hit_least)]
         fine = [*occupied, (free & samples.at_surface, least)]
         along_rays = np.flatnonzero(free & ~samples.at_surface)
         coarse = [_Part(along_rays, config.free_cluster_radius, least, coarse=True)]

@@ -130,3 +130,30 @@ def test_fine_samples_of_a_level_are_clustered_with_its_wider_radius():
         assert len(np.unique(levels[group_of_point == group])) == 1
     spread = np.abs(x - wide.groups.centres[group_of_point, 0])
     assert spread[levels == 1].max() > 0.12
+
+
+def test_a_lone_hit_makes_a_cluster_with_a_smaller_least_weight_of_hits():
+    """Three hits 2 m apart, each with its sample behind (weight 2 within the outer radius),
+    and a free sample in front of each: with the least weight of 4 none makes a cluster; with
+    `min_hit_cluster_size` 2 each hit does, and the free samples still make none."""
+    hits = np.array([[0.0, 0.0, 5.0], [2.0, 0.0, 5.0], [4.0, 0.0, 5.0]])
+    depth = np.array([0.0, 0.0, 0.05])
+    behind = hits + depth
+    front = hits - depth
+    samples = TrainingSamples(
+        np.vstack([hits, behind, front]),
+        np.repeat([True, True, False], 3),
+        np.ones(9, dtype=bool),
+    )
+    for least, clustered in ((None, 0), (2, 3)):
+        config = MapConfig(min_hit_cluster_size=least)
+        clusters = group_samples(samples, config, np.random.default_rng(0)).clusters
+        assert clusters.occupied.sum() == clustered
+        assert not (~clusters.occupied).any()
+    with_behind_apart = MapConfig(min_hit_cluster_size=2, cluster_behind_apart=True)
+    behind_flag = np.repeat([False, True, False], 3)
+    apart = TrainingSamples(
+        samples.points, samples.occupied, samples.at_surface, None, None, behind_flag
+    )
+    clusters = group_samples(apart, with_behind_apart, np.random.default_rng(0)).clusters
+    assert clusters.occupied.sum() == 6  # each hit and each sample behind: half the weight
