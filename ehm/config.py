@@ -445,6 +445,11 @@ class MapConfig:
         """Whether setting `name` takes None, which turns it off."""
         return any(f.name == name and off for f, _, off in _fields())
 
+    @staticmethod
+    def setting_type(name: str) -> Any:
+        """The type setting `name` takes when on (X of X | None)."""
+        return next(kind for f, kind, _ in _fields() if f.name == name)
+
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 

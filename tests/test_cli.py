@@ -149,6 +149,10 @@ def test_settings_that_may_be_off_take_none():
     assert ehm.MapConfig(**settings).replay_cap is None
     with pytest.raises(InputError, match="learning_rate is a float, got 'none'"):
         parse_settings(["learning_rate=none"])
+    # Off by default, a setting takes a value of its own type.
+    assert parse_settings(["min_hit_cluster_size=2"]) == {"min_hit_cluster_size": 2}
+    with pytest.raises(InputError, match=r"min_hit_cluster_size is an int, got '2\.5'"):
+        parse_settings(["min_hit_cluster_size=2.5"])
 
 
 def test_a_log_with_time_stamps_makes_a_map_that_fades(plan_log, tmp_path):

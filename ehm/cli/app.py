@@ -186,8 +186,8 @@ def parse_settings(settings: list[str]) -> dict:
         name, sep, value = item.partition("=")
         if not sep or name not in defaults:
             raise InputError(f"--set {item!r}: expected name=value with a MapConfig name")
-        # A setting that may be off (None) takes a number, or none.
-        kind = float if defaults[name] is None else type(defaults[name])
+        # A setting off by default (None) takes a value of its type, or none.
+        kind = MapConfig.setting_type(name) if defaults[name] is None else type(defaults[name])
         if MapConfig.may_be_off(name) and value.lower() == "none":
             overrides[name] = None
         elif kind is bool:
