@@ -436,7 +436,9 @@ def hit_again(
         # Few entries (a frame that passes little): only hits in cells of `farthest` beside
         # theirs can be any one's nearest, and the tree holds those alone.
         rows = np.flatnonzero(near_box)
-        near_box[rows[~in_neighbour_cells(points, rays.ends[rows], farthest)]] = False
+        beside = in_neighbour_cells(points, rays.ends[rows], farthest)
+        if beside is not None:
+            near_box[rows[~beside]] = False
     if not near_box.any():
         return np.zeros(len(entries), dtype=bool)
     origins, hit_points = rays.origins[near_box], rays.ends[near_box]

@@ -132,13 +132,17 @@ def _packed_keys(points, side, kind, bits, kind_bits):  # pragma: no cover - com
     return keys, not outside.any()
 
 
-def in_neighbour_cells(anchors: np.ndarray, points: np.ndarray, side: float) -> np.ndarray:
+def in_neighbour_cells(anchors: np.ndarray, points: np.ndarray, side: float) -> np.ndarray | None:
     """(n,) bool: whether each of `points` (n, d), metres, lies in the cell of side `side`
     metres of one of `anchors` (m >= 1, d) or in a cell next to it (touching it at a face, an
-    edge or a corner). Every point within `side` of an anchor does."""
+    edge or a corner). Every point within `side` of an anchor does. None where the anchors
+    span too many cells for their keys to fit 64 bits."""
     anchors = np.ascontiguousarray(anchors, dtype=np.float64)
     low = anchors.min(axis=0) - 1.5 * side  # the anchors in cells 1 on, their neighbours 0 on
-    extents = np.floor((anchors.max(axis=0) - low) / side).astype(np.int64) + 2
+    extents = np.floor((anchors.max(axis=0) - low) / side) + 2
+    if np.prod(extents) > 2.0**62:
+        return None
+    extents = extents.astype(np.int64)
     strides = np.cumprod(np.concatenate([[1], extents[:-1]])).astype(np.int64)
     return _in_neighbour_cells(
         anchors, np.ascontiguousarray(points, dtype=np.float64), low, float(side), extents, strides

@@ -61,3 +61,8 @@ def test_neighbour_cells_agree_with_their_numpy_twin_and_hold_every_near_point(r
     assert inside[distance <= 0.4].all()
     assert not inside[distance > 0.4 * 2.0 * np.sqrt(dim)].any()
     assert 0 < inside.sum() < len(points) // 2
+
+
+def test_neighbour_cells_too_many_to_key_are_none():
+    anchors = np.array([[0.0, 0.0, 0.0], [1e7, 1e7, 1e7]])
+    assert in_neighbour_cells(anchors, np.zeros((3, 3)), 1e-3) is None
