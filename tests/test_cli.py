@@ -41,7 +41,7 @@ def test_map_then_info_and_query(map_file, tmp_path, table_row):
     assert info.exit_code == 0, info.output
     assert table_row(info.output, "kernels.neighbours") == ["6"]  # set when it was made
     assert "kernels.coarse_neighbours" not in info.output  # at its default: --all shows it
-    assert table_row(info.output, "other settings") == ["59 at their defaults for 0.05 m (--all)"]
+    assert table_row(info.output, "other settings") == ["60 at their defaults for 0.05 m (--all)"]
     every = runner.invoke(app, ["info", str(map_file), "--all"]).output
     assert table_row(every, "kernels.coarse_neighbours") == ["4"]
     assert table_row(info.output, "dimensions") == ["2"]
