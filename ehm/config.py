@@ -150,12 +150,11 @@ class MapConfig:
     `cluster_radius`."""
     min_cluster_size: int = setting(4, "clustering", low=1)
     """Quick-means drops seeds with fewer samples than this within the outer radius."""
-    min_hit_cluster_size: int | None = setting(None, "clustering", low=1)
-    """The least weight of a cluster of hits and the samples behind them (None: that of
-    `min_cluster_size`). Evidence that forms no cluster waits for a later batch to bring more
-    to its cell; a thin thing that rays meet once each (a wire a LiDAR's rings cross) gets
-    none, and the free space around it reads it free. 2: one hit and its sample behind make a
-    cluster."""
+    min_hit_cluster_size: int = setting(2, "clustering", low=1)
+    """The least weight of a cluster of hits and the samples behind them: 2, one hit and its
+    sample behind. Evidence that forms no cluster waits for a later batch to bring more to its
+    cell; with `min_cluster_size` (4) a thin thing that rays meet once each (a wire a LiDAR's
+    rings cross) gets none, and the free space around it reads it free."""
     kmeans_iterations: int = setting(0, "clustering", low=0)
     """Lloyd iterations refining quick-means centres (0 = use quick-means as it is)."""
     cluster_free_apart: bool = setting(True, "clustering")

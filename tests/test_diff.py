@@ -42,7 +42,9 @@ def days():
     return day_map([*ROOM, LEFT], 0), day_map([*ROOM, ARRIVED], 1)
 
 
-def near(points, box, margin=0.1):
+def near(points, box, margin=0.15):
+    """Whether each of (n, 2) `points` lies within `margin` of `box`, metres: by default as far
+    as a hit's sample behind may lie (`occupied_depth`), out past a corner a ray grazed."""
     low, high = np.array(box[0]) - margin, np.array(box[1]) + margin
     return np.all((points >= low) & (points <= high), axis=1)
 

@@ -111,7 +111,7 @@ def group_samples(
     least = config.min_cluster_size
     if config.cluster_free_apart:
         free = ~samples.occupied
-        hit_least = least if config.min_hit_cluster_size is None else config.min_hit_cluster_size
+        hit_least = config.min_hit_cluster_size
         if config.cluster_behind_apart:
             # Hits and the samples behind them come in pairs: each half of a cluster the two
             # made together needs half its weight.

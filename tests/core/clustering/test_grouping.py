@@ -32,10 +32,10 @@ def test_samples_of_each_kind_are_clustered_apart(room):
     assert len(clusters) < len(groups.centres)
     assert clusters.coarse.any() and (~clusters.coarse).any()
     assert not clusters.occupied[clusters.coarse].any()
-    # Hits and the samples behind them each need half the weight of a cluster.
+    # Hits and the samples behind them each need half the least weight of hits.
     assert np.all(clusters.counts[~clusters.occupied] >= config.min_cluster_size)
-    assert np.all(clusters.counts[clusters.occupied] >= config.min_cluster_size / 2)
-    assert clusters.counts[clusters.occupied].min() < config.min_cluster_size
+    assert np.all(clusters.counts[clusters.occupied] >= config.min_hit_cluster_size / 2)
+    assert clusters.counts[clusters.occupied].min() < config.min_hit_cluster_size
 
 
 def test_a_walls_kernels_lie_on_it_with_the_solid_behind_apart():
@@ -134,8 +134,8 @@ def test_fine_samples_of_a_level_are_clustered_with_its_wider_radius():
 
 def test_a_lone_hit_makes_a_cluster_with_a_smaller_least_weight_of_hits():
     """Three hits 2 m apart, each with its sample behind (weight 2 within the outer radius),
-    and a free sample in front of each: with the least weight of 4 none makes a cluster; with
-    `min_hit_cluster_size` 2 each hit does, and the free samples still make none."""
+    and a free sample in front of each: with `min_hit_cluster_size` 4 none makes a cluster; with
+    2 (the default) each hit does, and the free samples still make none."""
     hits = np.array([[0.0, 0.0, 5.0], [2.0, 0.0, 5.0], [4.0, 0.0, 5.0]])
     depth = np.array([0.0, 0.0, 0.05])
     behind = hits + depth
@@ -145,12 +145,12 @@ def test_a_lone_hit_makes_a_cluster_with_a_smaller_least_weight_of_hits():
         np.repeat([True, True, False], 3),
         np.ones(9, dtype=bool),
     )
-    for least, clustered in ((None, 0), (2, 3)):
+    for least, clustered in ((4, 0), (2, 3)):
         config = MapConfig(min_hit_cluster_size=least)
         clusters = group_samples(samples, config, np.random.default_rng(0)).clusters
         assert clusters.occupied.sum() == clustered
         assert not (~clusters.occupied).any()
-    with_behind_apart = MapConfig(min_hit_cluster_size=2, cluster_behind_apart=True)
+    with_behind_apart = MapConfig(cluster_behind_apart=True)
     behind_flag = np.repeat([False, True, False], 3)
     apart = TrainingSamples(
         samples.points, samples.occupied, samples.at_surface, None, None, behind_flag
