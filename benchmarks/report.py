@@ -30,6 +30,7 @@ SECTIONS = {
     "paper_evaluation": "The paper's evaluation (Sec. 4)",
     "online_mapping": "Online mapping: scan by scan, one batch and OctoMap",
     "outdoor_ranges": "Outdoor scenes near surfaces, by range",
+    "stray_returns": "Stray returns in open space",
     "octomap_scan": "OctoMap's sample scan",
     "virtual_room": "The virtual room, against its exact occupancy",
     "uncertainty": "Uncertainty (return_std)",
