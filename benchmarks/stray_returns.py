@@ -74,7 +74,7 @@ def measure(name: str, share: float, seed: int) -> dict[str, list[float]]:
             share_of(occupied, in_free),
             share_of(occupied, in_free & last),
             share_of(occupied, in_free & ~last),
-            share_of(mapper.occupancy(hits) > 0.5, np.ones(len(hits), dtype=bool)),
+            float(np.mean(mapper.occupancy(hits) > 0.5)),
         ]
     return found
 
