@@ -32,6 +32,12 @@ METHODS = {"ehm": {}, "ehm, min_hit_cluster_size 4": {"min_hit_cluster_size": 4}
 ALONG = (0.2, 0.8)
 # Hits of the scans read back per scene and seed (a sample, for time).
 HITS_READ = 20_000
+MEASURES = (
+    "strays read occupied",
+    "of the last scan",
+    "of earlier scans",
+    "other hits read occupied",
+)
 
 
 def with_strays(
@@ -101,15 +107,7 @@ def main() -> None:
         for method in METHODS:
             means = np.mean([run[method] for run in runs], axis=0)
             rows.append([name, method, *("" if np.isnan(v) else f"{v:.3f}" for v in means)])
-    header = [
-        "scene",
-        "method",
-        "strays read occupied",
-        "of the last scan",
-        "of earlier scans",
-        "other hits read occupied",
-    ]
-    print(markdown_table(header, rows, text_columns=2))
+    print(markdown_table(["scene", "method", *MEASURES], rows, text_columns=2))
 
 
 if __name__ == "__main__":
