@@ -25,6 +25,7 @@ from peers import mapper_of, warm_up
 from results_file import run_recorded
 
 import ehm
+from ehm.eval.datasets.simulated import SimulatedDataset
 
 SCENES = ("street", "hillside", "power_lines", "dense_room", "virtual_room")
 METHODS = {"ehm": {}, "ehm, min_hit_cluster_size 4": {"min_hit_cluster_size": 4}, "octomap": {}}
@@ -61,11 +62,12 @@ def with_strays(
     return moved, np.concatenate(strays), np.concatenate(scan_of), np.concatenate(kept)
 
 
-def measure(name: str, share: float, seed: int) -> dict[str, list[float]]:
+def measure(
+    data: SimulatedDataset, resolution: float, share: float, seed: int
+) -> dict[str, list[float]]:
     """Per method: strays in free space read occupied (all, the last scan's, earlier scans'),
-    the other hits read occupied."""
-    data = SIMULATED[name]()
-    resolution = RESOLUTIONS.get(name, RESOLUTION)
+    the other hits read occupied, for a simulated scene's `data` (scans and scene) mapped at
+    `resolution` metres."""
     rng = np.random.default_rng(seed)
     scans, strays, scan_of, kept = with_strays(data.scans, share, rng)
     in_free = ~data.scene.occupied(strays)
@@ -98,12 +100,17 @@ def main() -> None:
     parser.add_argument("--share", type=float, default=0.01)
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
+    names = args.datasets.split(",")
+    unknown = sorted(set(names) - set(SIMULATED))
+    if unknown:
+        raise SystemExit(f"unknown scene(s) {', '.join(unknown)}; known: {', '.join(SIMULATED)}")
     print(heading("Stray returns", f"seeds {seeds}, {args.share:.0%} of each scan's hits"))
     for method, settings in METHODS.items():
         warm_up(method.split(",")[0], 3, settings)
     rows = []
-    for name in args.datasets.split(","):
-        runs = [measure(name, args.share, seed) for seed in seeds]
+    for name in names:
+        data, resolution = SIMULATED[name](), RESOLUTIONS.get(name, RESOLUTION)
+        runs = [measure(data, resolution, args.share, seed) for seed in seeds]
         for method in METHODS:
             means = np.mean([run[method] for run in runs], axis=0)
             rows.append([name, method, *("" if np.isnan(v) else f"{v:.3f}" for v in means)])

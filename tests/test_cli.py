@@ -149,7 +149,9 @@ def test_settings_that_may_be_off_take_none():
     assert ehm.MapConfig(**settings).replay_cap is None
     with pytest.raises(InputError, match="learning_rate is a float, got 'none'"):
         parse_settings(["learning_rate=none"])
-    # Off by default, a setting takes a value of its own type.
+    # Off by default or not, a setting takes a value of its declared type.
+    assert ehm.MapConfig.setting_type("forget_after") is float
+    assert ehm.MapConfig.setting_type("min_hit_cluster_size") is int
     assert parse_settings(["min_hit_cluster_size=2"]) == {"min_hit_cluster_size": 2}
     with pytest.raises(InputError, match=r"min_hit_cluster_size is an int, got '2\.5'"):
         parse_settings(["min_hit_cluster_size=2.5"])
