@@ -2,13 +2,13 @@
 
     python benchmarks/feature_search.py [--seeds 0] [--fractions 0.8] [--datasets street,...]
 
-'nearest' (the default, the paper's Alg. 3) takes each point's nearest clusters; 'support' every
-kernel that is not zero there, so training, point queries and grids are one model
-(MapConfig.features). Both profiles of `MapConfig.for_resolution` map each data set's training
-scans scan by scan, with each setting, in one process, as benchmarks/peers.py measures them:
-held-out F1, near F1 against the exact occupancy on the simulated scenes, build seconds with
-everything learned, memory and query seconds for every test point. Each map is built once after
-an untimed warm-up, so a noisy moment of the machine shows in the ratios.
+'support' (the default profile's) takes every kernel that is not zero at a point, so training,
+point queries and grids are one model; 'nearest' (the real-time profile's, the paper's Alg. 3) each
+point's nearest clusters (MapConfig.features). Both profiles of `MapConfig.for_resolution` map each
+data set's training scans scan by scan, with each setting, in one process, as benchmarks/peers.py
+measures them: held-out F1, near F1 against the exact occupancy on the simulated scenes, build
+seconds with everything learned, memory and query seconds for every test point. Each map is built
+once after an untimed warm-up, so a noisy moment of the machine shows in the ratios.
 """
 
 from __future__ import annotations

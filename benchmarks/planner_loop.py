@@ -1,6 +1,6 @@
 """A planner in the loop: learn a scan, then cast rays, ask points and distances; EHM, OctoMap.
 
-    python benchmarks/planner_loop.py [--rays 5000] [--points 10000] [--features support]
+    python benchmarks/planner_loop.py [--rays 5000] [--points 10000] [--features nearest]
 
 For each data set (TUM, the warehouse, the street; each at its own resolution, EHM through
 `MapConfig.for_resolution`), scan by scan:
@@ -103,7 +103,7 @@ def main() -> None:
     parser.add_argument("--rays", type=int, default=5000)
     parser.add_argument("--points", type=int, default=10_000)
     parser.add_argument("--datasets", default=",".join(DATA_SETS))
-    parser.add_argument("--features", choices=("nearest", "support"), default="nearest")
+    parser.add_argument("--features", choices=("nearest", "support"), default="support")
     args = parser.parse_args()
     detail = f"{args.rays:,} rays, {args.points:,} points a scan, features '{args.features}'"
     print(heading("A planner in the loop", detail))

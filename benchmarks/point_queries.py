@@ -2,13 +2,13 @@
 
     python benchmarks/point_queries.py [--points 100000] [--repeats 7] [--datasets a,b]
 
-Each data set is mapped scan by scan at its own resolution (EHM through
-`MapConfig.for_resolution`, once with each way of finding a point's kernels: 'nearest', the
-default, and 'support'; OctoMap with every scan's hits inserted). Then `points` points are
-asked, drawn two ways: around the hits (a hit picked at random plus Gaussian noise of 0.2 m
-per axis: where planners ask most) and uniformly in the box of the hits. EHM answers with
-`occupancy` (default query mode), OctoMap with `getLabels` (one C++ call for all points;
-2D maps in the plane z = 0). Times are the fastest of `repeats` calls, JIT warm.
+Each data set is mapped scan by scan at its own resolution (EHM through `MapConfig.for_resolution`,
+once with each way of finding a point's kernels: 'nearest', the real-time profile's, and 'support',
+the default's; OctoMap with every scan's hits inserted). Then `points` points are asked, drawn two
+ways: around the hits (a hit picked at random plus Gaussian noise of 0.2 m per axis: where planners
+ask most) and uniformly in the box of the hits. EHM answers with `occupancy` (default query mode),
+OctoMap with `getLabels` (one C++ call for all points; 2D maps in the plane z = 0). Times are the
+fastest of `repeats` calls, JIT warm.
 """
 
 from __future__ import annotations

@@ -27,8 +27,9 @@ DEFAULT_RESOLUTION = 0.05
 # overflow in double precision.
 SMALLEST_LENGTH = 1e-6
 # The real-time profile (MapConfig.for_resolution): settings over the default's, and how much
-# wider its occupied clusters are.
-REALTIME = {"epochs": 1, "surface_pooling": 2, "free_thinning": 2}
+# wider its occupied clusters are. Its features are the nearest kernels: a sample's features
+# then hold about a third as many kernels, which stochastic gradient descent pays for.
+REALTIME = {"epochs": 1, "surface_pooling": 2, "free_thinning": 2, "features": "nearest"}
 REALTIME_CLUSTER_SCALE = 1.5
 # The sections of the settings, in the order settings files and `ehm info` give them.
 SECTIONS = ("sampling", "clustering", "kernels", "search", "learning", "memory", "queries")
@@ -183,15 +184,14 @@ class MapConfig:
 
     # Kernels: the localized length-scale features (Eq. 8, 10-12) and kernel selection
     # (Sec. 3.2).
-    features: FeatureSearch = setting("nearest", "kernels")
-    """Which kernels make up a point's feature vector. 'nearest': the paper's Alg. 3, the
-    `neighbours` nearest fine and `coarse_neighbours` nearest coarse clusters, searched once
-    per group of points (kd-trees or anchor layers); kernels beyond them are left out, so
-    point queries differ from grids (Sec. 3.5), which sum every kernel. 'support': every
-    kernel that is not zero there, found in a spatial hash of the kernels' supports that is
-    updated in time proportional to what changed (ehm.core.search.supports), so training, point
-    queries and grids share one model and point queries are faster; 'nearest' stays the
-    default while its integrate costs less."""
+    features: FeatureSearch = setting("support", "kernels")
+    """Which kernels make up a point's feature vector. 'support': every kernel that is not
+    zero there, found in a spatial hash of the kernels' supports that is updated in time
+    proportional to what changed (ehm.core.search.supports), so training, point queries and
+    grids share one model. 'nearest': the paper's Alg. 3, the `neighbours` nearest fine and
+    `coarse_neighbours` nearest coarse clusters, searched once per group of points (kd-trees
+    or anchor layers); kernels beyond them are left out, so point queries differ from grids
+    (Sec. 3.5), which sum every kernel; it learns faster (the real-time profile's)."""
     length_scale: float = setting(3.0, "kernels", low=0.0, low_open=True)
     """Kernel support in standard deviations of the cluster (r = 1 at this many sigmas), for
     the kernels of free clusters."""
@@ -377,9 +377,11 @@ class MapConfig:
         DEFAULT_RESOLUTION, then `overrides`. Long-range outdoor LiDAR, whose hits lie tens of
         centimetres apart, wants about 0.2.
 
-        profile: 'default', the most accurate; 'realtime', learning faster (REALTIME: one SGD
-        epoch, crowded hits pooled, free samples far from hits thinned, occupied clusters
-        REALTIME_CLUSTER_SCALE times as wide, the resolution kept for outputs in voxel_size).
+        profile: 'default', the most accurate, one model for points and grids; 'realtime',
+        learning faster (REALTIME: one SGD epoch, crowded hits pooled, free samples far from
+        hits thinned, the paper's nearest kernels as features, so that point queries leave out
+        kernels grids sum, occupied clusters REALTIME_CLUSTER_SCALE times as wide, the
+        resolution kept for outputs in voxel_size).
         Wider clusters read a little more of the space in front of a surface occupied: lower
         near-surface precision, higher recall (measured in the documentation's Resolution
         page)."""

@@ -28,6 +28,7 @@ def test_warming_reports_each_step_in_3d_then_2d():
     assert steps[0] == "learning 3D scans" and "learning 2D scans" in steps
     assert steps.index("meshes and pictures (3D)") < steps.index("learning 2D scans")
     assert "rays (2D)" in steps and "distances (2D)" in steps and "navigation grids (2D)" in steps
+    assert "point queries (3D, real time)" in steps and "rays (2D, real time)" in steps
 
 
 # A new process's first calls, 2D and 3D, across queries and outputs.
@@ -45,6 +46,9 @@ for dim in (3, 2):
     hilbert_map.grid(np.stack([points.min(axis=0), points.max(axis=0)]), 0.2)
     if dim == 3:
         block_mesh(hilbert_map.snapshot(), 0.1)
+    realtime = ehm.HilbertMap(resolution=0.05, profile="realtime").fit(room_scans(dim))
+    realtime.occupancy(points, return_std=True)
+    realtime.raycast(points[:50] * 0.1, points[50:100] / 4.0, 3.0)
 """
 
 

@@ -53,21 +53,23 @@ def test_grid_is_the_sum_over_every_kernel_at_voxel_centres(fixture, request):
     np.testing.assert_allclose(sums, squares, rtol=1e-12, atol=1e-12)
 
 
-def test_grid_matches_point_queries_within_tolerance(room_map):
-    """Point queries use the nearest 8 fine and 4 coarse kernels, the grid every kernel that
-    reaches a voxel: they agree to 0.015 on average, and within 0.08 at 95 % of voxels."""
-    grid = room_map.grid(resolution=0.1)
-    difference = np.abs(room_map.occupancy(grid.centers()) - grid.probability.ravel())
+def test_with_nearest_features_grids_match_point_queries_within_tolerance(room):
+    """With 'nearest' features point queries use the nearest 8 fine and 4 coarse kernels, the
+    grid every kernel that reaches a voxel: they agree to 0.015 on average, and within 0.08
+    at 95 % of voxels."""
+    nearest_map = ehm.HilbertMap(features="nearest").fit(room.scans)
+    grid = nearest_map.grid(resolution=0.1)
+    difference = np.abs(nearest_map.occupancy(grid.centers()) - grid.probability.ravel())
     assert difference.mean() < 0.015
     assert np.quantile(difference, 0.95) < 0.08
 
 
 @pytest.mark.parametrize("scene", ["room", "plan"])
-def test_with_support_features_points_and_grids_are_one_model(scene, room, plan):
-    """With every kernel not zero at a point as its features, a point query at a voxel centre
-    is the grid's value there, in both query modes, std included."""
+def test_by_default_points_and_grids_are_one_model(scene, room, plan):
+    """With every kernel not zero at a point as its features (the default), a point query at a
+    voxel centre is the grid's value there, in both query modes, std included."""
     scans = room.scans if scene == "room" else plan.scans
-    hilbert_map = ehm.HilbertMap(features="support")
+    hilbert_map = ehm.HilbertMap()
     for scan in scans:
         hilbert_map.integrate_scan(scan)
     grid = hilbert_map.grid(resolution=0.1 if scene == "room" else 0.05, std=True)
