@@ -37,9 +37,9 @@ RESOLUTIONS = {"street": 0.2, "outdoor_lidar": 0.1, "hillside": 0.1, "power_line
 VARIANTS: dict[str, dict[str, Any]] = {
     "EHM": {},
     "EHM, intercept in queries": {"query_intercept": True},
-    "EHM, no coarse neighbours": {"coarse_neighbours": 0},
-    "EHM, coarse_neighbours=2": {"coarse_neighbours": 2},
-    "EHM, coarse_neighbours=8": {"coarse_neighbours": 8},
+    "EHM, nearest kernels (Alg. 3)": {"features": "nearest"},
+    "EHM, nearest, no coarse neighbours": {"features": "nearest", "coarse_neighbours": 0},
+    "EHM, nearest, coarse_neighbours=8": {"features": "nearest", "coarse_neighbours": 8},
     "EHM, occupied_depth=0.05": {"occupied_depth": 0.05},
     "EHM, balance_classes=True": {"balance_classes": True},
     "EHM, samples clustered together": {"cluster_free_apart": False},
