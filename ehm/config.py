@@ -204,9 +204,9 @@ class MapConfig:
     """Fine clusters that enter each point's feature vector (k nearest fine centres), with
     features 'nearest'."""
     coarse_neighbours: int = setting(4, "kernels", low=0)
-    """Coarse free-space clusters that enter each point's feature vector as well. Coarse
-    kernels overlap more than fine ones: more of them bring point queries closer to the
-    grid's sum over every kernel (Sec. 3.5), at a query's cost."""
+    """Coarse free-space clusters that enter each point's feature vector as well, with
+    features 'nearest'. Coarse kernels overlap more than fine ones: more of them bring point
+    queries closer to the grid's sum over every kernel (Sec. 3.5), at a query's cost."""
     planar_ratio: float = setting(0.1, "kernels", low=0.0, low_open=True, high=1.0, high_open=True)
     """A cluster is planar (a wall, a floor; a line segment in 2D) when its smallest covariance
     eigenvalue is at most this share of the next smallest."""
