@@ -26,11 +26,17 @@ def hash_slot(table_keys, key):  # pragma: no cover - compiled
     """Slot of `key` (>= 0) in the table, or of the empty slot where it would go (linear
     probing)."""
     mask = np.int64(len(table_keys) - 1)
-    mixed = np.uint64(key) * _HASH_MULTIPLIER
-    s = np.int64(mixed ^ (mixed >> np.uint64(29))) & mask
+    s = _first_slot(np.uint64(key), mask)
     while table_keys[s] != key and table_keys[s] != EMPTY_KEY:
         s = (s + 1) & mask
     return s
+
+
+@numba.njit(cache=True, inline="always")
+def _first_slot(value, mask):  # pragma: no cover - compiled
+    """The slot, among mask + 1, where probing for uint64 `value` starts."""
+    mixed = value * _HASH_MULTIPLIER
+    return np.int64(mixed ^ (mixed >> np.uint64(29))) & mask
 
 
 @numba.njit(cache=True, inline="always")
@@ -115,6 +121,38 @@ def group_rows(keys):  # pragma: no cover - compiled
     int64, the rows, key by key and in their own order within a key). One pass over a table,
     no sort."""
     return _rows_by_rank(*first_come_ranks(keys))
+
+
+@numba.njit(cache=True, nogil=True)
+def group_pairs(first, second):  # pragma: no cover - compiled
+    """Rows grouped by the pair of keys (first[i], second[i]), (n,) int64 >= 0 each, the pairs
+    in the order they first come: (starts, order) as `group_rows` gives them."""
+    return _rows_by_rank(*first_come_pair_ranks(first, second))
+
+
+@numba.njit(cache=True, nogil=True)
+def first_come_pair_ranks(first, second):  # pragma: no cover - compiled
+    """The rank of each pair (first[i], second[i]) of (n,) int64 >= 0 keys among the distinct
+    pairs in the order they first come: ((n,) int64, how many distinct pairs). One pass over a
+    table of both keys."""
+    size = table_size(len(first))
+    mask = np.int64(size - 1)
+    table_first = np.full(size, EMPTY_KEY, dtype=np.int64)
+    table_second = np.empty(size, dtype=np.int64)
+    rank = np.empty(size, dtype=np.int64)
+    row_rank = np.empty(len(first), dtype=np.int64)
+    n = 0
+    for i in range(len(first)):
+        a, b = first[i], second[i]
+        s = _first_slot((np.uint64(a) * _HASH_MULTIPLIER) ^ np.uint64(b), mask)
+        while table_first[s] != EMPTY_KEY and (table_first[s] != a or table_second[s] != b):
+            s = (s + 1) & mask
+        if table_first[s] == EMPTY_KEY:
+            table_first[s], table_second[s] = a, b
+            rank[s] = n
+            n += 1
+        row_rank[i] = rank[s]
+    return row_rank, n
 
 
 @numba.njit(cache=True, nogil=True)

@@ -44,7 +44,13 @@ from ehm.core.model.kernels import (
     kernels_of_codes_serial,
     projected_radii,
 )
-from ehm.core.primitives.hashing import EMPTY_KEY, group_rows, hash_slot, sorted_distinct
+from ehm.core.primitives.hashing import (
+    EMPTY_KEY,
+    first_come_ranks,
+    group_pairs,
+    hash_slot,
+    sorted_distinct,
+)
 from ehm.errors import InputError
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
@@ -326,24 +332,12 @@ def _slot_of(points, i, scale, table):  # pragma: no cover - compiled
     return s, keys[s] != EMPTY_KEY, index
 
 
-@numba.njit(cache=True, inline="always")
-def _block(points, i, scale, table):  # pragma: no cover - compiled
-    """(first, last + 1) positions in the pool of the kernels listed in point i's cell of
-    `scale` (0 fine, 1 coarse), empty where the cell lists none, and the bit of the point's
-    sub-cell in their masks. table: SupportHash._arguments()."""
-    starts, counts = table[1], table[2]
-    s, listed, index = _slot_of(points, i, scale, table)
-    bit = np.uint64(1) << np.uint64(index)
-    if not listed:
-        return 0, 0, bit
-    return starts[s], starts[s] + counts[s], bit
-
-
 @numba.njit(cache=True, parallel=True)
 def _scale_keys(points, table):  # pragma: no cover - compiled
-    """(2, n) int64 >= 0, per scale equal for points whose sub-cells list the same kernels: 1
-    + the table slot times the sub-cells of a cell + the sub-cell's index, 0 where the
-    point's cell lists none."""
+    """(2, n) int64 >= 0, per scale (0 fine, 1 coarse) the sub-cell of each point, read by
+    _block: 1 + the table slot of its cell times the sub-cells of a cell + the sub-cell's
+    index, 0 where the point's cell lists no kernel. Points whose keys match share their
+    candidate kernels."""
     n = points.shape[0]
     sub_cells = np.int64(1) << SUBCELL_BITS
     found = np.empty((2, n), dtype=np.int64)
@@ -354,35 +348,46 @@ def _scale_keys(points, table):  # pragma: no cover - compiled
     return found
 
 
+@numba.njit(cache=True, inline="always")
+def _block(key, table):  # pragma: no cover - compiled
+    """(first, last + 1) positions in the pool of the kernels listed in the cell of a
+    sub-cell's key (_scale_keys), empty for key 0, and the bit of the sub-cell in their masks.
+    table: SupportHash._arguments()."""
+    starts, counts = table[1], table[2]
+    if key == 0:
+        return 0, 0, np.uint64(0)
+    s = (key - 1) >> SUBCELL_BITS
+    bit = np.uint64(1) << np.uint64((key - 1) & ((1 << SUBCELL_BITS) - 1))
+    return starts[s], starts[s] + counts[s], bit
+
+
 @numba.njit(cache=True, parallel=True)
-def _candidate_counts(points, table, scale):  # pragma: no cover - compiled
-    """(n,) int64 kernels listed in the sub-cell of `scale` (0 fine, 1 coarse) of each point:
-    a bound on its features of that scale."""
+def _candidate_counts(keys, table):  # pragma: no cover - compiled
+    """(u,) int64 kernels listed in each of the sub-cells `keys` (u,) int64 (_scale_keys): a
+    bound on the features of that scale of a point in it."""
     masks = table[4]
-    n = points.shape[0]
-    found = np.zeros(n, dtype=np.int64)
-    for i in numba.prange(n):
-        first, end, bit = _block(points, i, scale, table)
+    found = np.zeros(len(keys), dtype=np.int64)
+    for u in numba.prange(len(keys)):
+        first, end, bit = _block(keys[u], table)
         for j in range(first, end):
             if masks[j] & bit:
-                found[i] += 1
+                found[u] += 1
     return found
 
 
 @numba.njit(cache=True, parallel=True)
-def _candidates(points, bound, table, scale):  # pragma: no cover - compiled
-    """(bound[n],) int32 rows, as the pool keeps them, of the kernels listed in each point's
-    sub-cell of `scale`, point i's from bound[i] on (see _candidate_counts). Written without
-    a branch on the masks: each entry is written and kept by moving on or not (past the
-    point's last one, nothing is written)."""
+def _candidates(keys, bound, table):  # pragma: no cover - compiled
+    """(bound[u],) int32 rows, as the pool keeps them, of the kernels listed in each of the
+    sub-cells `keys` (u,) int64, sub-cell u's from bound[u] on (see _candidate_counts).
+    Written without a branch on the masks: each entry is written and kept by moving on or not
+    (past the sub-cell's last one, nothing is written)."""
     pool, masks = table[3], table[4]
-    n = points.shape[0]
-    rows = np.empty(bound[n], dtype=np.int32)
-    for i in numba.prange(n):
-        out = bound[i]
-        first, end, bit = _block(points, i, scale, table)
+    rows = np.empty(bound[len(keys)], dtype=np.int32)
+    for u in numba.prange(len(keys)):
+        out = bound[u]
+        first, end, bit = _block(keys[u], table)
         for j in range(first, end):
-            if out < bound[i + 1]:
+            if out < bound[u + 1]:
                 rows[out] = pool[j]
             out += (masks[j] & bit) != 0
     return rows
@@ -778,23 +783,20 @@ class SupportHash:
         sub-cell is made once, for every group that lies in it."""
         table = self._arguments()
         keys = _scale_keys(points, table)
-        list_of_point = np.empty((2, len(points)), dtype=np.int64)
-        bounds, lists, offset = [], [], 0
+        starts, order = group_pairs(keys[0], keys[1])
+        group_keys = keys[:, order[starts[:-1]]]
+        ranges = np.empty((len(starts) - 1, 4), dtype=np.int64)
+        lists, offset = [], 0
         for scale in range(2):
-            starts, order = group_rows(keys[scale])
-            list_of_point[scale, order] = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
-            shared = np.ascontiguousarray(points[order[starts[:-1]]])
-            bound = np.zeros(len(starts), dtype=np.int64)
-            np.cumsum(_candidate_counts(shared, table, scale), out=bound[1:])
-            lists.append(_candidates(shared, bound, table, scale))
-            bounds.append(bound + offset)
+            sub_cell_of_group, n_sub_cells = first_come_ranks(group_keys[scale])
+            sub_cells = np.empty(n_sub_cells, dtype=np.int64)
+            sub_cells[sub_cell_of_group] = group_keys[scale]
+            bound = np.zeros(n_sub_cells + 1, dtype=np.int64)
+            np.cumsum(_candidate_counts(sub_cells, table), out=bound[1:])
+            lists.append(_candidates(sub_cells, bound, table))
+            ranges[:, 2 * scale] = bound[sub_cell_of_group] + offset
+            ranges[:, 2 * scale + 1] = bound[sub_cell_of_group + 1] + offset
             offset += bound[-1]
-        n_coarse = len(bounds[1]) - 1
-        starts, order = group_rows(list_of_point[0] * n_coarse + list_of_point[1])
-        fine, coarse = list_of_point[:, order[starts[:-1]]]
-        ranges = np.column_stack(
-            [bounds[0][fine], bounds[0][fine + 1], bounds[1][coarse], bounds[1][coarse + 1]]
-        )
         return order, starts, ranges, np.concatenate(lists)
 
     def features(

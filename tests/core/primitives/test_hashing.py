@@ -5,6 +5,7 @@ import numpy as np
 from ehm.core.primitives.hashing import (
     first_come_ranks,
     group_by_key,
+    group_pairs,
     group_rows,
     hash_bits,
     row_of,
@@ -47,6 +48,21 @@ def test_rows_grouped_in_the_order_keys_first_come(rng):
     np.testing.assert_array_equal(ranks, rank)
     assert count == len(first_come)
     empty_starts, empty_order = group_rows(np.zeros(0, dtype=np.int64))
+    assert list(empty_starts) == [0] and len(empty_order) == 0
+
+
+def test_rows_grouped_by_pairs_of_keys_in_the_order_pairs_first_come(rng):
+    """Pairs that share either key alone stay apart; the groups are those of one key that
+    numbers each distinct pair."""
+    first = rng.integers(0, 30, 5000).astype(np.int64) * 7_919
+    second = rng.integers(0, 20, 5000).astype(np.int64)
+    starts, order = group_pairs(first, second)
+    _, number = np.unique(np.column_stack([first, second]), axis=0, return_inverse=True)
+    numbered_starts, numbered_order = group_rows(number.ravel().astype(np.int64))
+    np.testing.assert_array_equal(starts, numbered_starts)
+    np.testing.assert_array_equal(order, numbered_order)
+    assert len(starts) - 1 == len(np.unique(number)) > 30
+    empty_starts, empty_order = group_pairs(*np.zeros((2, 0), dtype=np.int64))
     assert list(empty_starts) == [0] and len(empty_order) == 0
 
 

@@ -8,6 +8,7 @@ from ehm.core.model.kernels import OUTSIDE, kernels_of_codes
 from ehm.core.search.supports import (
     SupportHash,
     _candidate_counts,
+    _scale_keys,
     _sub_cell_mask,
     copy_segments,
     copy_segments_reference,
@@ -199,10 +200,11 @@ def test_sub_cell_masks_leave_out_most_kernels_of_a_cell(rng, random_clusters):
     table = _listed(clusters)
     points = rng.uniform(0, 6, (3000, 3))
     arguments = table._arguments()
-    listed = sum(_candidate_counts(points, arguments, scale) for scale in (0, 1))
+    keys = _scale_keys(points, arguments)
+    listed = sum(_candidate_counts(keys[scale], arguments) for scale in (0, 1))
     every_sub_cell = np.full_like(arguments[4], ~np.uint64(0))
     unmasked = (*arguments[:4], every_sub_cell, *arguments[5:])
-    in_cells = sum(_candidate_counts(points, unmasked, scale) for scale in (0, 1))
+    in_cells = sum(_candidate_counts(keys[scale], unmasked) for scale in (0, 1))
     nonzero = np.diff(
         support_features_reference(
             points, clusters.means, clusters.transforms, clusters.planar_kernel
