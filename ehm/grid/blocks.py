@@ -14,10 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ehm.core.model.kernels import support_half_widths
 from ehm.core.queries.cover import covered_cells
 from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError
-from ehm.grid.bounds import DEFAULT_MAX_BYTES, grid_shape, support_half_widths
+from ehm.grid.bounds import DEFAULT_MAX_BYTES, grid_shape
 from ehm.grid.mesh import joined_meshes
 from ehm.grid.occupancy_grid import OccupancyGrid
 

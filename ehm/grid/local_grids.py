@@ -21,9 +21,9 @@ from ehm.core.model.kernels import (
     cluster_kernel_reference,
     kernel_code,
     kernels_of_codes_serial,
+    support_half_widths,
 )
 from ehm.core.snapshot import MapSnapshot
-from ehm.grid.bounds import support_half_widths
 
 # The power of the kernel each field sums: field f of a grid adds up c_mf k(x_g, M_m)^p_f,
 # with c_m = (w_m, 1 / lambda_m, 1): the scores, then the two sums of the variance.

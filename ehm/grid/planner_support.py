@@ -25,7 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ehm.core.model.kernels import kernel_reach
+from ehm.core.model.kernels import kernel_reach, support_half_widths
 from ehm.core.queries.cover import KernelCover
 from ehm.core.queries.distance import DistanceField
 from ehm.core.queries.known_cells import KnownCover
@@ -33,7 +33,7 @@ from ehm.core.queries.raycast import CandidateCells, GridLogOdds
 from ehm.core.queries.surfels import NearLogOdds, ReadNear
 from ehm.core.snapshot import MapSnapshot
 from ehm.errors import InputError
-from ehm.grid.bounds import support_bounds, support_half_widths
+from ehm.grid.bounds import support_bounds
 from ehm.grid.local_grids import Lattice
 from ehm.grid.occupancy_grid import OccupancyGrid
 

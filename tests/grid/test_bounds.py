@@ -3,8 +3,6 @@
 import numpy as np
 import pytest
 
-from ehm.grid.bounds import support_half_widths, support_half_widths_reference
-
 
 @pytest.mark.parametrize(
     ("bounds", "resolution", "message"),
@@ -31,23 +29,3 @@ def test_grids_with_the_std_count_40_bytes_a_voxel(room_map):
     room_map.grid(bounds, 0.04, max_bytes=20_000_000)
     with pytest.raises(ValueError, match=r"would take 0\.04 GiB"):
         room_map.grid(bounds, 0.04, max_bytes=20_000_000, std=True)
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_support_half_widths_agree_with_their_twin(rng, dim):
-    """The compiled adjugate inverse gives the half-widths np.linalg.inv gives, balls and
-    boxes alike."""
-    spread = rng.normal(size=(500, dim, dim))
-    transforms = spread @ spread.transpose(0, 2, 1) + 0.5 * np.eye(dim)
-    planar = rng.random(500) < 0.4
-    np.testing.assert_allclose(
-        support_half_widths(transforms, planar),
-        support_half_widths_reference(transforms, planar),
-        rtol=1e-10,
-    )
-    # A kernel reaching 10 cm along x and 1 m along the other axes (a ball or a box alike).
-    narrow = np.diag([10.0, 1.0, 1.0][:dim])[None]
-    for kind in (False, True):
-        np.testing.assert_allclose(
-            support_half_widths(narrow, np.array([kind]))[0], [0.1, 1.0, 1.0][:dim]
-        )

@@ -228,3 +228,52 @@ def kernel_reach(transforms: np.ndarray, planar: np.ndarray | None = None) -> np
     if planar is not None:
         reach[planar] = np.linalg.norm(half_widths[planar], axis=1)
     return reach
+
+
+def support_half_widths(transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
+    """(M, d) metres: half-widths of the axis-aligned box around each kernel's support, for
+    kernel transforms (M, d, d) 1/m (d 2 or 3, as maps are) and planar (M,) bool.
+
+    The support {mu + T^-1 u} with |u| < 1 (ball) reaches |row a of T^-1| along world axis a;
+    with max_b |u_b| < 1 (box, where `planar`) it reaches the sum of |row a of T^-1|. Each
+    T^-1 is the adjugate over the determinant, in one compiled pass on both cores (faster than
+    batched np.linalg.inv)."""
+    transforms = np.ascontiguousarray(transforms, dtype=np.float64)
+    return _half_widths(transforms, np.ascontiguousarray(planar, dtype=np.bool_))
+
+
+@numba.njit(cache=True, parallel=True)
+def _half_widths(transforms, planar):  # pragma: no cover - compiled
+    """support_half_widths of (M, d, d) transforms, d 2 or 3."""
+    m_count, d = transforms.shape[0], transforms.shape[1]
+    half = np.empty((m_count, d))
+    for m in numba.prange(m_count):
+        t = transforms[m]
+        inverse = np.empty((d, d))
+        if d == 2:
+            det = t[0, 0] * t[1, 1] - t[0, 1] * t[1, 0]
+            inverse[0, 0], inverse[0, 1] = t[1, 1] / det, -t[0, 1] / det
+            inverse[1, 0], inverse[1, 1] = -t[1, 0] / det, t[0, 0] / det
+        else:
+            for r in range(3):
+                for c in range(3):
+                    # Cofactor of t[c, r]: the adjugate is the cofactors' transpose.
+                    r1, r2 = (c + 1) % 3, (c + 2) % 3
+                    c1, c2 = (r + 1) % 3, (r + 2) % 3
+                    inverse[r, c] = t[r1, c1] * t[r2, c2] - t[r1, c2] * t[r2, c1]
+            det = t[0, 0] * inverse[0, 0] + t[0, 1] * inverse[1, 0] + t[0, 2] * inverse[2, 0]
+            for r in range(3):
+                for c in range(3):
+                    inverse[r, c] /= det
+        for a in range(d):
+            total = 0.0
+            for b in range(d):
+                total += abs(inverse[a, b]) if planar[m] else inverse[a, b] * inverse[a, b]
+            half[m, a] = total if planar[m] else np.sqrt(total)
+    return half
+
+
+def support_half_widths_reference(transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
+    """Plain NumPy twin of `support_half_widths`."""
+    inverse = np.linalg.inv(transforms)
+    return np.where(planar[:, None], np.abs(inverse).sum(axis=2), np.linalg.norm(inverse, axis=2))

@@ -42,6 +42,7 @@ from ehm.core.model.kernels import (
     kernel_code,
     kernels_of_codes,
     kernels_of_codes_serial,
+    support_half_widths,
 )
 from ehm.core.primitives.hashing import (
     EMPTY_KEY,
@@ -612,57 +613,13 @@ def copy_segments_reference(
 _BOX_SLACK = 1e-9
 
 
-@numba.njit(cache=True, parallel=True)
-def support_boxes(means, transforms, planar):  # pragma: no cover - compiled
-    """(M, d) lower and upper corners, metres, of the box around each kernel's support
-    (widened by _BOX_SLACK), for kernels of `means` (M, d) metres, `transforms` (M, d, d)
-    1/m and `planar` (M,) bool, d 2 or 3.
-
-    The support is u = T (x - mu) in the unit ball (or the unit box where planar), so x - mu =
-    T^-1 u; along axis a it reaches |row a of T^-1| (the ball) or the sum of its absolute
-    values (the box). T^-1 is the adjugate over the determinant."""
-    m, d = means.shape
-    low, high = np.empty((m, d)), np.empty((m, d))
-    for k in numba.prange(m):
-        inverse = _inverse(transforms[k])
-        for a in range(d):
-            absolute, square = 0.0, 0.0
-            for b in range(d):
-                absolute += abs(inverse[a, b])
-                square += inverse[a, b] * inverse[a, b]
-            half = (absolute if planar[k] else np.sqrt(square)) * (1.0 + _BOX_SLACK)
-            low[k, a] = means[k, a] - half
-            high[k, a] = means[k, a] + half
-    return low, high
-
-
-@numba.njit(cache=True, inline="always")
-def _inverse(t):  # pragma: no cover - compiled
-    """The inverse of a 2 x 2 or 3 x 3 matrix, its adjugate over its determinant."""
-    inverse = np.empty_like(t)
-    if t.shape[0] == 2:
-        det = t[0, 0] * t[1, 1] - t[0, 1] * t[1, 0]
-        inverse[0, 0], inverse[0, 1] = t[1, 1] / det, -t[0, 1] / det
-        inverse[1, 0], inverse[1, 1] = -t[1, 0] / det, t[0, 0] / det
-        return inverse
-    for i in range(3):
-        for j in range(3):
-            # Cofactor of t[j, i]: rows and columns other than j and i, taken cyclically.
-            r0, r1 = (j + 1) % 3, (j + 2) % 3
-            c0, c1 = (i + 1) % 3, (i + 2) % 3
-            inverse[i, j] = t[r0, c0] * t[r1, c1] - t[r0, c1] * t[r1, c0]
-    det = t[0, 0] * inverse[0, 0] + t[0, 1] * inverse[1, 0] + t[0, 2] * inverse[2, 0]
-    return inverse / det
-
-
-def support_boxes_reference(
+def support_boxes(
     means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Plain NumPy twin of `support_boxes`, without the slack."""
-    if len(means) == 0:
-        return means.copy(), means.copy()
-    inverse = np.linalg.inv(transforms)
-    half = np.where(planar[:, None], np.abs(inverse).sum(axis=2), np.linalg.norm(inverse, axis=2))
+    """(M, d) lower and upper corners, metres, of the box around each kernel's support
+    (ehm.core.model.kernels.support_half_widths, widened by _BOX_SLACK), for kernels of
+    `means` (M, d) metres, `transforms` (M, d, d) 1/m and `planar` (M,) bool."""
+    half = support_half_widths(transforms, planar) * (1.0 + _BOX_SLACK)
     return means - half, means + half
 
 

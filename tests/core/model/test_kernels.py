@@ -1,6 +1,7 @@
 """Kernels: k_SP with localized length-scales (Eq. 8, 10-12) and the planar kernel (Eq. 13)."""
 
 import numpy as np
+import pytest
 
 from ehm.core.model.kernels import (
     TWO_PI,
@@ -14,6 +15,8 @@ from ehm.core.model.kernels import (
     planar_clusters,
     sparse_kernel,
     sparse_kernel_reference,
+    support_half_widths,
+    support_half_widths_reference,
     transform_square_roots,
 )
 
@@ -110,3 +113,23 @@ def test_square_roots_read_off_transforms_equal_the_decomposed_ones(rng):
         assert 0 < floored.sum() < 200  # some eigenvalues floored, some not
         squares = roots[~floored] @ roots[~floored]
         np.testing.assert_allclose(squares, covariances[~floored], atol=1e-12)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_support_half_widths_agree_with_their_twin(rng, dim):
+    """The compiled adjugate inverse gives the half-widths np.linalg.inv gives, balls and
+    boxes alike."""
+    spread = rng.normal(size=(500, dim, dim))
+    transforms = spread @ spread.transpose(0, 2, 1) + 0.5 * np.eye(dim)
+    planar = rng.random(500) < 0.4
+    np.testing.assert_allclose(
+        support_half_widths(transforms, planar),
+        support_half_widths_reference(transforms, planar),
+        rtol=1e-10,
+    )
+    # A kernel reaching 10 cm along x and 1 m along the other axes (a ball or a box alike).
+    narrow = np.diag([10.0, 1.0, 1.0][:dim])[None]
+    for kind in (False, True):
+        np.testing.assert_allclose(
+            support_half_widths(narrow, np.array([kind]))[0], [0.1, 1.0, 1.0][:dim]
+        )

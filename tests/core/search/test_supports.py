@@ -14,7 +14,6 @@ from ehm.core.search.supports import (
     copy_segments_reference,
     sub_cell_slabs,
     support_boxes,
-    support_boxes_reference,
     support_features_reference,
 )
 
@@ -174,20 +173,6 @@ def test_support_boxes_hold_the_supports(rng, random_clusters):
     # Tight: the ball's box touches the ellipsoid along each axis.
     volume = np.prod(high - low, axis=1)
     assert np.all(volume > 0) and np.all(volume < 50.0)
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_support_boxes_are_those_of_the_numpy_inverse(rng, dim):
-    spread = rng.normal(size=(300, dim, dim)) * rng.uniform(0.02, 3.0, (300, 1, 1))
-    transforms = spread + 0.1 * np.eye(dim)
-    means, planar = rng.uniform(-5, 5, (300, dim)), rng.random(300) < 0.3
-    low, high = support_boxes(means, transforms, planar)
-    want_low, want_high = support_boxes_reference(means, transforms, planar)
-    np.testing.assert_allclose(high - means, want_high - means, rtol=1e-8)
-    np.testing.assert_allclose(means - low, means - want_low, rtol=1e-8)
-    assert np.all(low < want_low) and np.all(high > want_high)
-    empty = support_boxes(np.zeros((0, dim)), np.zeros((0, dim, dim)), np.zeros(0, dtype=bool))
-    assert [corner.shape for corner in empty] == [(0, dim), (0, dim)]
 
 
 def test_kernels_beyond_the_cells_of_the_hash_are_refused(random_clusters, rng):
