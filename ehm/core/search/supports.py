@@ -42,6 +42,7 @@ from ehm.core.model.kernels import (
     kernel_code,
     kernels_of_codes,
     kernels_of_codes_serial,
+    projected_radii,
     support_half_widths,
 )
 from ehm.core.primitives.hashing import (
@@ -401,35 +402,22 @@ _LIST_PARTS = 64
 _LAID_OUT_POINTS = 4
 
 
-def kernel_records(means: np.ndarray, transforms: np.ndarray, planar: np.ndarray) -> np.ndarray:
-    """(M, 13) float64: each kernel's mean (metres) in columns 0-2, its transform's rows
-    (1/m) in 3-11 (row a, column b in 3 + 3 a + b) and in 12 whether it is planar, side by
-    side so that projecting a point onto a kernel reads one record. A 2D kernel is laid out
-    as a 3D one whose third axis is zero: the sums then add zeros and are the same."""
-    m, d = means.shape
-    records = np.zeros((m, 13))
-    records[:, :d] = means
-    square = np.zeros((m, 3, 3))
-    square[:, :d, :d] = transforms
-    records[:, 3:12] = square.reshape(m, 9)
-    records[:, 12] = planar
-    return records
-
-
 @numba.njit(cache=True, inline="always")
-def _gather_list(n, kernels, records, laid_out):  # pragma: no cover - compiled
-    """The records (kernel_records) of kernels[:n] as the first n columns of laid_out
-    (13, L), for _list_codes."""
-    for t in range(n):
-        m = kernels[t]
-        for r in range(13):
-            laid_out[r, t] = records[m, r]
-
-
-@numba.njit(cache=True, inline="always")
-def _point_of(points, i):  # pragma: no cover - compiled
-    """Point i of (n, 2 or 3) points as a 3D one, a 2D point's third coordinate zero."""
-    return (points[i, 0], points[i, 1], points[i, 2] if points.shape[1] == 3 else 0.0)
+def _gather_list(first, last, lists, means, transforms, planar, laid_out):  # pragma: no cover
+    """The kernels lists[first:last] laid out for _list_codes in the first last - first
+    columns of laid_out (13, L): each kernel's mean in rows 0-2, its transform's rows in 3-11
+    (row a, column b in row 3 + 3 a + b) and in row 12 whether it is planar. A 2D kernel is
+    laid out as a 3D one whose third axis is zero: the sums then add zeros and are the same."""
+    d = means.shape[1]
+    if d < 3:
+        laid_out[:, : last - first] = 0.0
+    for t in range(last - first):
+        m = lists[first + t]
+        laid_out[12, t] = planar[m]
+        for a in range(d):
+            laid_out[a, t] = means[m, a]
+            for b in range(d):
+                laid_out[3 + 3 * a + b, t] = transforms[m, a, b]
 
 
 @numba.njit(cache=True, inline="always")
@@ -437,7 +425,7 @@ def _list_codes(points, i, n, laid_out, codes):  # pragma: no cover - compiled
     """Kernel codes of point i at the first n kernels of a list laid out by _gather_list,
     into codes[:n]. One loop along the list, in vector registers, summing in the order of
     ehm.core.model.kernels.projected_radii: the codes are kernel_code's to the last bit."""
-    x = _point_of(points, i)
+    x = (points[i, 0], points[i, 1], points[i, 2] if points.shape[1] == 3 else 0.0)
     for t in range(n):
         r2 = 0.0
         r_max = 0.0
@@ -451,21 +439,15 @@ def _list_codes(points, i, n, laid_out, codes):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _point_codes(points, i, n, kernels, records, codes):  # pragma: no cover - compiled
-    """Kernel codes of point i at kernels[:n], one record (kernel_records) after another,
-    into codes[:n], summed as _list_codes sums them."""
-    x = _point_of(points, i)
-    for t in range(n):
-        m = kernels[t]
-        r2 = 0.0
-        r_max = 0.0
-        for a in range(3):
-            u = 0.0
-            for b in range(3):
-                u += records[m, 3 + 3 * a + b] * (x[b] - records[m, b])
-            r2 += u * u
-            r_max = max(r_max, abs(u))
-        codes[t] = kernel_code(r2, r_max, records[m, 12] != 0.0)
+def _point_codes(
+    points, i, first, last, lists, means, transforms, planar, codes
+):  # pragma: no cover
+    """Kernel codes of point i at the kernels lists[first:last], one after another, into
+    codes[:last - first]."""
+    for t in range(last - first):
+        m = lists[first + t]
+        r2, r_max = projected_radii(points, i, m, means, transforms)
+        codes[t] = kernel_code(r2, r_max, planar[m])
 
 
 # What a pass over the points that share lists of candidates does at each point (_list_pass):
@@ -480,7 +462,9 @@ def _list_pass(
     starts,
     ranges,
     lists,
-    records,
+    means,
+    transforms,
+    planar,
     mode,
     counts,
     slots,
@@ -492,8 +476,7 @@ def _list_pass(
 ):  # pragma: no cover - compiled
     """One pass over the points, where the points order[starts[g]:starts[g + 1]] share the
     candidate kernels lists[ranges[g, 0]:ranges[g, 1]] (fine) and lists[ranges[g, 2]:
-    ranges[g, 3]] (coarse) (starts[0] = 0), the kernels' records by kernel_records, doing at the
-    point i = order[j] what `mode` says:
+    ranges[g, 3]] (coarse) (starts[0] = 0), doing at the point i = order[j] what `mode` says:
     - _GATHER: the rows and codes of the kernels not zero there into rows and codes, from
       slots[j] on (room for all its candidates) in the order of the candidates, and their
       number into counts[j] (j over order);
@@ -519,13 +502,13 @@ def _list_pass(
             kernels[fine:n] = lists[ranges[g, 2] : ranges[g, 3]]
             laid = starts[g + 1] - starts[g] >= _LAID_OUT_POINTS
             if laid:
-                _gather_list(n, kernels, records, laid_out)
+                _gather_list(0, n, kernels, means, transforms, planar, laid_out)
             for j in range(starts[g], starts[g + 1]):
                 i = order[j]
                 if laid:
                     _list_codes(points, i, n, laid_out, scratch)
                 else:
-                    _point_codes(points, i, n, kernels, records, scratch)
+                    _point_codes(points, i, 0, n, kernels, means, transforms, planar, scratch)
                 if mode == _GATHER:
                     # Each candidate written, and kept by moving on or not: no branch.
                     out = slots[j]
@@ -829,7 +812,7 @@ class SupportHash:
         if len(points) == 0:
             return SparseFeatures(np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
         order, starts, ranges, lists = self._shared_lists(points)
-        kernels = (lists, kernel_records(means, transforms, planar))
+        kernels = (lists, means, transforms, planar)
         unsummed = ((np.zeros(0), 0.0, np.zeros(0), False), np.zeros(0), np.zeros((0, 2)))
         # Candidates of each point, in the order of the lists, and where each point's
         # candidates would begin in a room for all of them.
@@ -888,13 +871,14 @@ class SupportHash:
         variance_sums = np.zeros((len(points) if with_variance else 0, 2))
         none, nothing = np.zeros(0, dtype=np.int64), np.zeros(0)
         learned = (weights, float(bias), inverse_precision, with_variance)
-        records = kernel_records(means, transforms, planar)
         for first in range(0, len(points), CHUNK):
             chunk = slice(first, min(len(points), first + CHUNK))
             _list_pass(
                 points[chunk],
                 *self._shared_lists(points[chunk]),
-                records,
+                means,
+                transforms,
+                planar,
                 _SUM,
                 none,
                 none,
