@@ -83,7 +83,7 @@ def group_by_key(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rows, key by key and in their own order within a key), as a stable argsort of the keys
     gives them."""
     distinct = sorted_distinct(keys)
-    return (distinct, *_rows_by_rank(_ranks(distinct, keys), len(distinct)))
+    return (distinct, *rows_by_rank(_ranks(distinct, keys), len(distinct)))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -115,50 +115,10 @@ def first_come_ranks(keys):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def group_rows(keys):  # pragma: no cover - compiled
-    """Rows of `keys` (n,) int64 >= 0 grouped by key, the keys in the order they first come:
-    (starts (u + 1,) int64, where each key's rows begin in `order`, and its end; order (n,)
-    int64, the rows, key by key and in their own order within a key). One pass over a table,
-    no sort."""
-    return _rows_by_rank(*first_come_ranks(keys))
-
-
-@numba.njit(cache=True, nogil=True)
-def group_pairs(first, second):  # pragma: no cover - compiled
-    """Rows grouped by the pair of keys (first[i], second[i]), (n,) int64 >= 0 each, the pairs
-    in the order they first come: (starts, order) as `group_rows` gives them."""
-    return _rows_by_rank(*first_come_pair_ranks(first, second))
-
-
-@numba.njit(cache=True, nogil=True)
-def first_come_pair_ranks(first, second):  # pragma: no cover - compiled
-    """The rank of each pair (first[i], second[i]) of (n,) int64 >= 0 keys among the distinct
-    pairs in the order they first come: ((n,) int64, how many distinct pairs). One pass over a
-    table of both keys."""
-    size = table_size(len(first))
-    mask = np.int64(size - 1)
-    table_first = np.full(size, EMPTY_KEY, dtype=np.int64)
-    table_second = np.empty(size, dtype=np.int64)
-    rank = np.empty(size, dtype=np.int64)
-    row_rank = np.empty(len(first), dtype=np.int64)
-    n = 0
-    for i in range(len(first)):
-        a, b = first[i], second[i]
-        s = _first_slot((np.uint64(a) * _HASH_MULTIPLIER) ^ np.uint64(b), mask)
-        while table_first[s] != EMPTY_KEY and (table_first[s] != a or table_second[s] != b):
-            s = (s + 1) & mask
-        if table_first[s] == EMPTY_KEY:
-            table_first[s], table_second[s] = a, b
-            rank[s] = n
-            n += 1
-        row_rank[i] = rank[s]
-    return row_rank, n
-
-
-@numba.njit(cache=True, nogil=True)
-def _rows_by_rank(row_rank, n_groups):  # pragma: no cover - compiled
-    """(starts (n_groups + 1,), order (n,)): rows grouped by their rank (n,) int64, a counting
-    sort that keeps their order within a group."""
+def rows_by_rank(row_rank, n_groups):  # pragma: no cover - compiled
+    """Rows grouped by their rank (n,) int64 in 0 .. n_groups - 1, a counting sort: (starts
+    (n_groups + 1,) int64, where each group's rows begin in `order`, and its end; order (n,)
+    int64, the rows, group by group and in their own order within a group)."""
     starts = np.zeros(n_groups + 1, dtype=np.int64)
     for i in range(len(row_rank)):
         starts[row_rank[i] + 1] += 1

@@ -48,10 +48,11 @@ from ehm.core.model.kernels import (
 from ehm.core.primitives.hashing import (
     EMPTY_KEY,
     first_come_ranks,
-    group_pairs,
     hash_slot,
+    rows_by_rank,
     sorted_distinct,
 )
+from ehm.core.primitives.radix import radix_order
 from ehm.errors import InputError
 
 # Cell side of each scale, as a multiple of its cluster radius (MapConfig.cluster_radius,
@@ -347,6 +348,56 @@ def _scale_keys(points, table):  # pragma: no cover - compiled
             s, listed, index = _slot_of(points, i, scale, table)
             found[scale, i] = 1 + s * sub_cells + index if listed else 0
     return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _sub_cell_groups(keys, n_slots):  # pragma: no cover - compiled
+    """Points grouped by their pair of sub-cells, keys (2, n) int64 from _scale_keys on a table
+    of n_slots slots, cell by cell: the groups in the order of their coarse cell's slot, then
+    their fine cell's, then as they first come, so that groups taken one after the other
+    share kernels still in cache. (starts, order) as rows_by_rank gives them."""
+    n = keys.shape[1]
+    low_bits = np.int64((1 << SUBCELL_BITS) - 1)
+    # A pair of cells, numbered: (key + low_bits) >> SUBCELL_BITS is 0 for key 0 (no cell),
+    # else 1 + the cell's slot.
+    cells = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        fine = (keys[0, i] + low_bits) >> SUBCELL_BITS
+        cells[i] = ((keys[1, i] + low_bits) >> SUBCELL_BITS) * (n_slots + 1) + fine
+    order = radix_order(cells)
+    # Within a pair of cells, the keys' low bits tell their sub-cells apart; the pair of cells
+    # last seen with a pair of sub-cells marks whether it has a group in this one yet.
+    cells_of_pair = np.full(1 << (2 * SUBCELL_BITS), -1, dtype=np.int64)
+    group_of_pair = np.empty(1 << (2 * SUBCELL_BITS), dtype=np.int64)
+    group_of_row = np.empty(n, dtype=np.int64)
+    n_groups = 0
+    for j in range(n):
+        i = order[j]
+        pair = ((keys[0, i] & low_bits) << SUBCELL_BITS) | (keys[1, i] & low_bits)
+        if cells_of_pair[pair] != cells[i]:
+            cells_of_pair[pair] = cells[i]
+            group_of_pair[pair] = n_groups
+            n_groups += 1
+        group_of_row[i] = group_of_pair[pair]
+    return rows_by_rank(group_of_row, n_groups)
+
+
+def sub_cell_groups_reference(keys: np.ndarray, n_slots: int) -> tuple[np.ndarray, np.ndarray]:
+    """Plain NumPy twin of _sub_cell_groups: the distinct pairs of keys (2, n) int64, ordered
+    by their pair of cells and then by their first row, and the rows sorted stably by them."""
+    low_bits = (1 << SUBCELL_BITS) - 1
+    cells = ((keys[1] + low_bits) >> SUBCELL_BITS) * (n_slots + 1)
+    cells += (keys[0] + low_bits) >> SUBCELL_BITS
+    _, pair_of_row = np.unique(keys, axis=1, return_inverse=True)
+    pair_of_row = pair_of_row.ravel()
+    first_row = np.full(pair_of_row.max(initial=-1) + 1, keys.shape[1])
+    np.minimum.at(first_row, pair_of_row, np.arange(keys.shape[1]))
+    group_of_pair = np.empty(len(first_row), dtype=np.int64)
+    group_of_pair[np.lexsort((first_row, cells[first_row]))] = np.arange(len(first_row))
+    group_of_row = group_of_pair[pair_of_row]
+    starts = np.zeros(len(first_row) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(group_of_row, minlength=len(first_row)), out=starts[1:])
+    return starts, np.argsort(group_of_row, kind="stable")
 
 
 @numba.njit(cache=True, inline="always")
@@ -784,7 +835,7 @@ class SupportHash:
         sub-cell is made once, for every group that lies in it."""
         table = self._arguments()
         keys = _scale_keys(points, table)
-        starts, order = group_pairs(keys[0], keys[1])
+        starts, order = _sub_cell_groups(keys, len(table[0]))
         group_keys = keys[:, order[starts[:-1]]]
         ranges = np.empty((len(starts) - 1, 4), dtype=np.int64)
         lists, offset = [], 0

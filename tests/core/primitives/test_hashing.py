@@ -5,11 +5,10 @@ import numpy as np
 from ehm.core.primitives.hashing import (
     first_come_ranks,
     group_by_key,
-    group_pairs,
-    group_rows,
     hash_bits,
     row_of,
     row_table,
+    rows_by_rank,
     sorted_distinct,
     table_size,
 )
@@ -35,34 +34,22 @@ def test_rows_grouped_by_key_as_a_stable_argsort_groups_them(rng):
     assert [len(part) for part in empty] == [0, 1, 0]
 
 
-def test_rows_grouped_in_the_order_keys_first_come(rng):
+def test_first_come_ranks_number_keys_in_the_order_they_first_come(rng):
     keys = rng.integers(0, 300, 5000).astype(np.int64) * 7_919
-    starts, order = group_rows(keys)
     _, first_rows = np.unique(keys, return_index=True)
     first_come = keys[np.sort(first_rows)]
     place = {key: r for r, key in enumerate(first_come)}
-    rank = np.array([place[key] for key in keys])
-    np.testing.assert_array_equal(order, np.argsort(rank, kind="stable"))
-    np.testing.assert_array_equal(np.diff(starts), np.bincount(rank))
     ranks, count = first_come_ranks(keys)
-    np.testing.assert_array_equal(ranks, rank)
+    np.testing.assert_array_equal(ranks, [place[key] for key in keys])
     assert count == len(first_come)
-    empty_starts, empty_order = group_rows(np.zeros(0, dtype=np.int64))
-    assert list(empty_starts) == [0] and len(empty_order) == 0
 
 
-def test_rows_grouped_by_pairs_of_keys_in_the_order_pairs_first_come(rng):
-    """Pairs that share either key alone stay apart; the groups are those of one key that
-    numbers each distinct pair."""
-    first = rng.integers(0, 30, 5000).astype(np.int64) * 7_919
-    second = rng.integers(0, 20, 5000).astype(np.int64)
-    starts, order = group_pairs(first, second)
-    _, number = np.unique(np.column_stack([first, second]), axis=0, return_inverse=True)
-    numbered_starts, numbered_order = group_rows(number.ravel().astype(np.int64))
-    np.testing.assert_array_equal(starts, numbered_starts)
-    np.testing.assert_array_equal(order, numbered_order)
-    assert len(starts) - 1 == len(np.unique(number)) > 30
-    empty_starts, empty_order = group_pairs(*np.zeros((2, 0), dtype=np.int64))
+def test_rows_by_rank_is_a_stable_argsort_of_the_ranks(rng):
+    ranks = rng.integers(0, 40, 3000).astype(np.int64)
+    starts, order = rows_by_rank(ranks, 45)
+    np.testing.assert_array_equal(order, np.argsort(ranks, kind="stable"))
+    np.testing.assert_array_equal(np.diff(starts), np.bincount(ranks, minlength=45))
+    empty_starts, empty_order = rows_by_rank(np.zeros(0, dtype=np.int64), 0)
     assert list(empty_starts) == [0] and len(empty_order) == 0
 
 

@@ -9,9 +9,11 @@ from ehm.core.search.supports import (
     SupportHash,
     _candidate_counts,
     _scale_keys,
+    _sub_cell_groups,
     _sub_cell_mask,
     copy_segments,
     copy_segments_reference,
+    sub_cell_groups_reference,
     sub_cell_slabs,
     support_boxes,
     support_features_reference,
@@ -212,6 +214,28 @@ def test_sub_cell_masks_leave_out_most_kernels_of_a_cell(rng, random_clusters):
     )
     assert np.all(listed >= nonzero) and np.all(listed <= in_cells)
     assert listed.sum() < 0.5 * in_cells.sum()
+
+
+def test_points_are_grouped_by_sub_cells_cell_by_cell_as_the_reference_groups_them(rng):
+    """Keys as _scale_keys makes them (0: no cell; 1 + slot * 64 + sub-cell), pairs of them
+    repeated in any order: the groups are the distinct pairs, cell by cell, each group's rows
+    in their own order."""
+    n_slots = 50
+    cells = rng.integers(0, n_slots + 1, (2, 400))
+    sub_cells = rng.integers(0, 64, (2, 400))
+    distinct = np.where(cells > 0, 1 + (cells - 1) * 64 + sub_cells, 0)
+    keys = np.ascontiguousarray(distinct[:, rng.integers(0, 400, 6000)])
+    starts, order = _sub_cell_groups(keys, n_slots)
+    want_starts, want_order = sub_cell_groups_reference(keys, n_slots)
+    np.testing.assert_array_equal(starts, want_starts)
+    np.testing.assert_array_equal(order, want_order)
+    pairs = keys[:, order[starts[:-1]]]
+    assert len(np.unique(pairs, axis=1).T) == len(starts) - 1 > 300
+    for g in range(len(starts) - 1):
+        rows = order[starts[g] : starts[g + 1]]
+        assert np.all(keys[:, rows] == pairs[:, g : g + 1]) and np.all(np.diff(rows) > 0)
+    empty_starts, empty_order = _sub_cell_groups(np.zeros((2, 0), dtype=np.int64), n_slots)
+    assert list(empty_starts) == [0] and len(empty_order) == 0
 
 
 def test_points_sharing_sub_cells_get_their_own_kernels_in_any_order(rng, random_clusters):
