@@ -8,7 +8,8 @@ the default's; OctoMap with every scan's hits inserted). Then `points` points ar
 ways: around the hits (a hit picked at random plus Gaussian noise of 0.2 m per axis: where planners
 ask most) and uniformly in the box of the hits. EHM answers with `occupancy` (default query mode),
 OctoMap with `getLabels` (one C++ call for all points; 2D maps in the plane z = 0). Times are the
-fastest of `repeats` calls, JIT warm.
+median of `repeats` calls, JIT warm, the slowest call beside it; each call of EHM is followed by
+one of OctoMap, so that both meet the machine in the same moments.
 """
 
 from __future__ import annotations
@@ -37,14 +38,11 @@ FEATURES = ("nearest", "support")
 NEAR_HITS_STD = 0.2
 
 
-def fastest(function: Callable[[], object], repeats: int) -> float:
-    """Seconds of the fastest of `repeats` calls."""
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        best = min(best, time.perf_counter() - start)
-    return best
+def seconds(function: Callable[[], object]) -> float:
+    """Seconds of one call."""
+    start = time.perf_counter()
+    function()
+    return time.perf_counter() - start
 
 
 def query_points(hits: np.ndarray, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -75,13 +73,24 @@ def measure(name: str, scans: list[ehm.Scan], n: int, repeats: int) -> list[list
     rows = []
     for drawn, points in query_points(hits, n, np.random.default_rng(0)).items():
         octomap_points = in_3d(points)
-        octomap.tree.getLabels(octomap_points)
-        reference = fastest(lambda p=octomap_points: octomap.tree.getLabels(p), repeats)
-        row = [name, drawn, f"{reference * 1e3:.1f}"]
-        for hilbert_map in maps.values():
-            hilbert_map.occupancy(points)
-            seconds = fastest(lambda m=hilbert_map, p=points: m.occupancy(p), repeats)
-            row += [f"{seconds * 1e3:.1f}", f"{seconds / reference:.2f}x"]
+        calls = {"OctoMap": lambda p=octomap_points: octomap.tree.getLabels(p)}
+        for features, hilbert_map in maps.items():
+            calls[features] = lambda m=hilbert_map, p=points: m.occupancy(p)
+        times: dict[str, list[float]] = {method: [] for method in calls}
+        for call in calls.values():
+            call()
+        for _ in range(repeats):
+            for method, call in calls.items():
+                times[method].append(seconds(call))
+        reference = float(np.median(times["OctoMap"]))
+        row = [name, drawn, f"{reference * 1e3:.1f}", f"{max(times['OctoMap']) * 1e3:.1f}"]
+        for features in FEATURES:
+            median = float(np.median(times[features]))
+            row += [
+                f"{median * 1e3:.1f}",
+                f"{max(times[features]) * 1e3:.1f}",
+                f"{median / reference:.2f}x",
+            ]
         rows.append(row)
     return rows
 
@@ -100,9 +109,9 @@ def main() -> None:
             print(f"skipping {name}: {missing}")
             continue
         rows += measure(name, scans, args.points, args.repeats)
-    header = ["data set", "points", "OctoMap getLabels, ms"]
+    header = ["data set", "points", "OctoMap getLabels, median ms", "worst ms"]
     for features in FEATURES:
-        header += [f"EHM '{features}', ms", "/ OctoMap"]
+        header += [f"EHM '{features}', median ms", "worst ms", "/ OctoMap"]
     print(markdown_table(header, rows, text_columns=2))
 
 

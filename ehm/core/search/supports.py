@@ -403,14 +403,22 @@ def sub_cell_groups_reference(keys: np.ndarray, n_slots: int) -> tuple[np.ndarra
 @numba.njit(cache=True, inline="always")
 def _block(key, table):  # pragma: no cover - compiled
     """(first, last + 1) positions in the pool of the kernels listed in the cell of a
-    sub-cell's key (_scale_keys), empty for key 0, and the bit of the sub-cell in their masks.
-    table: SupportHash._arguments()."""
+    sub-cell's key (_scale_keys), empty for key 0, and the sub-cell's selector: 1 + the index
+    of its bit in their masks (_selects). table: SupportHash._arguments()."""
     starts, counts = table[1], table[2]
     if key == 0:
-        return 0, 0, np.uint64(0)
+        return 0, 0, 0
     s = (key - 1) >> SUBCELL_BITS
-    bit = np.uint64(1) << np.uint64((key - 1) & ((1 << SUBCELL_BITS) - 1))
-    return starts[s], starts[s] + counts[s], bit
+    return starts[s], starts[s] + counts[s], 1 + ((key - 1) & ((1 << SUBCELL_BITS) - 1))
+
+
+@numba.njit(cache=True, inline="always")
+def _selects(mask, selector):  # pragma: no cover - compiled
+    """Whether a kernel whose sub-cells are the bits of `mask` reaches the sub-cell of
+    `selector` (_block; 0 selects every kernel)."""
+    if selector == 0:
+        return True
+    return (mask >> np.uint64(selector - 1)) & np.uint64(1) != 0
 
 
 @numba.njit(cache=True, parallel=True)
@@ -420,10 +428,9 @@ def _candidate_counts(keys, table):  # pragma: no cover - compiled
     masks = table[4]
     found = np.zeros(len(keys), dtype=np.int64)
     for u in numba.prange(len(keys)):
-        first, end, bit = _block(keys[u], table)
+        first, end, selector = _block(keys[u], table)
         for j in range(first, end):
-            if masks[j] & bit:
-                found[u] += 1
+            found[u] += _selects(masks[j], selector)
     return found
 
 
@@ -437,12 +444,27 @@ def _candidates(keys, bound, table):  # pragma: no cover - compiled
     rows = np.empty(bound[len(keys)], dtype=np.int32)
     for u in numba.prange(len(keys)):
         out = bound[u]
-        first, end, bit = _block(keys[u], table)
+        first, end, selector = _block(keys[u], table)
         for j in range(first, end):
             if out < bound[u + 1]:
                 rows[out] = pool[j]
-            out += (masks[j] & bit) != 0
+            out += _selects(masks[j], selector)
     return rows
+
+
+@numba.njit(cache=True)
+def _block_ranges(keys, table):  # pragma: no cover - compiled
+    """(u, 6) int64 ranges, as _list_pass reads them, of the sub-cells (fine, coarse) of each
+    of keys (2, u) int64 (_scale_keys): the blocks of the pool that list their cells' kernels,
+    with the sub-cells' selectors (_block)."""
+    ranges = np.empty((keys.shape[1], 6), dtype=np.int64)
+    for u in range(keys.shape[1]):
+        for scale in range(2):
+            first, end, selector = _block(keys[scale, u], table)
+            ranges[u, 2 * scale] = first
+            ranges[u, 2 * scale + 1] = end
+            ranges[u, 4 + scale] = selector
+    return ranges
 
 
 # Parts the groups of points sharing a list are split into, for the threads to share: each
@@ -506,6 +528,20 @@ def _point_codes(
 _GATHER, _SUM = 0, 1
 
 
+@numba.njit(cache=True, inline="always")
+def _take_list(lists, masks, first, last, selector, kernels, n):  # pragma: no cover - compiled
+    """Append lists[first:last] to kernels[:n], all of it where `selector` is 0, else the
+    entries whose masks it selects (a sub-cell's kernels from its cell's block of the pool,
+    _selects); returns the new length."""
+    if selector == 0:
+        kernels[n : n + last - first] = lists[first:last]
+        return n + last - first
+    for j in range(first, last):
+        kernels[n] = lists[j]
+        n += _selects(masks[j], selector)
+    return n
+
+
 @numba.njit(cache=True, parallel=True)
 def _list_pass(
     points,
@@ -513,6 +549,7 @@ def _list_pass(
     starts,
     ranges,
     lists,
+    masks,
     means,
     transforms,
     planar,
@@ -526,15 +563,17 @@ def _list_pass(
     variance_sums,
 ):  # pragma: no cover - compiled
     """One pass over the points, where the points order[starts[g]:starts[g + 1]] share the
-    candidate kernels lists[ranges[g, 0]:ranges[g, 1]] (fine) and lists[ranges[g, 2]:
-    ranges[g, 3]] (coarse) (starts[0] = 0), doing at the point i = order[j] what `mode` says:
+    candidate kernels of lists[ranges[g, 0]:ranges[g, 1]] (fine) and lists[ranges[g, 2]:
+    ranges[g, 3]] (coarse) (starts[0] = 0): all of them where the selectors ranges[g, 4]
+    (fine) and ranges[g, 5] (coarse) are 0, else those whose masks they select. At the point
+    i = order[j], `mode` says what to do:
     - _GATHER: the rows and codes of the kernels not zero there into rows and codes, from
       slots[j] on (room for all its candidates) in the order of the candidates, and their
       number into counts[j] (j over order);
     - _SUM: scores[i] = bias + sum_m w_m phi_m and, with variance, [sum_m phi_m^2 /
       lambda_m, sum_m phi_m] into variance_sums (n, 2), zeros before; learned: (weights (M,),
-      bias, inverse_precision (M,), with_variance). The kernels that are zero add zeros, and
-      the sums are those over the kernels not zero, in the same order, to the last bit."""
+      bias, inverse_precision (M,), with_variance). The sums are those over the kernels not
+      zero, in the order of the candidates, to the last bit."""
     weights, bias, inverse_precision, with_variance = learned
     n_groups = len(starts) - 1
     for part in numba.prange(_LIST_PARTS):
@@ -547,10 +586,8 @@ def _list_pass(
         scratch = np.empty(longest)
         kernels = np.empty(longest, dtype=lists.dtype)
         for g in range(group_lo, group_hi):
-            fine = ranges[g, 1] - ranges[g, 0]
-            n = fine + ranges[g, 3] - ranges[g, 2]
-            kernels[:fine] = lists[ranges[g, 0] : ranges[g, 1]]
-            kernels[fine:n] = lists[ranges[g, 2] : ranges[g, 3]]
+            n = _take_list(lists, masks, ranges[g, 0], ranges[g, 1], ranges[g, 4], kernels, 0)
+            n = _take_list(lists, masks, ranges[g, 2], ranges[g, 3], ranges[g, 5], kernels, n)
             laid = starts[g + 1] - starts[g] >= _LAID_OUT_POINTS
             if laid:
                 _gather_list(0, n, kernels, means, transforms, planar, laid_out)
@@ -572,16 +609,17 @@ def _list_pass(
                     kernels_of_codes_serial(scratch[:n])
                     scores[i] = bias
                     for t in range(n):
-                        add_to_sums(
-                            scores,
-                            variance_sums,
-                            i,
-                            kernels[t],
-                            scratch[t],
-                            weights,
-                            inverse_precision,
-                            with_variance,
-                        )
+                        if scratch[t] != 0.0:
+                            add_to_sums(
+                                scores,
+                                variance_sums,
+                                i,
+                                kernels[t],
+                                scratch[t],
+                                weights,
+                                inverse_precision,
+                                with_variance,
+                            )
 
 
 # Points a query takes at once: where they lie apart, each has a list of candidates of its own
@@ -831,13 +869,13 @@ class SupportHash:
     def _shared_lists(self, points: np.ndarray) -> tuple:
         """(n, d) points grouped by the sub-cells they lie in at both scales, each group with
         the two lists (fine, coarse) of candidate kernels its points share: (order, starts,
-        ranges (G, 4) int64, lists), as _list_pass reads them. Each scale's list of a
+        ranges (G, 6) int64, lists, masks), as _list_pass reads them. Each scale's list of a
         sub-cell is made once, for every group that lies in it."""
         table = self._arguments()
         keys = _scale_keys(points, table)
         starts, order = _sub_cell_groups(keys, len(table[0]))
         group_keys = keys[:, order[starts[:-1]]]
-        ranges = np.empty((len(starts) - 1, 4), dtype=np.int64)
+        ranges = np.zeros((len(starts) - 1, 6), dtype=np.int64)
         lists, offset = [], 0
         for scale in range(2):
             sub_cell_of_group, n_sub_cells = first_come_ranks(group_keys[scale])
@@ -849,7 +887,18 @@ class SupportHash:
             ranges[:, 2 * scale] = bound[sub_cell_of_group] + offset
             ranges[:, 2 * scale + 1] = bound[sub_cell_of_group + 1] + offset
             offset += bound[-1]
-        return order, starts, ranges, np.concatenate(lists)
+        return order, starts, ranges, np.concatenate(lists), np.zeros(0, dtype=np.uint64)
+
+    def _shared_blocks(self, points: np.ndarray) -> tuple:
+        """(n, d) points grouped as _shared_lists groups them, each group with the blocks of
+        the pool that list its cells' kernels and the selectors of its sub-cells: (order,
+        starts, ranges (G, 6) int64, pool, masks), as _list_pass reads them. No list is made:
+        a pass that reads each list once sifts the blocks itself."""
+        table = self._arguments()
+        keys = _scale_keys(points, table)
+        starts, order = _sub_cell_groups(keys, len(table[0]))
+        group_keys = np.ascontiguousarray(keys[:, order[starts[:-1]]])
+        return order, starts, _block_ranges(group_keys, table), self._pool, self._masks
 
     def features(
         self, points: np.ndarray, means: np.ndarray, transforms: np.ndarray, planar: np.ndarray
@@ -862,8 +911,8 @@ class SupportHash:
         points = np.ascontiguousarray(points, dtype=np.float64)
         if len(points) == 0:
             return SparseFeatures(np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
-        order, starts, ranges, lists = self._shared_lists(points)
-        kernels = (lists, means, transforms, planar)
+        order, starts, ranges, lists, masks = self._shared_lists(points)
+        kernels = (lists, masks, means, transforms, planar)
         unsummed = ((np.zeros(0), 0.0, np.zeros(0), False), np.zeros(0), np.zeros((0, 2)))
         # Candidates of each point, in the order of the lists, and where each point's
         # candidates would begin in a room for all of them.
@@ -926,7 +975,7 @@ class SupportHash:
             chunk = slice(first, min(len(points), first + CHUNK))
             _list_pass(
                 points[chunk],
-                *self._shared_lists(points[chunk]),
+                *self._shared_blocks(points[chunk]),
                 means,
                 transforms,
                 planar,
