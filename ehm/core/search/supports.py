@@ -17,10 +17,9 @@ scale.
 A cell's block is long where surfaces crowd (146 kernels listed for 11 not zero at a point
 of a TUM sequence's map), so each entry also holds a mask of the sub-cells of its cell that
 the kernel's box overlaps (64 in all): a point evaluates only the kernels whose mask holds its
-own sub-cell (42 of the 146 there). Points whose sub-cells match at both scales form a group
-that sifts its two blocks once (a TUM frame's 139,000 training samples fall into 6,800 such
-groups), and the groups are taken cell by cell, so that the next group finds most of its
-kernels still in cache.
+own sub-cell (42 of the 146 there). Each scale's list of a sub-cell is made once, and points
+whose sub-cells match at both scales share the pair: a TUM frame's 139,000 training samples
+fall into 6,800 such groups.
 
 The table is updated in place, in time proportional to the kernels that change: each cell owns
 a block of a shared pool of kernel rows, sorted, with room to spare; a kernel is removed from
@@ -48,6 +47,7 @@ from ehm.core.model.kernels import (
 )
 from ehm.core.primitives.hashing import (
     EMPTY_KEY,
+    first_come_ranks,
     hash_slot,
     rows_by_rank,
     sorted_distinct,
@@ -337,7 +337,7 @@ def _slot_of(points, i, scale, table):  # pragma: no cover - compiled
 @numba.njit(cache=True, parallel=True)
 def _scale_keys(points, table):  # pragma: no cover - compiled
     """(2, n) int64 >= 0, per scale (0 fine, 1 coarse) the sub-cell of each point, read by
-    _block_ranges: 1 + the table slot of its cell times the sub-cells of a cell + the sub-cell's
+    _block: 1 + the table slot of its cell times the sub-cells of a cell + the sub-cell's
     index, 0 where the point's cell lists no kernel. Points whose keys match share their
     candidate kernels."""
     n = points.shape[0]
@@ -400,31 +400,78 @@ def sub_cell_groups_reference(keys: np.ndarray, n_slots: int) -> tuple[np.ndarra
     return starts, np.argsort(group_of_row, kind="stable")
 
 
+@numba.njit(cache=True, inline="always")
+def _block(key, table):  # pragma: no cover - compiled
+    """(first, last + 1) positions in the pool of the kernels listed in the cell of a
+    sub-cell's key (_scale_keys), empty for key 0, and the sub-cell's selector: 1 + the index
+    of its bit in their masks (_selects). table: SupportHash._arguments()."""
+    starts, counts = table[1], table[2]
+    if key == 0:
+        return 0, 0, 0
+    s = (key - 1) >> SUBCELL_BITS
+    return starts[s], starts[s] + counts[s], 1 + ((key - 1) & ((1 << SUBCELL_BITS) - 1))
+
+
+@numba.njit(cache=True, inline="always")
+def _selects(mask, selector):  # pragma: no cover - compiled
+    """Whether a kernel whose sub-cells are the bits of `mask` reaches the sub-cell of
+    `selector` (_block; 0 selects every kernel)."""
+    if selector == 0:
+        return True
+    return (mask >> np.uint64(selector - 1)) & np.uint64(1) != 0
+
+
+@numba.njit(cache=True, parallel=True)
+def _candidate_counts(keys, table):  # pragma: no cover - compiled
+    """(u,) int64 kernels listed in each of the sub-cells `keys` (u,) int64 (_scale_keys): a
+    bound on the features of that scale of a point in it."""
+    masks = table[4]
+    found = np.zeros(len(keys), dtype=np.int64)
+    for u in numba.prange(len(keys)):
+        first, end, selector = _block(keys[u], table)
+        for j in range(first, end):
+            found[u] += _selects(masks[j], selector)
+    return found
+
+
+@numba.njit(cache=True, parallel=True)
+def _candidates(keys, bound, table):  # pragma: no cover - compiled
+    """(bound[u],) int32 rows, as the pool keeps them, of the kernels listed in each of the
+    sub-cells `keys` (u,) int64, sub-cell u's from bound[u] on (see _candidate_counts).
+    Written without a branch on the masks: each entry is written and kept by moving on or not
+    (past the sub-cell's last one, nothing is written)."""
+    pool, masks = table[3], table[4]
+    rows = np.empty(bound[len(keys)], dtype=np.int32)
+    for u in numba.prange(len(keys)):
+        out = bound[u]
+        first, end, selector = _block(keys[u], table)
+        for j in range(first, end):
+            if out < bound[u + 1]:
+                rows[out] = pool[j]
+            out += _selects(masks[j], selector)
+    return rows
+
+
 @numba.njit(cache=True)
 def _block_ranges(keys, table):  # pragma: no cover - compiled
-    """(u, 6) int64 for the sub-cells (fine, coarse) of each of keys (2, u) int64
-    (_scale_keys): the block of the pool (first, last + 1) that lists the kernels of each's
-    cell, empty for key 0, in columns 0-1 (fine) and 2-3 (coarse), and the index of each's bit
-    in the masks of the block in columns 4 (fine) and 5 (coarse). table:
-    SupportHash._arguments()."""
-    starts, counts = table[1], table[2]
-    ranges = np.zeros((keys.shape[1], 6), dtype=np.int64)
+    """(u, 6) int64 ranges, as _list_pass reads them, of the sub-cells (fine, coarse) of each
+    of keys (2, u) int64 (_scale_keys): the blocks of the pool that list their cells' kernels,
+    with the sub-cells' selectors (_block)."""
+    ranges = np.empty((keys.shape[1], 6), dtype=np.int64)
     for u in range(keys.shape[1]):
         for scale in range(2):
-            key = keys[scale, u]
-            if key != 0:
-                s = (key - 1) >> SUBCELL_BITS
-                ranges[u, 2 * scale] = starts[s]
-                ranges[u, 2 * scale + 1] = starts[s] + counts[s]
-                ranges[u, 4 + scale] = (key - 1) & ((1 << SUBCELL_BITS) - 1)
+            first, end, selector = _block(keys[scale, u], table)
+            ranges[u, 2 * scale] = first
+            ranges[u, 2 * scale + 1] = end
+            ranges[u, 4 + scale] = selector
     return ranges
 
 
-# Parts the groups of points sharing candidates are split into, for the threads to share: each
-# part lays its groups' candidates out in buffers of its own, made once.
+# Parts the groups of points sharing a list are split into, for the threads to share: each
+# part lays its lists out in buffers of its own, made once.
 _LIST_PARTS = 64
-# Points a group must hold for its candidates to be laid out first (_gather_list); fewer
-# project onto them one by one, as most groups a query makes hold only a few points.
+# Points a list must serve to be laid out along itself first (_gather_list); fewer project
+# onto its kernels one by one, as most lists serve only a few points.
 _LAID_OUT_POINTS = 4
 
 
@@ -476,19 +523,22 @@ def _point_codes(
         codes[t] = kernel_code(r2, r_max, planar[m])
 
 
-# What a pass over the points that share candidates does at each point (_list_pass):
+# What a pass over the points that share lists of candidates does at each point (_list_pass):
 # write the rows and codes of the kernels not zero there, or add up the log-odds.
 _GATHER, _SUM = 0, 1
 
 
 @numba.njit(cache=True, inline="always")
-def _sift_block(pool, masks, first, last, bit, kernels, n):  # pragma: no cover - compiled
-    """Append to kernels[:n] the kernels of the block pool[first:last] whose masks have bit
-    `bit` (0 to 63): those that reach the sub-cell; returns the new length. Each is written
-    and kept by moving on or not: no branch."""
+def _take_list(lists, masks, first, last, selector, kernels, n):  # pragma: no cover - compiled
+    """Append lists[first:last] to kernels[:n], all of it where `selector` is 0, else the
+    entries whose masks it selects (a sub-cell's kernels from its cell's block of the pool,
+    _selects); returns the new length."""
+    if selector == 0:
+        kernels[n : n + last - first] = lists[first:last]
+        return n + last - first
     for j in range(first, last):
-        kernels[n] = pool[j]
-        n += (masks[j] >> np.uint64(bit)) & np.uint64(1)
+        kernels[n] = lists[j]
+        n += _selects(masks[j], selector)
     return n
 
 
@@ -498,7 +548,7 @@ def _list_pass(
     order,
     starts,
     ranges,
-    pool,
+    lists,
     masks,
     means,
     transforms,
@@ -513,9 +563,10 @@ def _list_pass(
     variance_sums,
 ):  # pragma: no cover - compiled
     """One pass over the points, where the points order[starts[g]:starts[g + 1]] share the
-    candidate kernels of their sub-cells, ranges[g] (_block_ranges; starts[0] = 0): those of
-    the blocks of the pool whose masks have the sub-cells' bits, fine then coarse, each in
-    the pool's order. At the point i = order[j], `mode` says what to do:
+    candidate kernels of lists[ranges[g, 0]:ranges[g, 1]] (fine) and lists[ranges[g, 2]:
+    ranges[g, 3]] (coarse) (starts[0] = 0): all of them where the selectors ranges[g, 4]
+    (fine) and ranges[g, 5] (coarse) are 0, else those whose masks they select. At the point
+    i = order[j], `mode` says what to do:
     - _GATHER: the rows and codes of the kernels not zero there into rows and codes, from
       slots[j] on (room for all its candidates) in the order of the candidates, and their
       number into counts[j] (j over order);
@@ -533,10 +584,10 @@ def _list_pass(
             longest = max(longest, ranges[g, 1] - ranges[g, 0] + ranges[g, 3] - ranges[g, 2])
         laid_out = np.empty((13, longest))
         scratch = np.empty(longest)
-        kernels = np.empty(longest, dtype=pool.dtype)
+        kernels = np.empty(longest, dtype=lists.dtype)
         for g in range(group_lo, group_hi):
-            n = _sift_block(pool, masks, ranges[g, 0], ranges[g, 1], ranges[g, 4], kernels, 0)
-            n = _sift_block(pool, masks, ranges[g, 2], ranges[g, 3], ranges[g, 5], kernels, n)
+            n = _take_list(lists, masks, ranges[g, 0], ranges[g, 1], ranges[g, 4], kernels, 0)
+            n = _take_list(lists, masks, ranges[g, 2], ranges[g, 3], ranges[g, 5], kernels, n)
             laid = starts[g + 1] - starts[g] >= _LAID_OUT_POINTS
             if laid:
                 _gather_list(0, n, kernels, means, transforms, planar, laid_out)
@@ -571,7 +622,8 @@ def _list_pass(
                             )
 
 
-# Points a query takes at once, which bounds the memory of their keys and groups.
+# Points a query takes at once: where they lie apart, each has a list of candidates of its own
+# (30-45 kernels on a TUM frame's map, 16-24 MB for 65,536 points).
 CHUNK = 65_536
 
 
@@ -581,9 +633,9 @@ _CHUNK_CANDIDATES = 1 << 20
 
 
 def _chunk_bounds(before: np.ndarray, size: int) -> np.ndarray:
-    """(c + 1,) int64 bounds, in groups, of chunks of about `size` candidates (more where one
-    group's points alone have more): before (G + 1,) int64, the candidates of the points of
-    the groups before each group, and of all last."""
+    """(c + 1,) int64 bounds, in lists, of chunks of about `size` candidates (more where one
+    list's points alone have more): before (G + 1,) int64, the candidates of the points of
+    the lists before each list, and of all last."""
     cuts = np.searchsorted(before, np.arange(size, before[-1], size), side="right") - 1
     return np.unique(np.concatenate([[0], cuts, [len(before) - 1]]))
 
@@ -814,11 +866,34 @@ class SupportHash:
             self.bits,
         )
 
+    def _shared_lists(self, points: np.ndarray) -> tuple:
+        """(n, d) points grouped by the sub-cells they lie in at both scales, each group with
+        the two lists (fine, coarse) of candidate kernels its points share: (order, starts,
+        ranges (G, 6) int64, lists, masks), as _list_pass reads them. Each scale's list of a
+        sub-cell is made once, for every group that lies in it."""
+        table = self._arguments()
+        keys = _scale_keys(points, table)
+        starts, order = _sub_cell_groups(keys, len(table[0]))
+        group_keys = keys[:, order[starts[:-1]]]
+        ranges = np.zeros((len(starts) - 1, 6), dtype=np.int64)
+        lists, offset = [], 0
+        for scale in range(2):
+            sub_cell_of_group, n_sub_cells = first_come_ranks(group_keys[scale])
+            sub_cells = np.empty(n_sub_cells, dtype=np.int64)
+            sub_cells[sub_cell_of_group] = group_keys[scale]
+            bound = np.zeros(n_sub_cells + 1, dtype=np.int64)
+            np.cumsum(_candidate_counts(sub_cells, table), out=bound[1:])
+            lists.append(_candidates(sub_cells, bound, table))
+            ranges[:, 2 * scale] = bound[sub_cell_of_group] + offset
+            ranges[:, 2 * scale + 1] = bound[sub_cell_of_group + 1] + offset
+            offset += bound[-1]
+        return order, starts, ranges, np.concatenate(lists), np.zeros(0, dtype=np.uint64)
+
     def _shared_blocks(self, points: np.ndarray) -> tuple:
-        """(n, d) points grouped by the sub-cells they lie in at both scales
-        (_sub_cell_groups), each group with the blocks of the pool that list its cells'
-        kernels and the selectors of its sub-cells: (order, starts, ranges (G, 6) int64, pool,
-        masks), as _list_pass reads them, sifting the blocks as it goes."""
+        """(n, d) points grouped as _shared_lists groups them, each group with the blocks of
+        the pool that list its cells' kernels and the selectors of its sub-cells: (order,
+        starts, ranges (G, 6) int64, pool, masks), as _list_pass reads them. No list is made:
+        a pass that reads each list once sifts the blocks itself."""
         table = self._arguments()
         keys = _scale_keys(points, table)
         starts, order = _sub_cell_groups(keys, len(table[0]))
@@ -830,26 +905,25 @@ class SupportHash:
     ) -> SparseFeatures:
         """Every kernel not zero at each of (n, d) points, metres, as the points' features.
 
-        Each point projects once onto its group's candidates. The points are taken group
-        after group in chunks of about _CHUNK_CANDIDATES candidates (bounded by their
-        blocks), whose kernels not zero are packed chunk by chunk and then laid out in the
-        order of the points."""
+        Each point projects once onto its list's kernels. The points are taken list after
+        list in chunks of about _CHUNK_CANDIDATES candidates, whose kernels not zero are
+        packed chunk by chunk and then laid out in the order of the points."""
         points = np.ascontiguousarray(points, dtype=np.float64)
         if len(points) == 0:
             return SparseFeatures(np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
-        order, starts, ranges, pool, masks = self._shared_blocks(points)
-        kernels = (pool, masks, means, transforms, planar)
+        order, starts, ranges, lists, masks = self._shared_lists(points)
+        kernels = (lists, masks, means, transforms, planar)
         unsummed = ((np.zeros(0), 0.0, np.zeros(0), False), np.zeros(0), np.zeros((0, 2)))
-        # A bound on the candidates of each point, in the order of the groups, and where each
-        # point's candidates would begin in a room for all of them.
-        in_blocks = ranges[:, 1] - ranges[:, 0] + ranges[:, 3] - ranges[:, 2]
-        candidates = np.repeat(in_blocks, np.diff(starts))
+        # Candidates of each point, in the order of the lists, and where each point's
+        # candidates would begin in a room for all of them.
+        listed = ranges[:, 1] - ranges[:, 0] + ranges[:, 3] - ranges[:, 2]
+        candidates = np.repeat(listed, np.diff(starts))
         first_candidate = np.cumsum(candidates) - candidates
-        before_group = np.append(first_candidate, candidates.sum())[starts]
-        chunks = _chunk_bounds(before_group, _CHUNK_CANDIDATES)
-        room = int(np.max(np.diff(before_group[chunks]), initial=0))
+        before_list = np.append(first_candidate, candidates.sum())[starts]
+        chunks = _chunk_bounds(before_list, _CHUNK_CANDIDATES)
+        room = int(np.max(np.diff(before_list[chunks]), initial=0))
         room_rows, room_codes = np.empty(room, dtype=np.int64), np.empty(room)
-        counts = np.empty(len(points), dtype=np.int64)  # in the order of the groups
+        counts = np.empty(len(points), dtype=np.int64)  # in the order of the lists
         packed = []
         for g0, g1 in itertools.pairwise(chunks):
             chunk = slice(starts[g0], starts[g1])

@@ -7,7 +7,7 @@ from ehm.config import MapConfig
 from ehm.core.model.kernels import OUTSIDE, kernels_of_codes
 from ehm.core.search.supports import (
     SupportHash,
-    _block_ranges,
+    _candidate_counts,
     _scale_keys,
     _sub_cell_groups,
     _sub_cell_mask,
@@ -198,21 +198,15 @@ def test_points_on_sub_cell_boundaries_find_every_kernel(rng, random_clusters):
 
 
 def test_sub_cell_masks_leave_out_most_kernels_of_a_cell(rng, random_clusters):
-    """The kernels of a point's cells whose masks have its sub-cells' bits hold every kernel
-    not zero there, and fewer than half of its cells' kernels."""
     clusters = random_clusters(rng, n=2000)
     table = _listed(clusters)
     points = rng.uniform(0, 6, (3000, 3))
     arguments = table._arguments()
-    ranges = _block_ranges(_scale_keys(points, arguments), arguments)
-    masks = arguments[4]
-    listed = np.zeros(len(points), dtype=np.int64)
-    in_cells = np.zeros(len(points), dtype=np.int64)
-    for scale in range(2):
-        for i, (first, last, bit) in enumerate(ranges[:, [2 * scale, 2 * scale + 1, 4 + scale]]):
-            has_bit = (masks[first:last] >> np.uint64(bit)) & np.uint64(1)
-            listed[i] += int(has_bit.sum())
-            in_cells[i] += last - first
+    keys = _scale_keys(points, arguments)
+    listed = sum(_candidate_counts(keys[scale], arguments) for scale in (0, 1))
+    every_sub_cell = np.full_like(arguments[4], ~np.uint64(0))
+    unmasked = (*arguments[:4], every_sub_cell, *arguments[5:])
+    in_cells = sum(_candidate_counts(keys[scale], unmasked) for scale in (0, 1))
     nonzero = np.diff(
         support_features_reference(
             points, clusters.means, clusters.transforms, clusters.planar_kernel
