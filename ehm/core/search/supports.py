@@ -17,9 +17,11 @@ scale.
 A cell's block is long where surfaces crowd (146 kernels listed for 11 not zero at a point
 of a TUM sequence's map), so each entry also holds a mask of the sub-cells of its cell that
 the kernel's box overlaps (64 in all): a point evaluates only the kernels whose mask holds its
-own sub-cell (42 of the 146 there). Each scale's list of a sub-cell is made once, and points
-whose sub-cells match at both scales share the pair: a TUM frame's 139,000 training samples
-fall into 6,800 such groups.
+own sub-cell (42 of the 146 there). Points whose sub-cells match at both scales form a group
+(a TUM frame's 139,000 training samples fall into 6,800 such groups), and the groups are
+taken cell by cell, so that the next group finds most of its kernels still in cache. Learning
+lists each scale's candidates of a sub-cell once, for every group in it; a query, which reads
+a point's candidates once, sifts its cells' blocks as it goes.
 
 The table is updated in place, in time proportional to the kernels that change: each cell owns
 a block of a shared pool of kernel rows, sorted, with room to spare; a kernel is removed from
@@ -622,8 +624,7 @@ def _list_pass(
                             )
 
 
-# Points a query takes at once: where they lie apart, each has a list of candidates of its own
-# (30-45 kernels on a TUM frame's map, 16-24 MB for 65,536 points).
+# Points a query takes at once, which bounds the memory of their keys and groups.
 CHUNK = 65_536
 
 
