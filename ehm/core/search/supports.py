@@ -867,15 +867,21 @@ class SupportHash:
             self.bits,
         )
 
-    def _shared_lists(self, points: np.ndarray) -> tuple:
-        """(n, d) points grouped by the sub-cells they lie in at both scales, each group with
-        the two lists (fine, coarse) of candidate kernels its points share: (order, starts,
-        ranges (G, 6) int64, lists, masks), as _list_pass reads them. Each scale's list of a
-        sub-cell is made once, for every group that lies in it."""
+    def _groups(self, points: np.ndarray) -> tuple:
+        """(n, d) points grouped by the sub-cells they lie in at both scales
+        (_sub_cell_groups): (table, as _arguments gives it; order; starts; the keys (2, G)
+        int64 of each group's sub-cells)."""
         table = self._arguments()
         keys = _scale_keys(points, table)
         starts, order = _sub_cell_groups(keys, len(table[0]))
-        group_keys = keys[:, order[starts[:-1]]]
+        return table, order, starts, np.ascontiguousarray(keys[:, order[starts[:-1]]])
+
+    def _shared_lists(self, points: np.ndarray) -> tuple:
+        """(n, d) points grouped by their sub-cells (_groups), each group with the two lists
+        (fine, coarse) of candidate kernels its points share: (order, starts, ranges (G, 6)
+        int64, lists, masks), as _list_pass reads them. Each scale's list of a sub-cell is
+        made once, for every group that lies in it."""
+        table, order, starts, group_keys = self._groups(points)
         ranges = np.zeros((len(starts) - 1, 6), dtype=np.int64)
         lists, offset = [], 0
         for scale in range(2):
@@ -891,14 +897,11 @@ class SupportHash:
         return order, starts, ranges, np.concatenate(lists), np.zeros(0, dtype=np.uint64)
 
     def _shared_blocks(self, points: np.ndarray) -> tuple:
-        """(n, d) points grouped as _shared_lists groups them, each group with the blocks of
+        """(n, d) points grouped by their sub-cells (_groups), each group with the blocks of
         the pool that list its cells' kernels and the selectors of its sub-cells: (order,
         starts, ranges (G, 6) int64, pool, masks), as _list_pass reads them. No list is made:
         a pass that reads each list once sifts the blocks itself."""
-        table = self._arguments()
-        keys = _scale_keys(points, table)
-        starts, order = _sub_cell_groups(keys, len(table[0]))
-        group_keys = np.ascontiguousarray(keys[:, order[starts[:-1]]])
+        table, order, starts, group_keys = self._groups(points)
         return order, starts, _block_ranges(group_keys, table), self._pool, self._masks
 
     def features(
