@@ -8,8 +8,8 @@ the default's; OctoMap with every scan's hits inserted). Then `points` points ar
 ways: around the hits (a hit picked at random plus Gaussian noise of 0.2 m per axis: where planners
 ask most) and uniformly in the box of the hits. EHM answers with `occupancy` (default query mode),
 OctoMap with `getLabels` (one C++ call for all points; 2D maps in the plane z = 0). Times are the
-median of `repeats` calls, JIT warm, the slowest call beside it; each call of EHM is followed by
-one of OctoMap, so that both meet the machine in the same moments.
+median of `repeats` calls, JIT warm, the slowest call beside it; OctoMap's calls and each EHM
+map's take turns, so that all meet the machine in the same moments.
 """
 
 from __future__ import annotations
