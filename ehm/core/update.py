@@ -17,7 +17,7 @@ from ehm.core.clustering.footprints import fine_levels
 from ehm.core.clustering.grouping import SampleGroups, group_samples
 from ehm.core.clustering.merging import absorb_clusters
 from ehm.core.learned_model import LearnedModel
-from ehm.core.model.features import PointGroups
+from ehm.core.model.features import PointGroups, group_by_key
 from ehm.core.observations.memory import Visit
 from ehm.core.observations.passes import PASS_REACH_CELLS, hit_again, occupied_passes
 from ehm.core.observations.samples import ScanRays, TrainingSamples
@@ -137,10 +137,11 @@ def training_groups(
     shuffle: np.ndarray,
 ) -> PointGroups:
     """The groups of the shuffled training samples that share one search: the quick-means
-    groups of the `n_new` new samples, and the replayed samples grouped alike."""
+    groups of the `n_new` new samples, and the replayed samples region by region of the
+    memory they come from, which spans about what a quick-means group does."""
     new_groups = PointGroups(grouped.groups.group_of_point[:n_new], grouped.groups.centres)
-    # Replayed samples share searches in quick-means groups, as the new ones do.
-    groups = new_groups + group_samples(replayed, model.config, model.rng).groups
+    regions = model.memory.region_keys(replayed)
+    groups = new_groups + group_by_key(replayed.points, regions)
     return PointGroups(groups.group_of_point[shuffle], groups.centres)
 
 

@@ -80,10 +80,16 @@ def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
     """Group (n, d) points, metres, by the cubic cell of side `cell` they fall in (Alg. 3
     line 1), the groups in the order their cells first come; each group's centre is the mean
     of its points."""
+    return group_by_key(points, cell_keys(points, cell).keys)
+
+
+def group_by_key(points: np.ndarray, keys: np.ndarray) -> PointGroups:
+    """Group (n, d) points, metres, by their `keys` (n,) int64, the groups in the order their
+    keys first come; each group's centre is the mean of its points."""
     n, d = points.shape
     if n == 0:
         return PointGroups(np.zeros(0, dtype=np.int64), np.zeros((0, d)))
-    group_of_point, _ = first_come_ranks(cell_keys(points, cell).keys)
+    group_of_point, _ = first_come_ranks(keys)
     sizes = np.bincount(group_of_point)
     sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)
     return PointGroups(group_of_point, sums / sizes[:, None])

@@ -467,6 +467,12 @@ class EvidenceMemory:
         regions = np.repeat(self.regions, self.region_sizes)
         return (regions << REGION_BITS) | self.cells
 
+    def region_keys(self, samples: TrainingSamples) -> np.ndarray:
+        """(n,) int64: the region of this memory's cells that each of `samples` falls in, and
+        its kind; a region is a cluster radius wide around hits, a free cluster radius along
+        rays."""
+        return memory_keys(samples.points, kinds_of(samples), self.sides) >> SUB_BITS
+
     def _keep_keys(self, keys: np.ndarray) -> None:
         """Keep sorted `keys` (n,) int64, one per entry, region by region."""
         self.regions, self.region_sizes, self.cells = region_layout(keys)

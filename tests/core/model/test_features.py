@@ -13,6 +13,7 @@ from ehm.core.model.features import (
     decision_values_reference,
     features_of_codes_reference,
     group_by_cell,
+    group_by_key,
     kernel_values,
     kernel_values_reference,
     training_features,
@@ -119,6 +120,13 @@ def test_group_by_cell_groups_points_sharing_a_cell():
     assert groups.spread(points) == pytest.approx(np.hypot(0.04, 0.005))
     assert PointGroups.singletons(points).spread(points) == 0.0
     assert group_by_cell(np.zeros((0, 2)), 0.1).centres.shape == (0, 2)
+
+
+def test_group_by_key_groups_points_of_one_key_in_the_order_keys_come():
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 2.0], [3.0, 0.0]])
+    groups = group_by_key(points, np.array([7, 3, 7, 3]))
+    np.testing.assert_array_equal(groups.group_of_point, [0, 1, 0, 1])
+    np.testing.assert_allclose(groups.centres, [[1.0, 1.0], [2.0, 0.0]])
 
 
 @pytest.mark.parametrize("dim", [2, 3])

@@ -31,7 +31,7 @@ from ehm.core.observations.memory_keys import (
 )
 from ehm.core.observations.samples import TrainingSamples
 
-# Fine cells of 0.25 m (regions of 1 m around hits), coarse ones of 2.5 m (regions of 5 m).
+# Fine cells of 0.25 m (regions of 1 m around hits), coarse ones of 2.5 m (regions of 7.5 m).
 SIDES = (0.25, 2.5)
 
 
@@ -160,6 +160,18 @@ def test_replay_comes_from_the_regions_the_batch_reaches_alone():
     replayed = memory.replay(1.0, memory.visit(samples_at([[0.9, 0.9]])))
     np.testing.assert_allclose(replayed.points, [[0.5, 0.5]], atol=1e-6)
     assert len(memory.replay(1.0, memory.visit(samples_at([[20.0, 20.0]])))) == 0
+
+
+def test_region_keys_tell_apart_regions_and_kinds_alone():
+    memory = EvidenceMemory(2, True, SIDES)
+    around_hits = samples_at([[0.1, 0.1], [0.9, 0.9], [1.1, 0.1]])
+    occupied = samples_at([[0.1, 0.1]], OCCUPIED)
+    along_rays = samples_at([[0.1, 0.1], [7.4, 7.4], [7.6, 0.1]], FREE_ALONG_RAY)
+    keys = memory.region_keys(around_hits + occupied + along_rays)
+    # Regions are 1 m wide around hits and 7.5 m along rays, one for each kind.
+    assert keys[0] == keys[1] != keys[2]
+    assert keys[3] != keys[0] and keys[3] not in keys[4:]
+    assert keys[4] == keys[5] != keys[6] and keys[4] not in keys[:4]
 
 
 def test_evidence_waits_for_a_cluster_until_marked():
