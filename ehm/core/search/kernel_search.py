@@ -22,6 +22,7 @@ from ehm.core.model.features import (
     group_by_cell,
     training_features,
 )
+from ehm.core.primitives.hashing import rows_by_rank
 from ehm.core.search.anchors import AnchorLayers
 from ehm.core.search.index import ClusterIndex
 from ehm.core.search.supports import SupportHash
@@ -271,14 +272,24 @@ class NearestSearch(KernelSearch):
         cell: float,
     ) -> KernelSums:
         groups = query_groups(points, mode, cell)
-        return self._read(
-            points,
-            groups.group_of_point,
-            self._group_neighbours(points, groups),
+        neighbours = self._group_neighbours(points, groups)
+        # Read group by group, the groups in the order of their cells (group_by_cell):
+        # neighbouring groups find their clusters still in cache.
+        _, order = rows_by_rank(groups.group_of_point, len(groups.centres))
+        read = self._read(
+            points[order],
+            groups.group_of_point[order],
+            neighbours,
             clusters,
             intercept,
             with_variance,
         )
+        scores = np.empty_like(read.scores)
+        scores[order] = read.scores
+        variance_sums = np.empty_like(read.variance_sums)
+        if with_variance:
+            variance_sums[order] = read.variance_sums
+        return KernelSums(scores, variance_sums)
 
     @staticmethod
     def _read(

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from ehm.config import MapConfig
+from ehm.core.model.features import decision_values_reference
 from ehm.core.search.anchors import AnchorLayers
 from ehm.core.search.kernel_search import (
     NearestSearch,
@@ -84,6 +85,30 @@ def test_both_searches_sum_the_same_log_odds_and_variance(random_clusters, rng, 
         plain = search.sums(points, clusters, 0.3, False, mode, 0.5)
         np.testing.assert_array_equal(plain.scores, found.scores)
         assert plain.variance_sums.shape == (0, 2)
+
+
+def test_nearest_sums_in_batch_mode_read_each_groups_neighbours(random_clusters, rng):
+    clusters = random_clusters(rng)
+    clusters.weights[:] = rng.normal(size=len(clusters))
+    clusters.precision[:] = rng.uniform(1.0, 5.0, len(clusters))
+    points = rng.uniform(-0.5, 6.5, (3000, 3))
+    _, nearest = _searches(clusters)  # truncated: groups differ in what they read
+    groups = query_groups(points, "batch", 0.5)
+    want = decision_values_reference(
+        points,
+        groups.group_of_point,
+        nearest._group_neighbours(points, groups),
+        clusters.means,
+        clusters.transforms,
+        clusters.planar_kernel,
+        clusters.weights,
+        0.3,
+        1.0 / clusters.precision,
+        True,
+    )
+    found = nearest.sums(points, clusters, 0.3, True, "batch", 0.5)
+    np.testing.assert_allclose(found.scores, want[0], atol=1e-12)
+    np.testing.assert_allclose(found.variance_sums, want[1], atol=1e-12)
 
 
 def test_reading_near_places_reads_each_point_as_alone(random_clusters, rng):
