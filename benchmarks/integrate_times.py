@@ -11,7 +11,9 @@ each scan after the first is timed once (the sequence `repeats` times over, in f
 the sample scan, alone, is learned `repeats` times into a fresh map. Kernels are compiled
 before any timing. Prints one markdown table of milliseconds: the median integrate with its
 stages, and the worst one (a scan late in a sequence, or a slow moment of the machine);
-OctoMap's insertPointCloud of the same scans is given by its median too.
+OctoMap's insertPointCloud of the same scans is given by its median too. Each integrate is
+timed again on one thread (ONE_THREAD_REPEATS times over): its median against the median on
+all of Numba's threads is the speed-up the machine's cores give.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 from common import add_settings_argument, heading, markdown_table, settings_of, settings_text
 from results_file import run_recorded
 
@@ -47,6 +50,8 @@ class Case:
 
 
 PROFILES = ("default", "realtime")
+# Repeats of each integrate on one thread, for the speed-up the machine's threads give.
+ONE_THREAD_REPEATS = 3
 CASES = (
     Case(
         "octomap_scan",
@@ -81,6 +86,17 @@ def ehm_times(scans: list[ehm.Scan], config: ehm.MapConfig, repeats: int) -> lis
             hilbert_map.integrate_scan(scan)
             runs.append({"total": time.perf_counter() - start, **hilbert_map.timings_})
     return runs
+
+
+def one_thread_times(scans: list[ehm.Scan], config: ehm.MapConfig) -> list[dict[str, float]]:
+    """ehm_times with every parallel loop, thread pool and tree search on one thread, three
+    repeats (the threads are set back after)."""
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        return ehm_times(scans, config, ONE_THREAD_REPEATS)
+    finally:
+        numba.set_num_threads(threads)
 
 
 def octomap_times(scans: list[ehm.Scan], resolution: float, repeats: int) -> list[float]:
@@ -118,6 +134,7 @@ def main() -> None:
             ehm.HilbertMap(config).integrate_scan(scans[0]).integrate_scan(scans[-1]).flush()
             runs = sorted(ehm_times(scans, config, args.repeats), key=lambda run: run["total"])
             median = {key: 1e3 * value for key, value in runs[(len(runs) - 1) // 2].items()}
+            one = 1e3 * statistics.median(run["total"] for run in one_thread_times(scans, config))
             rest = median["total"] - sum(median.get(stage, 0.0) for stage in STAGES)
             target = case.target_ms.get(profile)
             rows.append(
@@ -130,6 +147,8 @@ def main() -> None:
                     "" if target is None else f"{target:.0f}",
                     f"{octomap:.0f}",
                     f"{median['total'] / octomap:.2f}",
+                    f"{one:.0f}",
+                    f"{one / median['total']:.2f}x",
                     *(f"{median.get(stage, 0.0):.0f}" for stage in STAGES),
                     f"{rest:.0f}",
                 ]
@@ -143,6 +162,8 @@ def main() -> None:
         "target ms",
         "OctoMap ms",
         "/ OctoMap",
+        "one thread ms",
+        f"{numba.get_num_threads()} threads' speed-up",
     ]
     detail = f"median of {args.repeats} repeats and its stages, the worst{settings_text(settings)}"
     print(heading("Integrate times", detail))

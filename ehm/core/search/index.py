@@ -252,7 +252,7 @@ class ClusterIndex:
             candidates = tree.nearest(points, wanted, bound)
         else:
             kk = min(wanted, len(rows))
-            workers = -1 if n >= PARALLEL_SEARCH_POINTS else 1
+            workers = numba.get_num_threads() if n >= PARALLEL_SEARCH_POINTS else 1
             _, idx = tree.query(points, k=kk, workers=workers, distance_upper_bound=bound)
             idx = np.asarray(idx).reshape(n, kk)
             if self._ranking is None:  # the tree's rows straight into `found`
