@@ -22,7 +22,7 @@ from ehm.core.model.kernels import (
     projected_radii,
     sparse_kernel_reference,
 )
-from ehm.core.primitives.cells import cell_keys
+from ehm.core.primitives.cells import cell_keys, z_order_keys
 from ehm.core.primitives.radix import radix_order
 
 
@@ -78,9 +78,11 @@ def _squared_offsets(points, group_of_point, centres):  # pragma: no cover - com
 
 def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
     """Group (n, d) points, metres, by the cubic cell of side `cell` they fall in (Alg. 3
-    line 1), the groups in the order of their cells (row by row along the first axis); each
-    group's centre is the mean of its points."""
-    return group_by_key(points, cell_keys(points, cell).keys)
+    line 1), the groups in the Z-order of their cells (z_order_keys); each group's centre is
+    the mean of its points."""
+    if len(points) == 0:
+        return PointGroups(np.zeros(0, dtype=np.int64), np.zeros((0, points.shape[1])))
+    return group_by_key(points, z_order_keys(cell_keys(points, cell)))
 
 
 def group_by_key(points: np.ndarray, keys: np.ndarray) -> PointGroups:
@@ -98,7 +100,7 @@ def group_by_key(points: np.ndarray, keys: np.ndarray) -> PointGroups:
 @numba.njit(cache=True, nogil=True)
 def _key_ranks(keys):  # pragma: no cover - compiled
     """(n,) int64 rank of each of `keys` (n,) int64 >= 0 among the distinct keys, in
-    increasing order."""
+    increasing order, by a radix sort: np.unique(keys, return_inverse=True)[1]."""
     order = radix_order(keys)
     ranks = np.empty(len(keys), dtype=np.int64)
     rank = -1

@@ -37,6 +37,59 @@ def cell_keys(points: np.ndarray, cell: float) -> CellKeys:
     return CellKeys(low, cells, extents, strides, keys)
 
 
+def z_order_keys(keyed: CellKeys) -> np.ndarray:
+    """(n,) int64 keys of the cells of `keyed`, one per cell, whose order is the Z-order
+    (Morton) of the cells: cells that follow one another in it lie side by side, as they do
+    not in the linear keys' order, whose rows run from one end of the set to the other. The
+    linear keys where an axis spans more than 63 // d bits of cells."""
+    d = keyed.cells.shape[1]
+    if d not in (2, 3) or np.any(keyed.extents > 1 << (63 // d)):
+        return keyed.keys
+    return _z_order(keyed.cells)
+
+
+@numba.njit(cache=True, inline="always")
+def _spread_bits(x, d):  # pragma: no cover - compiled
+    """The bits of x >= 0 (21 of them in 3D, 31 in 2D) spread d - 1 zero bits apart."""
+    if d == 3:
+        x &= 0x1FFFFF
+        x = (x | (x << 32)) & 0x1F00000000FFFF
+        x = (x | (x << 16)) & 0x1F0000FF0000FF
+        x = (x | (x << 8)) & 0x100F00F00F00F00F
+        x = (x | (x << 4)) & 0x10C30C30C30C30C3
+        return (x | (x << 2)) & 0x1249249249249249
+    x &= 0x7FFFFFFF
+    x = (x | (x << 16)) & 0x0000FFFF0000FFFF
+    x = (x | (x << 8)) & 0x00FF00FF00FF00FF
+    x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0F
+    x = (x | (x << 2)) & 0x3333333333333333
+    return (x | (x << 1)) & 0x5555555555555555
+
+
+@numba.njit(cache=True, nogil=True)
+def _z_order(cells):  # pragma: no cover - compiled
+    """z_order_keys of (n, d) cells, d 2 or 3, each axis within its bits: bit b of every
+    axis side by side, the first axis's highest."""
+    n, d = cells.shape
+    keys = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        key = np.int64(0)
+        for a in range(d):
+            key |= _spread_bits(cells[i, a], d) << (d - 1 - a)
+        keys[i] = key
+    return keys
+
+
+def z_order_keys_reference(cells: np.ndarray) -> np.ndarray:
+    """Plain NumPy twin of `_z_order`: bit b of axis a at bit d b + d - 1 - a."""
+    n, d = cells.shape
+    keys = np.zeros(n, dtype=np.int64)
+    for b in range(63 // d):
+        for a in range(d):
+            keys |= ((cells[:, a] >> b) & 1) << (d * b + d - 1 - a)
+    return keys
+
+
 @numba.njit(cache=True, nogil=True)
 def _bounds(points):  # pragma: no cover - compiled
     """(d,) lowest and (d,) highest coordinate of (n >= 1, d) points along each axis."""

@@ -273,7 +273,7 @@ class NearestSearch(KernelSearch):
     ) -> KernelSums:
         groups = query_groups(points, mode, cell)
         neighbours = self._group_neighbours(points, groups)
-        # Read group by group, the groups in the order of their cells (group_by_cell):
+        # Read group by group, the groups in the Z-order of their cells (group_by_cell):
         # neighbouring groups find their clusters still in cache.
         _, order = rows_by_rank(groups.group_of_point, len(groups.centres))
         read = self._read(

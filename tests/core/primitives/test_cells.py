@@ -9,6 +9,8 @@ from ehm.core.primitives.cells import (
     in_neighbour_cells_reference,
     packed_cell_keys,
     packed_cell_keys_reference,
+    z_order_keys,
+    z_order_keys_reference,
 )
 from ehm.errors import InputError
 
@@ -24,6 +26,29 @@ def test_points_in_one_cell_share_a_key_and_keys_differ_between_cells(rng):
     assert len(np.unique(keys.keys)) == len(distinct_cells)
     np.testing.assert_array_equal(keys.keys, keys.cells @ keys.strides)
     assert keys.strides.tolist() == [1, keys.extents[0], keys.extents[0] * keys.extents[1]]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_z_order_keys_agree_with_their_numpy_twin_and_key_each_cell_once(rng, dim):
+    points = rng.uniform(-40.0, 40.0, (5000, dim))
+    keyed = cell_keys(points, 0.5)
+    keys = z_order_keys(keyed)
+    np.testing.assert_array_equal(keys, z_order_keys_reference(keyed.cells))
+    # One key per cell, as the linear keys: the same cells, in another order.
+    n_cells = len(np.unique(keyed.keys))
+    assert len(np.unique(keys)) == n_cells
+    assert len(np.unique(np.column_stack([keyed.keys, keys]), axis=0)) == n_cells
+    # In Z-order the cells of a block of two along each axis come before the cells beyond it,
+    # the last axis the fastest.
+    block = np.array([[0, 0], [0, 1], [1, 0], [1, 1]] if dim == 2 else [[0, 0, 1], [0, 1, 0]])
+    beyond = np.full((1, dim), 2)
+    assert np.all(np.diff(z_order_keys_reference(np.vstack([block, beyond]))) > 0)
+
+
+def test_z_order_keys_fall_back_to_linear_keys_beyond_their_bits():
+    points = np.array([[0.0, 0.0, 0.0], [3e6, 0.0, 0.0]])  # 3e6 cells of 1 m along x
+    keyed = cell_keys(points, 1.0)
+    np.testing.assert_array_equal(z_order_keys(keyed), keyed.keys)
 
 
 def test_keys_that_would_overflow_are_refused():
