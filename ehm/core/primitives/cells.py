@@ -48,22 +48,19 @@ def z_order_keys(keyed: CellKeys) -> np.ndarray:
     return _z_order(keyed.cells)
 
 
-@numba.njit(cache=True, inline="always")
-def _spread_bits(x, d):  # pragma: no cover - compiled
-    """The bits of x >= 0 (21 of them in 3D, 31 in 2D) spread d - 1 zero bits apart."""
-    if d == 3:
-        x &= 0x1FFFFF
-        x = (x | (x << 32)) & 0x1F00000000FFFF
-        x = (x | (x << 16)) & 0x1F0000FF0000FF
-        x = (x | (x << 8)) & 0x100F00F00F00F00F
-        x = (x | (x << 4)) & 0x10C30C30C30C30C3
-        return (x | (x << 2)) & 0x1249249249249249
-    x &= 0x7FFFFFFF
-    x = (x | (x << 16)) & 0x0000FFFF0000FFFF
-    x = (x | (x << 8)) & 0x00FF00FF00FF00FF
-    x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0F
-    x = (x | (x << 2)) & 0x3333333333333333
-    return (x | (x << 1)) & 0x5555555555555555
+# The bits of an axis spread d - 1 zero bits apart in five steps, x = (x | x << shift) & mask,
+# from its low 31 bits in 2D (row 0) and 21 in 3D (row 1).
+_SPREAD_LOW = np.array([0x7FFFFFFF, 0x1FFFFF], dtype=np.int64)
+_SPREAD_SHIFTS = np.array([[16, 8, 4, 2, 1], [32, 16, 8, 4, 2]], dtype=np.int64)
+_SPREAD_MASKS = np.array(
+    [
+        [0x0000FFFF0000FFFF, 0x00FF00FF00FF00FF, 0x0F0F0F0F0F0F0F0F, 0x3333333333333333,
+         0x5555555555555555],
+        [0x1F00000000FFFF, 0x1F0000FF0000FF, 0x100F00F00F00F00F, 0x10C30C30C30C30C3,
+         0x1249249249249249],
+    ],
+    dtype=np.int64,
+)  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)
@@ -71,12 +68,14 @@ def _z_order(cells):  # pragma: no cover - compiled
     """z_order_keys of (n, d) cells, d 2 or 3, each axis within its bits: bit b of every
     axis side by side, the first axis's highest."""
     n, d = cells.shape
+    row = d - 2
     keys = np.zeros(n, dtype=np.int64)
     for i in range(n):
-        key = np.int64(0)
         for a in range(d):
-            key |= _spread_bits(cells[i, a], d) << (d - 1 - a)
-        keys[i] = key
+            x = cells[i, a] & _SPREAD_LOW[row]
+            for step in range(_SPREAD_SHIFTS.shape[1]):
+                x = (x | (x << _SPREAD_SHIFTS[row, step])) & _SPREAD_MASKS[row, step]
+            keys[i] |= x << (d - 1 - a)
     return keys
 
 
