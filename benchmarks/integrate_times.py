@@ -89,8 +89,8 @@ def ehm_times(scans: list[ehm.Scan], config: ehm.MapConfig, repeats: int) -> lis
 
 
 def one_thread_times(scans: list[ehm.Scan], config: ehm.MapConfig) -> list[dict[str, float]]:
-    """ehm_times with every parallel loop, thread pool and tree search on one thread, three
-    repeats (the threads are set back after)."""
+    """ehm_times with every parallel loop, thread pool and tree search on one thread,
+    ONE_THREAD_REPEATS repeats (the threads are set back after)."""
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
     try:

@@ -17,7 +17,7 @@ from ehm.core.clustering.footprints import fine_levels
 from ehm.core.clustering.grouping import SampleGroups, group_samples
 from ehm.core.clustering.merging import absorb_clusters
 from ehm.core.learned_model import LearnedModel
-from ehm.core.model.features import PointGroups, group_by_key
+from ehm.core.model.features import PointGroups, group_points_by_key
 from ehm.core.observations.memory import Visit
 from ehm.core.observations.passes import PASS_REACH_CELLS, hit_again, occupied_passes
 from ehm.core.observations.samples import ScanRays, TrainingSamples
@@ -141,7 +141,7 @@ def training_groups(
     memory they come from, which spans about what a quick-means group does."""
     new_groups = PointGroups(grouped.groups.group_of_point[:n_new], grouped.groups.centres)
     regions = model.memory.region_keys(replayed)
-    groups = new_groups + group_by_key(replayed.points, regions)
+    groups = new_groups + group_points_by_key(replayed.points, regions)
     return PointGroups(groups.group_of_point[shuffle], groups.centres)
 
 

@@ -23,7 +23,7 @@ from ehm.core.model.kernels import (
     sparse_kernel_reference,
 )
 from ehm.core.primitives.cells import cell_keys, z_order_keys
-from ehm.core.primitives.radix import radix_order
+from ehm.core.primitives.radix import radix_ranks
 
 
 @dataclass(frozen=True)
@@ -82,33 +82,19 @@ def group_by_cell(points: np.ndarray, cell: float) -> PointGroups:
     the mean of its points."""
     if len(points) == 0:
         return PointGroups(np.zeros(0, dtype=np.int64), np.zeros((0, points.shape[1])))
-    return group_by_key(points, z_order_keys(cell_keys(points, cell)))
+    return group_points_by_key(points, z_order_keys(cell_keys(points, cell)))
 
 
-def group_by_key(points: np.ndarray, keys: np.ndarray) -> PointGroups:
+def group_points_by_key(points: np.ndarray, keys: np.ndarray) -> PointGroups:
     """Group (n, d) points, metres, by their `keys` (n,) int64 >= 0, the groups in the order
     of their keys; each group's centre is the mean of its points."""
     n, d = points.shape
     if n == 0:
         return PointGroups(np.zeros(0, dtype=np.int64), np.zeros((0, d)))
-    group_of_point = _key_ranks(keys)
+    group_of_point = radix_ranks(keys)
     sizes = np.bincount(group_of_point)
     sums = np.stack([np.bincount(group_of_point, points[:, a], len(sizes)) for a in range(d)], 1)
     return PointGroups(group_of_point, sums / sizes[:, None])
-
-
-@numba.njit(cache=True, nogil=True)
-def _key_ranks(keys):  # pragma: no cover - compiled
-    """(n,) int64 rank of each of `keys` (n,) int64 >= 0 among the distinct keys, in
-    increasing order, by a radix sort: np.unique(keys, return_inverse=True)[1]."""
-    order = radix_order(keys)
-    ranks = np.empty(len(keys), dtype=np.int64)
-    rank = -1
-    for j in range(len(order)):
-        if j == 0 or keys[order[j]] != keys[order[j - 1]]:
-            rank += 1
-        ranks[order[j]] = rank
-    return ranks
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
-"""Stable orders of non-negative integer keys by least-significant-digit radix sort: a pass
-over the rows per RADIX_BITS bits of the largest key at most, no comparisons, so that grouping
-rows by keys that are dense small integers (table slots, cell numbers) costs time linear in
-the rows."""
+"""Stable orders, and ranks, of non-negative integer keys by least-significant-digit radix
+sort: a pass over the rows per RADIX_BITS bits of the largest key at most, no comparisons, so
+that grouping rows by keys that are dense small integers (table slots, cell numbers) costs time
+linear in the rows."""
 
 from __future__ import annotations
 
@@ -46,3 +46,18 @@ def radix_order(keys):  # pragma: no cover - compiled
         order, next_order = next_order, order
         sorted_keys, next_keys = next_keys, sorted_keys
     return order
+
+
+@numba.njit(cache=True, nogil=True)
+def radix_ranks(keys):  # pragma: no cover - compiled
+    """(n,) int64 rank of each of `keys` (n,) int64 >= 0 among the distinct keys, in
+    increasing order: np.unique(keys, return_inverse=True)[1], by radix_order (about twice as
+    fast as a sort and a table of the distinct keys, ehm.core.primitives.hashing)."""
+    order = radix_order(keys)
+    ranks = np.empty(len(keys), dtype=np.int64)
+    rank = -1
+    for j in range(len(order)):
+        if j == 0 or keys[order[j]] != keys[order[j - 1]]:
+            rank += 1
+        ranks[order[j]] = rank
+    return ranks
